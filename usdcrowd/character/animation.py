@@ -1,0 +1,329 @@
+"""Procedural animation classes, transitions and look-at (seed 003).
+
+The renderer picks an animation class from each character's velocity and
+heading (run, walk, stride left, stride right, plus idle), plays a cyclic
+pose of the three joints, smooths class changes with temporary key frames,
+and lets the head and torso turn toward a point of interest.
+
+Everything is vectorised over ``(t, n)`` (frames, agents); only recurrences
+(blending, look-at smoothing) loop over frames. Poses are LOCAL joint
+rotations (w, x, y, z) and translations in the canonical 1.75 m skeleton
+space (facing +X, Z up, Y to the left); the agent's position, heading and
+height belong to the SkelRoot transform.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..model import ANIM_CLASSES, CrowdFrames
+from .rig import (EYE_HEIGHT, HEAD_TOP, PELVIS_HEIGHT, REST_TRANSLATIONS, quat_angle,
+                  quat_conjugate, quat_from_axis_angle, quat_multiply, quat_rotate,
+                  quat_slerp, quat_to_matrix)
+
+IDLE, WALK, RUN, STRIDE_LEFT, STRIDE_RIGHT = range(len(ANIM_CLASSES))
+
+# Below this speed feet stop cycling: sim jitter around a standstill would
+# otherwise flicker between walk and idle.
+IDLE_SPEED = 0.15  # m/s
+# Walk-to-run transition of adult humans is around 2 m/s; a little above so
+# that brisk walkers keep walking.
+RUN_SPEED = 2.4  # m/s
+# Frames over which a class change is blended (0.25 s at 24 fps).
+BLEND_FRAMES = 6
+# Head turning speed when a look-at target appears, changes or goes away.
+LOOK_TURN_RATE = np.radians(240.0)  # rad/s
+# Look-at split and limits, relative to the body (the SkelRoot's heading).
+TORSO_SHARE = 0.4
+TORSO_YAW_LIMIT = np.radians(35.0)
+HEAD_YAW_LIMIT = np.radians(70.0)  # head yaw in the body frame, torso included
+HEAD_PITCH_LIMIT = np.radians(40.0)
+
+# Per-class cycle parameters, indexed by class code (idle, walk, run,
+# strideLeft, strideRight). Stride length = distance covered per full cycle
+# (two steps); idle "cycles" are breaths at a fixed rate.
+STRIDE_LENGTH = np.array([np.nan, 1.4, 2.2, 1.0, 1.0])  # m per cycle
+REF_SPEED = np.array([1.0, 1.3, 3.5, 1.0, 1.0])  # m/s at which amplitudes are nominal
+IDLE_FREQUENCY = 0.25  # Hz, a slow breath
+_D = np.radians
+LEG_PITCH = _D(np.array([0.0, 12.0, 20.0, 3.0, 3.0]))  # legs swing about Y
+LEG_YAW = _D(np.array([0.0, 6.0, 8.0, 0.0, 0.0]))  # hip twist about Z
+LEG_ROLL = _D(np.array([0.0, 0.0, 0.0, 10.0, 10.0]))  # sideways swing about X
+TORSO_TWIST = _D(np.array([0.0, 4.0, 6.0, 0.0, 0.0]))  # shoulders against hips
+TORSO_LEAN = _D(np.array([0.0, 3.0, 12.0, 0.0, 0.0]))  # forward lean, pitch
+TORSO_SIDE_LEAN = _D(np.array([0.0, 0.0, 0.0, 6.0, -6.0]))  # toward the stride side
+BREATH = _D(np.array([1.5, 0.5, 0.8, 0.5, 0.5]))  # torso pitch oscillation
+HEAD_NOD = _D(np.array([0.0, 1.5, 2.5, 1.0, 1.0]))  # residual head bob, twice per cycle
+HEAD_SWAY = _D(np.array([3.0, 0.0, 0.0, 0.0, 0.0]))  # idle glance left/right
+BOB = np.array([0.003, 0.025, 0.05, 0.015, 0.015])  # pelvis rise, metres
+
+_X, _Y, _Z = np.eye(3)
+
+
+def classify(velocity: np.ndarray, heading: np.ndarray) -> np.ndarray:
+    """Animation class from planar velocity and facing.
+
+    Parameters
+    ----------
+    velocity : (t, n, 2) float
+        Planar velocity, m/s.
+    heading : (t, n) float
+        Facing yaw, radians, 0 = +X.
+
+    Returns
+    -------
+    (t, n) int8
+        Codes into ``ANIM_CLASSES``.
+    """
+    velocity = np.asarray(velocity, dtype=np.float64)
+    c, s = np.cos(heading), np.sin(heading)
+    forward = velocity[..., 0] * c + velocity[..., 1] * s
+    lateral = -velocity[..., 0] * s + velocity[..., 1] * c  # + = to the left
+    speed = np.hypot(velocity[..., 0], velocity[..., 1])
+    cls = np.where(speed > RUN_SPEED, RUN, WALK)
+    cls = np.where(np.abs(lateral) > np.abs(forward),
+                   np.where(lateral > 0, STRIDE_LEFT, STRIDE_RIGHT), cls)
+    return np.where(speed < IDLE_SPEED, IDLE, cls).astype(np.int8)
+
+
+def _stride_scale(speed, cls):
+    """Amplitude / stride-length scale: longer, bigger steps when faster."""
+    return np.clip(np.asarray(speed) / REF_SPEED[cls], 0.6, 1.25)
+
+
+def advance_phase(speed: np.ndarray, anim_class: np.ndarray, dt: float,
+                  phase0: np.ndarray | None = None) -> np.ndarray:
+    """Integrate the cycle phase over frames.
+
+    Parameters
+    ----------
+    speed : (t, n) float
+        Planar speed, m/s.
+    anim_class : (t, n) int
+        Class codes.
+    dt : float
+        Seconds per frame.
+    phase0 : (n,) float, optional
+        Phase at the first frame; 0 if None.
+
+    Returns
+    -------
+    (t, n) float32
+        Phase in [0, 1); frame ``k`` is ``phase0`` plus the cycles run over
+        frames ``0..k-1``, so the phase never decreases (modulo 1).
+    """
+    speed = np.asarray(speed, dtype=np.float64)
+    cls = np.asarray(anim_class, dtype=np.int64)
+    # Cadence grows slower than speed: stride length scales by sqrt.
+    length = STRIDE_LENGTH[cls] * np.sqrt(_stride_scale(speed, cls))
+    freq = np.where(cls == IDLE, IDLE_FREQUENCY, speed / np.where(cls == IDLE, 1.0, length))
+    start = np.zeros(speed.shape[1:]) if phase0 is None else np.asarray(phase0, np.float64)
+    steps = np.concatenate([np.zeros((1,) + speed.shape[1:]), freq[:-1] * dt])
+    phase = np.mod(start + np.cumsum(steps, axis=0), 1.0).astype(np.float32)
+    return np.where(phase >= 1.0, np.float32(0.0), phase)  # float32 rounding up to 1
+
+
+def pose(anim_class: np.ndarray, phase: np.ndarray, speed: np.ndarray):
+    """Local joint pose of each class at a cycle phase.
+
+    Parameters
+    ----------
+    anim_class : (...) int
+        Class codes.
+    phase : (...) float
+        Cycle phase in [0, 1).
+    speed : (...) float
+        Planar speed, m/s (scales the amplitudes).
+
+    Returns
+    -------
+    rotations : (..., 3, 4) float64
+        Local joint quaternions (w, x, y, z), joints in ``JOINTS`` order.
+    translations : (..., 3, 3) float64
+        Local joint translations, metres; the legs joint carries the pelvis
+        height and bob.
+    """
+    cls = np.asarray(anim_class, dtype=np.int64)
+    ph = 2.0 * np.pi * np.asarray(phase, dtype=np.float64)
+    k = np.where(cls == IDLE, 1.0, _stride_scale(speed, cls))
+    s, s2 = np.sin(ph), np.sin(2.0 * ph)
+    # Skeleton-space orientation of each bone; locals are derived below so
+    # that torso and head counter-rotate whatever the legs do.
+    legs = quat_multiply(quat_multiply(quat_from_axis_angle(_Z, LEG_YAW[cls] * k * s),
+                                       quat_from_axis_angle(_Y, LEG_PITCH[cls] * k * s)),
+                         quat_from_axis_angle(_X, LEG_ROLL[cls] * k * s))
+    torso = quat_multiply(quat_multiply(quat_from_axis_angle(_Z, -TORSO_TWIST[cls] * k * s),
+                                        quat_from_axis_angle(_Y, TORSO_LEAN[cls] * k + BREATH[cls] * s)),
+                          quat_from_axis_angle(_X, -TORSO_SIDE_LEAN[cls]))
+    head = quat_multiply(quat_from_axis_angle(_Z, HEAD_SWAY[cls] * s),
+                         quat_from_axis_angle(_Y, HEAD_NOD[cls] * s2 - 0.5 * TORSO_LEAN[cls] * k))
+    rotations = np.stack([legs,
+                          quat_multiply(quat_conjugate(legs), torso),
+                          quat_multiply(quat_conjugate(torso), head)], axis=-2)
+    translations = np.broadcast_to(REST_TRANSLATIONS, cls.shape + (3, 3)).copy()
+    # Lift the pelvis by the legs' tilt so the feet stay on the ground, then bob
+    # twice per cycle (once per step).
+    zz = quat_to_matrix(legs)[..., 2, 2]
+    translations[..., 0, 2] = PELVIS_HEIGHT * zz + BOB[cls] * k * 0.5 * (1.0 - np.cos(2.0 * ph))
+    return rotations, translations
+
+
+def _ease(x):
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
+def blend_transitions(anim_class: np.ndarray, rotations: np.ndarray, translations: np.ndarray,
+                      frames: int = BLEND_FRAMES):
+    """Smooth class changes with a temporary key frame (seed 003, Figure 6).
+
+    When an agent's class changes, the pose it had just before is frozen and
+    the output eases (smoothstep) from it to the new class's pose over
+    ``frames`` frames; a change during a blend restarts from the blended pose.
+
+    Parameters
+    ----------
+    anim_class : (t, n) int
+        Class codes.
+    rotations : (t, n, 3, 4) float
+        Local quaternions (w, x, y, z) of the unblended poses.
+    translations : (t, n, 3, 3) float
+        Local translations of the unblended poses.
+    frames : int
+        Blend length; 0 disables blending.
+
+    Returns
+    -------
+    rotations : (t, n, 3, 4) float64
+    translations : (t, n, 3, 3) float64
+    """
+    rot = np.array(rotations, dtype=np.float64)
+    tr = np.array(translations, dtype=np.float64)
+    if frames <= 0 or len(rot) < 2:
+        return rot, tr
+    cls = np.asarray(anim_class)
+    key_rot, key_tr = rot[0].copy(), tr[0].copy()
+    since = np.full(cls.shape[1], frames, dtype=np.int64)  # frames since last change
+    for t in range(1, len(rot)):
+        changed = cls[t] != cls[t - 1]
+        key_rot[changed], key_tr[changed] = rot[t - 1][changed], tr[t - 1][changed]
+        since = np.where(changed, 0, since + 1)
+        w = _ease((since + 1) / frames)
+        active = w < 1.0
+        if active.any():
+            rot[t][active] = quat_slerp(key_rot[active], rot[t][active],
+                                        np.broadcast_to(w[active, None], (active.sum(), 3)))
+            wa = w[active, None, None]
+            tr[t][active] = (1.0 - wa) * key_tr[active] + wa * tr[t][active]
+    return rot, tr
+
+
+def _wrap(a):
+    return (a + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def apply_look_at(rotations: np.ndarray, position: np.ndarray, heading: np.ndarray,
+                  height: np.ndarray, target: np.ndarray, max_step: float | None = None):
+    """Turn torso and head toward a target (seed 003, Figure 5).
+
+    The torso takes ``TORSO_SHARE`` of the yaw (limited to
+    ``TORSO_YAW_LIMIT``), the head the rest, up to ``HEAD_YAW_LIMIT`` in all
+    and ``HEAD_PITCH_LIMIT`` up or down. Within the limits the head's +X axis
+    points from the eyes to the target (its animated nod is replaced); the
+    legs are untouched.
+
+    Parameters
+    ----------
+    rotations : (t, n, 3, 4) float
+        Local joint quaternions (w, x, y, z).
+    position : (t, n, 3) float
+        Ground position of the SkelRoot, world metres.
+    heading : (t, n) float
+        Body yaw, radians (the SkelRoot's rotation).
+    height : (t, n) or (n,) float
+        Body height, metres (the SkelRoot scales the canonical 1.75 m).
+    target : (t, n, 3) float
+        World point to look at; NaN rows where there is none.
+    max_step : float, optional
+        Most the look angles may change per frame, radians, so that targets
+        appearing, switching or vanishing turn the head smoothly; None turns
+        instantly.
+
+    Returns
+    -------
+    (t, n, 3, 4) float64
+        Local joint quaternions.
+    """
+    rot = np.array(rotations, dtype=np.float64)
+    position = np.asarray(position, dtype=np.float64)
+    target = np.asarray(target, dtype=np.float64)
+    height = np.broadcast_to(np.asarray(height, dtype=np.float64), np.shape(heading))
+    eye = position + (EYE_HEIGHT / HEAD_TOP) * height[..., None] * _Z
+    d = target - eye
+    has = np.all(np.isfinite(d), axis=-1)
+    yaw = np.where(has, _wrap(np.arctan2(d[..., 1], d[..., 0]) - heading), 0.0)
+    pitch = np.where(has, np.arctan2(d[..., 2], np.hypot(d[..., 0], d[..., 1])), 0.0)
+    yaw = np.clip(yaw, -HEAD_YAW_LIMIT, HEAD_YAW_LIMIT)
+    pitch = np.clip(pitch, -HEAD_PITCH_LIMIT, HEAD_PITCH_LIMIT)
+    weight = has.astype(np.float64)
+    if max_step is not None:  # rate-limit angles and the on/off weight alike
+        for t in range(1, len(yaw)):
+            for a in (yaw, pitch):
+                a[t] = a[t - 1] + np.clip(a[t] - a[t - 1], -max_step, max_step)
+            weight[t] = weight[t - 1] + np.clip(weight[t] - weight[t - 1], -max_step, max_step)
+            # Where there is no target, the angles hold while the weight fades.
+            yaw[t] = np.where(has[t], yaw[t], yaw[t - 1])
+            pitch[t] = np.where(has[t], pitch[t], pitch[t - 1])
+    torso_yaw = np.clip(TORSO_SHARE * yaw, -TORSO_YAW_LIMIT, TORSO_YAW_LIMIT)
+
+    legs = rot[..., 0, :]
+    torso = quat_multiply(legs, rot[..., 1, :])
+    head = quat_multiply(torso, rot[..., 2, :])
+    torso_new = quat_multiply(quat_from_axis_angle(_Z, torso_yaw), torso)
+    # Looking up turns +X toward +Z: a negative rotation about +Y.
+    aim = quat_multiply(quat_from_axis_angle(_Z, yaw), quat_from_axis_angle(_Y, -pitch))
+    head_new = quat_slerp(head, aim, weight)
+    torso_new = quat_slerp(torso, torso_new, weight)
+    rot[..., 1, :] = quat_multiply(quat_conjugate(legs), torso_new)
+    rot[..., 2, :] = quat_multiply(quat_conjugate(torso_new), head_new)
+    return rot
+
+
+def head_forward(rotations: np.ndarray) -> np.ndarray:
+    """Skeleton-space +X axis of the head, (..., 3), from local rotations (..., 3, 4)."""
+    r = np.asarray(rotations, dtype=np.float64)
+    q = quat_multiply(quat_multiply(r[..., 0, :], r[..., 1, :]), r[..., 2, :])
+    return quat_rotate(q, np.broadcast_to(_X, q.shape[:-1] + (3,)))
+
+
+def animate(frames: CrowdFrames, dt: float, height: np.ndarray):
+    """Joint animation of a simulated crowd, as the USD writer needs it.
+
+    Parameters
+    ----------
+    frames : CrowdFrames
+        Uses ``anim_class``, ``anim_phase``, ``velocity``, ``position``,
+        ``heading`` and ``look_at``.
+    dt : float
+        Seconds per frame.
+    height : (n,) float
+        Body heights, metres.
+
+    Returns
+    -------
+    rotations : (t, n, 3, 4) float32
+        Local joint quaternions (w, x, y, z); reorder with
+        :func:`usdcrowd.character.rig.to_usd_quat_order` for ``Vt.QuatfArray``.
+    translations : (t, n, 3, 3) float32
+        Local joint translations, canonical metres.
+    """
+    speed = np.hypot(frames.velocity[..., 0], frames.velocity[..., 1])
+    rot, tr = pose(frames.anim_class, frames.anim_phase, speed)
+    rot, tr = blend_transitions(frames.anim_class, rot, tr)
+    rot = apply_look_at(rot, frames.position, frames.heading, height, frames.look_at,
+                        max_step=LOOK_TURN_RATE * dt)
+    return rot.astype(np.float32), tr.astype(np.float32)
+
+
+__all__ = ["IDLE_SPEED", "RUN_SPEED", "BLEND_FRAMES", "classify", "advance_phase", "pose",
+           "blend_transitions", "apply_look_at", "head_forward", "animate", "quat_angle"]

@@ -1,0 +1,140 @@
+"""The skinned low-poly body bound to the three-joint skeleton.
+
+A concatenation of closed trimesh primitives (legs, feet, torso, arms, neck,
+head, nose), so the whole is watertight without any boolean union. Points are
+in the canonical character space, which is also skeleton space: 1.75 m tall,
+feet at z = 0, facing +X (feet and nose point that way).
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+
+from .rig import HEAD_TOP, NECK_HEIGHT, PELVIS_HEIGHT, WAIST_HEIGHT
+
+# Blend zones (metres, bind pose) where a vertex's weight moves between two
+# joints, so the mesh bends instead of shearing at the joints.
+WAIST_BLEND = (PELVIS_HEIGHT - 0.07, WAIST_HEIGHT + 0.03)
+NECK_BLEND = (NECK_HEIGHT - 0.04, NECK_HEIGHT + 0.06)
+
+
+@dataclass(frozen=True)
+class Body:
+    """Bind-pose body mesh and its skin weights.
+
+    Attributes
+    ----------
+    points : (v, 3) float32
+        Bind-pose points, skeleton space.
+    face_vertex_counts : (f,) int32
+        All 3.
+    face_vertex_indices : (3f,) int32
+    normals : (v, 3) float32
+        Vertex normals.
+    joint_indices : (v, 2) int32
+        Influencing joints, heaviest first.
+    joint_weights : (v, 2) float32
+        Matching weights, rows sum to 1, sorted descending.
+    mesh : trimesh.Trimesh
+        The same geometry as a trimesh.
+    """
+
+    points: np.ndarray
+    face_vertex_counts: np.ndarray
+    face_vertex_indices: np.ndarray
+    normals: np.ndarray
+    joint_indices: np.ndarray
+    joint_weights: np.ndarray
+    mesh: trimesh.Trimesh
+
+    @property
+    def triangle_count(self) -> int:
+        return len(self.face_vertex_counts)
+
+
+def _smoothstep(x):
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
+def _capsule(bottom: float, top: float, radius: float, count, xy=(0.0, 0.0)):
+    """Vertical capsule spanning z in [bottom, top]."""
+    m = trimesh.creation.capsule(height=top - bottom - 2 * radius, radius=radius, count=count)
+    m.apply_translation([xy[0], xy[1], 0.5 * (bottom + top)])
+    return m
+
+
+def _ellipsoid(center, radii, subdivisions):
+    m = trimesh.creation.icosphere(subdivisions=subdivisions)
+    m.apply_scale(radii)
+    m.apply_translation(center)
+    return m
+
+
+def _parts():
+    """(mesh, kind) pairs; kind picks the weighting rule."""
+    parts = []
+    for side in (1.0, -1.0):
+        parts.append((_capsule(0.0, PELVIS_HEIGHT + 0.03, 0.075, [12, 8], (0.0, 0.1 * side)), "legs"))
+        foot = trimesh.creation.box(extents=[0.24, 0.095, 0.07])
+        foot.apply_translation([0.06, 0.1 * side, 0.035])
+        parts.append((foot, "legs"))
+        parts.append((_capsule(0.84, 1.46, 0.045, [10, 6], (0.0, 0.235 * side)), "torso"))
+    torso = _capsule(PELVIS_HEIGHT - 0.1, NECK_HEIGHT, 0.18, [16, 8])
+    torso.apply_transform(np.diag([0.65, 1.0, 1.0, 1.0]))  # flatter front to back
+    parts.append((torso, "torso"))
+    neck = trimesh.creation.cylinder(radius=0.05, height=0.14, sections=12)
+    neck.apply_translation([0.0, 0.0, NECK_HEIGHT])
+    parts.append((neck, "neck"))
+    head = _ellipsoid([0.0, 0.0, 0.0], [0.105, 0.09, 0.12], 2)
+    head.apply_translation([0.0, 0.0, HEAD_TOP - head.bounds[1, 2]])  # top exactly at 1.75
+    parts.append((head, "head"))
+    parts.append((_ellipsoid([0.1, 0.0, HEAD_TOP - 0.13], [0.025, 0.02, 0.025], 0), "head"))
+    return parts
+
+
+def _weights(z: np.ndarray, kind: str):
+    """(v, 2) joint indices and weights for one part's vertices at heights z."""
+    one = np.ones_like(z)
+    if kind == "legs":
+        return np.stack([0 * one, 1 * one], -1), np.stack([one, 0 * one], -1)
+    if kind == "head":
+        return np.stack([2 * one, 1 * one], -1), np.stack([one, 0 * one], -1)
+    lo, hi, a, b = ((*WAIST_BLEND, 0, 1) if kind == "torso" else (*NECK_BLEND, 1, 2))
+    wb = _smoothstep((z - lo) / (hi - lo))  # weight of the upper joint b
+    return np.stack([a * one, b * one], -1), np.stack([1.0 - wb, wb], -1)
+
+
+@functools.lru_cache(maxsize=None)
+def build_body() -> Body:
+    """The canonical body (cached: every call returns the same object).
+
+    Returns
+    -------
+    Body
+        About 1,300 triangles, watertight, 1.75 m tall.
+    """
+    parts = _parts()
+    idx, wts = zip(*(_weights(m.vertices[:, 2], kind) for m, kind in parts))
+    # process=False: keep every part's vertices as they are, so the weights
+    # stay aligned and touching parts are never merged into non-manifold edges.
+    offsets = np.cumsum([0] + [len(m.vertices) for m, _ in parts])
+    mesh = trimesh.Trimesh(vertices=np.concatenate([m.vertices for m, _ in parts]),
+                           faces=np.concatenate([m.faces + o for (m, _), o in zip(parts, offsets)]),
+                           process=False)
+    idx, wts = np.concatenate(idx), np.concatenate(wts)
+    order = np.argsort(-wts, axis=1, kind="stable")
+    idx = np.take_along_axis(idx, order, axis=1)
+    wts = np.take_along_axis(wts, order, axis=1)
+    faces = mesh.faces.astype(np.int32)
+    return Body(points=mesh.vertices.astype(np.float32),
+                face_vertex_counts=np.full(len(faces), 3, np.int32),
+                face_vertex_indices=faces.reshape(-1),
+                normals=np.asarray(mesh.vertex_normals, dtype=np.float32),
+                joint_indices=idx.astype(np.int32),
+                joint_weights=wts.astype(np.float32),
+                mesh=mesh)

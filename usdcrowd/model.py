@@ -1,0 +1,356 @@
+"""The pure data core: a scenario and a simulated crowd as plain numpy arrays.
+
+Nothing here imports ``pxr``. :mod:`usdcrowd.scenario` fills a
+:class:`Scenario` from a stage; :mod:`usdcrowd.sim` turns it into
+:class:`CrowdFrames`; :mod:`usdcrowd.usd` writes those back as time samples.
+
+Conventions (everywhere in usdcrowd's arrays):
+
+- metres, Z up, right-handed; the ground is the XY plane at z = 0 unless a
+  height layer says otherwise;
+- headings are yaw angles in radians about +Z, 0 facing +X;
+- categorical attributes are small integer codes indexing the vocabularies
+  below, so that simulation code can compare them vectorised.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+# Vocabularies: the index of a token is its code. They match the schema's
+# allowedTokens (less "random", which the resolver replaces by a draw).
+CHARACTER_TYPES = ("human", "herbivore", "ant", "bird")
+PERSONALITIES = ("civilian", "security", "attacker", "herbivore", "predator")
+BEHAVIORS = ("walk", "run", "rest", "wander", "visit", "graze", "flock")
+CONDITIONS = ("grouped", "isolated")
+FEAR_RESPONSES = ("flee", "freeze")
+VISIT_PROFILES = ("detailed", "casual", "timeLimited")
+ROLES = ("member", "leader", "invisibleLeader")
+LAYER_MEANINGS = ("height", "damage", "food", "forbidden", "interest", "rest")
+LAYER_GENERATORS = ("painted", "explosion", "volcano", "food")
+PATH_METHODS = ("direct", "bezier", "gradient")
+# Simulation output vocabularies.
+ANIM_CLASSES = ("idle", "walk", "run", "strideLeft", "strideRight")
+HEALTH_STATES = ("ok", "wounded", "dead")
+
+
+def code(vocabulary: tuple[str, ...], token: str) -> int:
+    """Integer code of ``token`` in ``vocabulary`` (ValueError if absent)."""
+    return vocabulary.index(token)
+
+
+@dataclass
+class TimeRange:
+    """The shot's time codes: frames ``start..end`` inclusive at ``fps``."""
+
+    start: float = 1.0
+    end: float = 240.0
+    fps: float = 24.0
+
+    @property
+    def n_frames(self) -> int:
+        return int(round(self.end - self.start)) + 1
+
+    @property
+    def codes(self) -> np.ndarray:
+        """(n_frames,) float64 time codes."""
+        return self.start + np.arange(self.n_frames, dtype=np.float64)
+
+
+@dataclass
+class GroupTable:
+    """One row per CrowdGroup, in stage traversal order (parents first).
+
+    Attributes
+    ----------
+    path : list[str]
+        Prim paths.
+    parent : (g,) int32
+        Row of the enclosing group, -1 at the top.
+    goal : (g, 3) float64
+        Where the group walks, metres; NaN rows for groups with no goal.
+    visit_budget : (g,) float64
+        Seconds a timeLimited group spends before leaving.
+    leader : (g,) int32
+        Agent row of the group's leader, -1 if none.
+    """
+
+    path: list[str]
+    parent: np.ndarray
+    goal: np.ndarray
+    visit_budget: np.ndarray
+    leader: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.path)
+
+
+@dataclass
+class AgentTable:
+    """One row per agent with every attribute resolved (seed 004, section 2).
+
+    Attributes
+    ----------
+    path : list[str]
+        Prim path of the agent's SkelRoot (authored, or the one the clone
+        will be written at).
+    agent_id : (n,) int32
+        Track id, unique, >= 1.
+    group : (n,) int32
+        Row in :class:`GroupTable`.
+    leader : (n,) int32
+        Row of the agent followed, -1 if none.
+    role, character_type, personality, behavior, condition, fear_response,
+    visit_profile : (n,) int8
+        Codes into ROLES, CHARACTER_TYPES, ...
+    speed : (n,) float64
+        Preferred speed, m/s.
+    height : (n,) float64
+        Body height, metres.
+    max_slope : (n,) float64
+        Steepest climbable slope, rise over run.
+    map_influence : (n,) float64
+        Weight of behavior-map reactions, [0, 1].
+    color : (n, 3) float64
+        Linear RGB clothing colour.
+    start : (n, 3) float64
+        Start position, metres.
+    start_heading : (n,) float64
+        Start yaw, radians.
+    """
+
+    path: list[str]
+    agent_id: np.ndarray
+    group: np.ndarray
+    leader: np.ndarray
+    role: np.ndarray
+    character_type: np.ndarray
+    personality: np.ndarray
+    behavior: np.ndarray
+    condition: np.ndarray
+    fear_response: np.ndarray
+    visit_profile: np.ndarray
+    speed: np.ndarray
+    height: np.ndarray
+    max_slope: np.ndarray
+    map_influence: np.ndarray
+    color: np.ndarray
+    start: np.ndarray
+    start_heading: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.path)
+
+    @property
+    def visible(self) -> np.ndarray:
+        """(n,) bool: agents that are rendered (not invisible leaders)."""
+        return self.role != code(ROLES, "invisibleLeader")
+
+
+@dataclass
+class BehaviorField:
+    """A behavior layer (seed 004) as a grid of values on the ground.
+
+    Attributes
+    ----------
+    path : str
+        Prim path of the BehaviorLayer.
+    meaning : int
+        Code into LAYER_MEANINGS.
+    generator : int
+        Code into LAYER_GENERATORS.
+    values : (h, w) float32 or None
+        Values already mapped through the layer's value range; row 0 is the
+        +Y edge. None for generated layers until the simulation makes them.
+    extent_min, extent_max : (2,) float64
+        World XY of the lower-left and upper-right corners, metres.
+    influence : float
+        Weight in [0, 1].
+    origin : (3,) float64
+        Centre of a generated layer, metres.
+    radius : float
+        Radius of a generated layer, metres.
+    start_time : float
+        Time code at which a generated layer appears.
+    """
+
+    path: str
+    meaning: int
+    generator: int
+    values: np.ndarray | None
+    extent_min: np.ndarray
+    extent_max: np.ndarray
+    influence: float = 1.0
+    origin: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    radius: float = 10.0
+    start_time: float = 0.0
+
+    def sample(self, xy: np.ndarray) -> np.ndarray:
+        """Nearest-pixel values at world points.
+
+        Parameters
+        ----------
+        xy : (n, 2) float
+            World points, metres.
+
+        Returns
+        -------
+        (n,) float32
+            Values; 0 outside the extent.
+        """
+        h, w = self.values.shape
+        u = (xy[:, 0] - self.extent_min[0]) / (self.extent_max[0] - self.extent_min[0])
+        v = (self.extent_max[1] - xy[:, 1]) / (self.extent_max[1] - self.extent_min[1])
+        inside = (u >= 0) & (u < 1) & (v >= 0) & (v < 1)
+        col = np.clip((u * w).astype(np.int64), 0, w - 1)
+        row = np.clip((v * h).astype(np.int64), 0, h - 1)
+        return np.where(inside, self.values[row, col], 0.0).astype(np.float32)
+
+
+@dataclass
+class InterestTable:
+    """Interest points (seed 003), one row each.
+
+    Attributes
+    ----------
+    path : list[str]
+    position : (m, 3) float64, metres
+    interest, radius, visibility, prior_knowledge, decay_rate,
+    view_duration : (m,) float64
+    """
+
+    path: list[str]
+    position: np.ndarray
+    interest: np.ndarray
+    radius: np.ndarray
+    visibility: np.ndarray
+    prior_knowledge: np.ndarray
+    decay_rate: np.ndarray
+    view_duration: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.path)
+
+    @classmethod
+    def empty(cls) -> "InterestTable":
+        z = np.zeros(0)
+        return cls([], np.zeros((0, 3)), z, z, z, z, z, z)
+
+
+@dataclass
+class Obstacles:
+    """Static scenery as seen by the simulation: footprints on the ground.
+
+    Attributes
+    ----------
+    path : list[str]
+        Prim path of each obstacle.
+    polygons : list of (k, 2) float64
+        Counter-clockwise convex footprint of each obstacle, metres.
+    height : (o,) float64
+        Top of each obstacle above the ground, metres.
+    """
+
+    path: list[str]
+    polygons: list[np.ndarray]
+    height: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.path)
+
+    @classmethod
+    def empty(cls) -> "Obstacles":
+        return cls([], [], np.zeros(0))
+
+    @property
+    def segments(self) -> np.ndarray:
+        """(s, 2, 2) float64: every polygon edge as (start, end)."""
+        if not self.polygons:
+            return np.zeros((0, 2, 2))
+        return np.concatenate([np.stack([p, np.roll(p, -1, axis=0)], axis=1)
+                               for p in self.polygons])
+
+
+@dataclass
+class Scenario:
+    """Everything the simulation needs, read once from a scenario stage.
+
+    Attributes
+    ----------
+    source : str
+        The stage's file path (for messages).
+    time : TimeRange
+    seed : int
+        Seed of the run; every random draw derives from it.
+    groups : GroupTable
+    agents : AgentTable
+    fields : list[BehaviorField]
+    interest : InterestTable
+    obstacles : Obstacles
+    bounds : (2, 2) float64
+        [[xmin, ymin], [xmax, ymax]] of the walkable area, metres.
+    """
+
+    source: str
+    time: TimeRange
+    seed: int
+    groups: GroupTable
+    agents: AgentTable
+    fields: list[BehaviorField]
+    interest: InterestTable
+    obstacles: Obstacles
+    bounds: np.ndarray
+
+    def field(self, meaning: str) -> BehaviorField | None:
+        """The first behavior field with this meaning, or None."""
+        m = code(LAYER_MEANINGS, meaning)
+        return next((f for f in self.fields if f.meaning == m), None)
+
+
+@dataclass
+class CrowdFrames:
+    """A simulated crowd: per-frame state of every agent.
+
+    Arrays have a leading time axis of ``len(times)`` frames; a long shot is
+    produced in chunks of consecutive frames with the same layout.
+
+    Attributes
+    ----------
+    times : (t,) float64
+        Time codes.
+    position : (t, n, 3) float32
+        Root (ground contact) position, metres.
+    heading : (t, n) float32
+        Facing yaw, radians.
+    velocity : (t, n, 2) float32
+        Planar velocity, m/s.
+    behavior : (t, n) int8
+        Current behavior, code into BEHAVIORS.
+    anim_class : (t, n) int8
+        Code into ANIM_CLASSES.
+    anim_phase : (t, n) float32
+        Phase of the animation cycle in [0, 1).
+    health : (t, n) int8
+        Code into HEALTH_STATES.
+    look_at : (t, n, 3) float32
+        Point the head and torso turn to, metres; NaN where none.
+    path_method : (n,) int8
+        Code into PATH_METHODS, per agent for the whole shot.
+    """
+
+    times: np.ndarray
+    position: np.ndarray
+    heading: np.ndarray
+    velocity: np.ndarray
+    behavior: np.ndarray
+    anim_class: np.ndarray
+    anim_phase: np.ndarray
+    health: np.ndarray
+    look_at: np.ndarray
+    path_method: np.ndarray
+
+    @property
+    def n_agents(self) -> int:
+        return self.position.shape[1]

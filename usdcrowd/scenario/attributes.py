@@ -1,0 +1,224 @@
+"""Attribute resolution down the group hierarchy (seed 004, section 2).
+
+An agent takes its own authored value, else the value authored on its
+nearest enclosing group, else a value drawn from the distribution documented
+in the schema. The token "random" authored anywhere asks for a draw. Draws use
+one generator per group, seeded from the run's seed and the group's path, so
+adding agents to one group leaves every other group's agents unchanged.
+
+This module knows nothing of USD: the reader hands it plain dicts of the
+authored values.
+"""
+
+from __future__ import annotations
+
+import zlib
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import model
+
+# Distributions of the "random" tokens, per character type (schema docs).
+_PERSONALITY = {
+    "human": {"civilian": 0.85, "security": 0.15},
+    "herbivore": {"herbivore": 1.0},
+    "ant": {"herbivore": 1.0},
+    "bird": {"herbivore": 1.0},
+}
+_BEHAVIOR = {
+    "human": {"walk": 0.6, "wander": 0.25, "rest": 0.15},
+    "herbivore": {"graze": 1.0},
+    "ant": {"wander": 1.0},
+    "bird": {"flock": 1.0},
+}
+_CONDITION = {"grouped": 0.7, "isolated": 0.3}
+_FEAR = {"flee": 0.8, "freeze": 0.2}
+_VISIT_PROFILE = {"detailed": 0.3, "casual": 0.5, "timeLimited": 0.2}
+
+# Clothing palette for unauthored colours: muted linear-RGB tones, so crowds
+# look like crowds rather than confetti.
+_PALETTE = np.array([
+    [0.05, 0.06, 0.10], [0.40, 0.05, 0.04], [0.06, 0.15, 0.35], [0.30, 0.30, 0.28],
+    [0.55, 0.45, 0.25], [0.08, 0.22, 0.10], [0.60, 0.60, 0.62], [0.35, 0.18, 0.08],
+    [0.50, 0.28, 0.40], [0.12, 0.30, 0.40], [0.70, 0.55, 0.10], [0.03, 0.03, 0.03],
+])
+
+# Attributes shared by CrowdGroup and CrowdAgentAPI and inherited downward.
+INHERITED = (
+    "characterType", "personality", "behavior", "condition", "fearResponse",
+    "visitProfile", "visitBudget", "maxSlope", "behaviorMapInfluence",
+    "speedRange", "heightRange", "color", "spawnCenter", "spawnRadius", "goal",
+)
+
+# Schema fallbacks of the non-random attributes.
+FALLBACKS = {
+    "characterType": "human",
+    "visitBudget": 300.0,
+    "maxSlope": 0.35,
+    "behaviorMapInfluence": 1.0,
+    "speedRange": (1.1, 1.5),
+    "heightRange": (1.6, 1.9),
+    "spawnCenter": (0.0, 0.0, 0.0),
+    "spawnRadius": 5.0,
+}
+
+
+def group_rng(seed: int, group_path: str) -> np.random.Generator:
+    """The generator for one group's draws: stable under edits elsewhere."""
+    return np.random.default_rng([seed & 0xFFFFFFFF, zlib.crc32(group_path.encode())])
+
+
+@dataclass
+class GroupSpec:
+    """A group as authored: its path, parent row and authored values only."""
+
+    path: str
+    parent: int
+    authored: dict = field(default_factory=dict)
+    clones: int = 0
+    subclones: int = 1
+
+
+@dataclass
+class AgentSpec:
+    """An authored agent: path, group row and authored values only."""
+
+    path: str
+    group: int
+    authored: dict = field(default_factory=dict)
+    agent_id: int = -1
+    role: str = "member"
+    leader_path: str | None = None
+    position: tuple | None = None      # canonical metres, from the prim's transform
+    heading: float | None = None
+
+
+def inherited_values(groups: list[GroupSpec]) -> list[dict]:
+    """Per group, the values authored on it or its nearest ancestor that has them."""
+    out: list[dict] = []
+    for g in groups:
+        values = dict(out[g.parent]) if g.parent >= 0 else {}
+        values.update(g.authored)
+        out.append(values)
+    return out
+
+
+def _draw(rng: np.random.Generator, dist: dict[str, float], n: int) -> list[str]:
+    names = list(dist)
+    p = np.array([dist[k] for k in names])
+    return [names[i] for i in rng.choice(len(names), size=n, p=p / p.sum())]
+
+
+def _categorical(values: list, dist_for, rng, n_draws, expand, vocab) -> np.ndarray:
+    """Codes for one categorical attribute: authored tokens kept, the rest drawn."""
+    need = [i for i, v in enumerate(values) if v in (None, "random")]
+    resolved = list(values)
+    if need:
+        # Draw once per "clone run" (subclones share), then expand to agents.
+        draws = {}
+        for k in sorted({expand[i] for i in need}):
+            idx = [i for i in need if expand[i] == k]
+            draws[k] = _draw(rng, dist_for(idx[0]), 1)[0]
+        for i in need:
+            resolved[i] = draws[expand[i]]
+    return np.array([vocab.index(v) for v in resolved], dtype=np.int8)
+
+
+def resolve_group_members(seed: int, group: GroupSpec, group_values: dict,
+                          members: list[AgentSpec]) -> dict[str, np.ndarray]:
+    """Resolve every attribute of one group's agents, authored and cloned.
+
+    Parameters
+    ----------
+    seed : int
+        The run's seed.
+    group : GroupSpec
+    group_values : dict
+        Values inherited by the group (see :func:`inherited_values`).
+    members : list[AgentSpec]
+        The group's authored agents, followed by its clones (specs with an
+        empty ``authored`` dict).
+
+    Returns
+    -------
+    dict of arrays, one row per member, keyed by AgentTable field names.
+    """
+    rng = group_rng(seed, group.path)
+    n = len(members)
+    # Authored agents each form their own draw; clones come in runs of
+    # `subclones` that share every drawn attribute (seed 004 subclones).
+    n_authored = sum(1 for m in members if not m.path.rsplit("/", 1)[-1].startswith("clone_"))
+    expand = [i if i < n_authored else n_authored + (i - n_authored) // max(group.subclones, 1)
+              for i in range(n)]
+
+    def value(i, name):
+        return members[i].authored.get(name, group_values.get(name))
+
+    ctype_vals = [value(i, "characterType") or FALLBACKS["characterType"] for i in range(n)]
+    out: dict[str, np.ndarray] = {
+        "character_type": np.array([model.CHARACTER_TYPES.index(v) for v in ctype_vals], dtype=np.int8)
+    }
+    out["personality"] = _categorical([value(i, "personality") for i in range(n)],
+                                      lambda i: _PERSONALITY[ctype_vals[i]], rng, n, expand,
+                                      model.PERSONALITIES)
+    out["behavior"] = _categorical([value(i, "behavior") for i in range(n)],
+                                   lambda i: _BEHAVIOR[ctype_vals[i]], rng, n, expand, model.BEHAVIORS)
+    out["condition"] = _categorical([value(i, "condition") for i in range(n)],
+                                    lambda i: _CONDITION, rng, n, expand, model.CONDITIONS)
+    out["fear_response"] = _categorical([value(i, "fearResponse") for i in range(n)],
+                                        lambda i: _FEAR, rng, n, expand, model.FEAR_RESPONSES)
+    # The visit profile belongs to the group: one draw for all its members.
+    profile = group_values.get("visitProfile")
+    if profile in (None, "random"):
+        profile = _draw(rng, _VISIT_PROFILE, 1)[0]
+    out["visit_profile"] = np.full(n, model.VISIT_PROFILES.index(profile), dtype=np.int8)
+
+    def numeric(name, agent_name=None):
+        return np.array([members[i].authored.get(agent_name or name,
+                                                 group_values.get(name, FALLBACKS.get(name)))
+                         for i in range(n)], dtype=np.float64)
+
+    out["max_slope"] = numeric("maxSlope")
+    out["map_influence"] = numeric("behaviorMapInfluence")
+
+    # Continuous draws, one per clone run, in a fixed order for reproducibility.
+    n_runs = max(expand) + 1 if n else 0
+    u_speed, u_height, u_color = rng.random(n_runs), rng.random(n_runs), rng.integers(0, len(_PALETTE), n_runs)
+    u_angle, u_radius, u_heading = rng.random(n), rng.random(n), rng.random(n)
+    run = np.asarray(expand, dtype=np.int64)
+
+    speed_range = np.array([value(i, "speedRange") or FALLBACKS["speedRange"] for i in range(n)], dtype=np.float64).reshape(n, 2)
+    height_range = np.array([value(i, "heightRange") or FALLBACKS["heightRange"] for i in range(n)], dtype=np.float64).reshape(n, 2)
+    speed = speed_range[:, 0] + (speed_range[:, 1] - speed_range[:, 0]) * u_speed[run] if n else np.zeros(0)
+    height = height_range[:, 0] + (height_range[:, 1] - height_range[:, 0]) * u_height[run] if n else np.zeros(0)
+    for i, m in enumerate(members):
+        if "speed" in m.authored:
+            speed[i] = m.authored["speed"]
+        if "height" in m.authored:
+            height[i] = m.authored["height"]
+    out["speed"], out["height"] = speed, height
+
+    color = _PALETTE[u_color[run]] if n else np.zeros((0, 3))
+    for i in range(n):
+        c = value(i, "color")
+        if c is not None:
+            color[i] = c
+    out["color"] = np.asarray(color, dtype=np.float64).reshape(n, 3)
+
+    # Start positions: authored, else the prim's translation, else the spawn disc.
+    center = np.asarray(group_values.get("spawnCenter", FALLBACKS["spawnCenter"]), dtype=np.float64)
+    radius = float(group_values.get("spawnRadius", FALLBACKS["spawnRadius"]))
+    r = radius * np.sqrt(u_radius)
+    a = 2 * np.pi * u_angle
+    start = np.stack([center[0] + r * np.cos(a), center[1] + r * np.sin(a), np.full(n, center[2])], axis=1)
+    heading = 2 * np.pi * u_heading - np.pi
+    for i, m in enumerate(members):
+        if "startPosition" in m.authored:
+            start[i] = m.authored["startPosition"]
+        elif m.position is not None:
+            start[i] = m.position
+        if m.heading is not None:
+            heading[i] = m.heading
+    out["start"], out["start_heading"] = start.reshape(n, 3), heading
+    return out

@@ -1,0 +1,405 @@
+"""Read a scenario stage once into a :class:`usdcrowd.model.Scenario`.
+
+Groups, agents (authored and cloned), behavior layers (images sampled),
+interest points and scenery obstacles are read, checked and converted into
+canonical units (Z up, metres). Every problem is a one-line
+:class:`~usdcrowd.errors.ScenarioError` naming the file, prim and attribute.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+
+from .. import model, schema
+from ..errors import ScenarioError
+from .attributes import INHERITED, AgentSpec, GroupSpec, inherited_values, resolve_group_members
+from .stageio import StageFrame, open_stage, stage_frame
+
+DEFAULT_TIME = model.TimeRange(1.0, 240.0, 24.0)
+# Scenery lower than this is ground or markings, not an obstacle (metres).
+OBSTACLE_MIN_HEIGHT = 0.05
+# Scenery whose bottom is above this does not block walking (roofs, signs).
+OBSTACLE_MAX_BOTTOM = 2.0
+# Margin around everything when no ground tells the walkable bounds.
+BOUNDS_MARGIN = 5.0
+# Attributes whose values are positions or lengths in stage units.
+_POINTS = ("spawnCenter", "goal", "startPosition")
+_LENGTHS = ("spawnRadius",)
+
+
+class _Reader:
+    def __init__(self, stage, source: str):
+        self.stage = stage
+        self.source = source
+        self.frame: StageFrame = stage_frame(stage)
+        from pxr import Usd, UsdGeom
+
+        self.xcache = UsdGeom.XformCache(Usd.TimeCode.Default())
+
+    def fail(self, msg, prim=None, attr=None):
+        raise ScenarioError(msg, file=self.source, prim=str(prim.GetPath()) if prim else None, attribute=attr)
+
+    # ----------------------------------------------------------- attributes
+    def authored(self, prim, names) -> dict:
+        """Authored values of the crowd: attributes in ``names``, converted."""
+        out = {}
+        for name in names:
+            attr = prim.GetAttribute(f"crowd:{name}")
+            if not attr or not attr.HasAuthoredValue():
+                continue
+            value = attr.Get()
+            if hasattr(value, "__len__") and not isinstance(value, str):
+                value = tuple(float(v) for v in value)
+            elif isinstance(value, (int, float)) and not isinstance(value, bool):
+                value = float(value) if isinstance(value, float) else value
+            else:
+                value = str(value)
+            if name in _POINTS:
+                value = tuple(self.frame.points_to_canonical(np.array(value)))
+            elif name in _LENGTHS:
+                value = float(self.frame.length_to_canonical(value))
+            self.check(prim, name, value)
+            out[name] = value
+        return out
+
+    def check(self, prim, name, v):
+        """Range checks of the schema's documented constraints."""
+        attr = f"crowd:{name}"
+        if name in ("speedRange", "heightRange"):
+            low_ok = v[0] >= 0 if name == "speedRange" else v[0] > 0
+            if not low_ok or v[1] < v[0]:
+                self.fail(f"{v} is not a valid range (need {'0 <=' if name == 'speedRange' else '0 <'} min <= max)", prim, attr)
+        elif name in ("speed",) and v < 0:
+            self.fail(f"negative speed {v}", prim, attr)
+        elif name == "height" and v <= 0:
+            self.fail(f"height must be > 0, got {v}", prim, attr)
+        elif name == "maxSlope" and v < 0:
+            self.fail(f"maximum slope must be >= 0, got {v}", prim, attr)
+        elif name in ("behaviorMapInfluence", "influence", "visibility", "priorKnowledge") and not 0 <= v <= 1:
+            self.fail(f"must be in [0, 1], got {v}", prim, attr)
+        elif name in ("spawnRadius", "decayRate") and v < 0:
+            self.fail(f"must be >= 0, got {v}", prim, attr)
+        elif name in ("visitBudget", "radius", "viewDuration") and v <= 0:
+            self.fail(f"must be > 0, got {v}", prim, attr)
+
+    def get(self, prim, name):
+        """Value (authored or fallback) of crowd:name, range-checked."""
+        value = prim.GetAttribute(f"crowd:{name}").Get()
+        if isinstance(value, (int, float)):
+            self.check(prim, name, value)
+        return value
+
+    # --------------------------------------------------------------- scenery
+    def world_matrix(self, prim) -> np.ndarray:
+        """(4, 4) local-to-world in canonical units (row vectors)."""
+        m = np.array(self.xcache.GetLocalToWorldTransform(prim), dtype=np.float64)
+        return m @ self.frame.to_canonical
+
+    def position_heading(self, prim):
+        """Canonical translation and yaw of a prim whose transform is authored."""
+        from pxr import UsdGeom
+
+        xf = UsdGeom.Xformable(prim)
+        if not xf or not xf.GetOrderedXformOps():
+            return None, None
+        m = self.world_matrix(prim)
+        return tuple(m[3, :3]), math.atan2(m[0, 1], m[0, 0])
+
+
+def _time_range(stage) -> model.TimeRange:
+    if not stage.HasAuthoredTimeCodeRange():
+        return DEFAULT_TIME
+    fps = stage.GetTimeCodesPerSecond() or DEFAULT_TIME.fps
+    return model.TimeRange(float(stage.GetStartTimeCode()), float(stage.GetEndTimeCode()), float(fps))
+
+
+def stored_seed(stage) -> int | None:
+    """The seed a stage records in its root layer's customLayerData, if any."""
+    data = stage.GetRootLayer().customLayerData.get("usdcrowd", {})
+    return int(data["seed"]) if "seed" in data else None
+
+
+def load_scenario(path: str | os.PathLike, seed: int | None = None, stage=None) -> model.Scenario:
+    """Read a scenario stage into arrays.
+
+    Parameters
+    ----------
+    path : path-like
+        The scenario (or shot) stage.
+    seed : int, optional
+        Seed of the run; default: the one recorded in the stage, else 0.
+    stage : Usd.Stage, optional
+        An already opened stage for ``path``.
+
+    Raises
+    ------
+    StageError, ScenarioError
+        With one-line messages naming file, prim and attribute.
+    """
+    from pxr import Usd
+
+    source = os.fspath(path)
+    stage = stage or open_stage(source)
+    r = _Reader(stage, source)
+    if seed is None:
+        seed = stored_seed(stage) or 0
+
+    groups: list[GroupSpec] = []
+    group_row: dict[str, int] = {}
+    agents: list[AgentSpec] = []
+    layers, points, scenery = [], [], []
+
+    it = iter(Usd.PrimRange(stage.GetPseudoRoot()))
+    for prim in it:
+        if not prim.IsActive():
+            it.PruneChildren()
+            continue
+        tname = prim.GetTypeName()
+        path = str(prim.GetPath())
+        if tname == schema.GROUP:
+            parent = _nearest_group(prim, group_row)
+            clones = int(r.get(prim, "clones"))
+            subclones = int(r.get(prim, "subclones"))
+            if clones < 0:
+                r.fail(f"must be >= 0, got {clones}", prim, "crowd:clones")
+            if subclones < 1:
+                r.fail(f"must be >= 1, got {subclones}", prim, "crowd:subclones")
+            group_row[path] = len(groups)
+            groups.append(GroupSpec(path, parent, r.authored(prim, INHERITED), clones, subclones))
+        elif schema.is_agent(prim):
+            agents.append(_agent_spec(r, prim, group_row))
+            it.PruneChildren()        # an agent's skeleton and body are not scenery
+        elif tname == schema.BEHAVIOR_LAYER:
+            layers.append(prim)
+        elif tname == schema.INTEREST_POINT:
+            points.append(prim)
+        elif tname == "Camera" or prim.IsA(_lux_base()):
+            continue
+        elif _is_gprim(prim):
+            scenery.append(prim)
+
+    if not groups and not agents:
+        raise ScenarioError("no CrowdGroup and no agent: nothing to simulate", file=source)
+
+    table, group_table = _resolve(r, seed, groups, agents)
+    obstacles, ground = _obstacles(r, scenery)
+    fields = [_behavior_field(r, p) for p in layers]
+    interest = _interest(r, points)
+    bounds = _bounds(ground, obstacles, table, interest, fields)
+    return model.Scenario(source, _time_range(stage), int(seed), group_table, table, fields,
+                          interest, obstacles, bounds)
+
+
+def _lux_base():
+    from pxr import UsdLux
+
+    return UsdLux.BoundableLightBase
+
+
+def _is_gprim(prim) -> bool:
+    from pxr import UsdGeom
+
+    return prim.IsA(UsdGeom.Gprim) and UsdGeom.Imageable(prim).ComputePurpose() != UsdGeom.Tokens.guide
+
+
+def _nearest_group(prim, group_row) -> int:
+    p = prim.GetParent()
+    while p and not p.IsPseudoRoot():
+        row = group_row.get(str(p.GetPath()))
+        if row is not None:
+            return row
+        p = p.GetParent()
+    return -1
+
+
+def _agent_spec(r: _Reader, prim, group_row) -> AgentSpec:
+    path = str(prim.GetPath())
+    rel = prim.GetRelationship("crowd:group")
+    targets = rel.GetTargets() if rel else []
+    if targets:
+        g = group_row.get(str(targets[0]))
+        if g is None:
+            tgt = r.stage.GetPrimAtPath(targets[0])
+            if not tgt or tgt.GetTypeName() != schema.GROUP:
+                r.fail(f"target {targets[0]} is not a CrowdGroup", prim, "crowd:group")
+            g = group_row.get(str(targets[0]))
+            if g is None:
+                r.fail(f"target {targets[0]} must come before the agent in the stage", prim, "crowd:group")
+    else:
+        g = _nearest_group(prim, group_row)
+        if g < 0:
+            r.fail("agent is in no CrowdGroup: put it under one or author crowd:group", prim, "crowd:group")
+    names = [n for n in INHERITED if n not in ("visitProfile", "visitBudget", "speedRange", "heightRange",
+                                               "spawnCenter", "spawnRadius", "goal")]
+    authored = r.authored(prim, names + ["speed", "height", "startPosition"])
+    leader_rel = prim.GetRelationship("crowd:leader")
+    leader_targets = leader_rel.GetTargets() if leader_rel else []
+    pos, heading = r.position_heading(prim)
+    return AgentSpec(path, g, authored, int(r.get(prim, "agentId")), str(r.get(prim, "role")),
+                     str(leader_targets[0]) if leader_targets else None, pos, heading)
+
+
+def _resolve(r: _Reader, seed, groups, agents):
+    values = inherited_values(groups)
+    by_group: dict[int, list[AgentSpec]] = {i: [] for i in range(len(groups))}
+    for a in agents:
+        by_group[a.group].append(a)
+    rows: list[AgentSpec] = []
+    cols: dict[str, list[np.ndarray]] = {}
+    for gi, g in enumerate(groups):
+        members = by_group[gi] + [AgentSpec(f"{g.path}/clone_{k:04d}", gi) for k in range(g.clones)]
+        has_subgroups = any(h.parent == gi for h in groups)
+        if not members and not has_subgroups:
+            prim = r.stage.GetPrimAtPath(g.path)
+            r.fail("empty group: no agents, no subgroups and crowd:clones = 0", prim, "crowd:clones")
+        if not members:
+            continue
+        for k, arr in resolve_group_members(seed, g, values[gi], members).items():
+            cols.setdefault(k, []).append(arr)
+        rows.extend(members)
+
+    n = len(rows)
+    path_row = {a.path: i for i, a in enumerate(rows)}
+    cat = {k: np.concatenate(v) for k, v in cols.items()}
+
+    # Track ids: authored ones kept (unique, >= 1), the rest numbered after them.
+    ids = np.array([a.agent_id for a in rows], dtype=np.int64)
+    authored_ids = ids[ids != -1]
+    if np.any(authored_ids < 1):
+        bad = rows[int(np.flatnonzero((ids != -1) & (ids < 1))[0])]
+        r.fail(f"agent ids must be >= 1, got {ids[path_row[bad.path]]}", r.stage.GetPrimAtPath(bad.path), "crowd:agentId")
+    uniq, counts = np.unique(authored_ids, return_counts=True)
+    if np.any(counts > 1):
+        dup = int(uniq[counts > 1][0])
+        bad = rows[int(np.flatnonzero(ids == dup)[1])]
+        r.fail(f"agent id {dup} is used twice", r.stage.GetPrimAtPath(bad.path), "crowd:agentId")
+    free = ids == -1
+    ids[free] = (authored_ids.max() if authored_ids.size else 0) + 1 + np.arange(int(free.sum()))
+
+    role = np.array([model.ROLES.index(a.role) for a in rows], dtype=np.int8)
+    group = np.array([a.group for a in rows], dtype=np.int32)
+    g_leader = np.full(len(groups), -1, dtype=np.int32)
+    for i in np.flatnonzero(role != model.ROLES.index("member"))[::-1]:
+        g_leader[group[i]] = i
+    leader = np.full(n, -1, dtype=np.int32)
+    for i, a in enumerate(rows):
+        if a.leader_path is not None:
+            if a.leader_path not in path_row:
+                r.fail(f"target {a.leader_path} is not an agent", r.stage.GetPrimAtPath(a.path), "crowd:leader")
+            leader[i] = path_row[a.leader_path]
+        elif g_leader[a.group] != i:
+            leader[i] = g_leader[a.group]
+
+    table = model.AgentTable(
+        path=[a.path for a in rows], agent_id=ids.astype(np.int32), group=group, leader=leader, role=role,
+        **{k: cat.get(k, np.zeros(0)) for k in (
+            "character_type", "personality", "behavior", "condition", "fear_response", "visit_profile",
+            "speed", "height", "max_slope", "map_influence", "color", "start", "start_heading")})
+    goals = np.array([values[i].get("goal", (np.nan,) * 3) for i in range(len(groups))], dtype=np.float64).reshape(-1, 3)
+    budgets = np.array([values[i].get("visitBudget", 300.0) for i in range(len(groups))], dtype=np.float64)
+    group_table = model.GroupTable([g.path for g in groups], np.array([g.parent for g in groups], dtype=np.int32),
+                                   goals, budgets, g_leader)
+    return table, group_table
+
+
+def _obstacles(r: _Reader, prims):
+    """Footprints of the scenery that blocks walking; flat scenery is ground."""
+    from pxr import Usd, UsdGeom
+    from scipy.spatial import ConvexHull
+
+    cache = UsdGeom.BBoxCache(Usd.TimeCode.Default(), [UsdGeom.Tokens.default_, UsdGeom.Tokens.render])
+    paths, polys, heights, ground = [], [], [], []
+    unit = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=np.float64)
+    for prim in prims:
+        box = cache.ComputeWorldBound(prim)
+        rng = box.GetRange()
+        if rng.IsEmpty():
+            continue
+        lo, hi = np.array(rng.GetMin()), np.array(rng.GetMax())
+        corners = np.hstack([lo + unit * (hi - lo), np.ones((8, 1))]) @ np.array(box.GetMatrix())
+        pts = corners[:, :3] @ r.frame.to_canonical[:3, :3]
+        bottom, top = pts[:, 2].min(), pts[:, 2].max()
+        if top - bottom < OBSTACLE_MIN_HEIGHT:
+            ground.append(pts[:, :2])
+            continue
+        if bottom > OBSTACLE_MAX_BOTTOM:
+            continue
+        xy = pts[:, :2]
+        try:
+            hull = ConvexHull(xy)
+        except Exception:      # degenerate footprint (a vertical plane): keep its segment
+            hull = None
+        poly = xy[hull.vertices] if hull is not None else xy[[np.argmin(xy[:, 0]), np.argmax(xy[:, 0])]]
+        paths.append(str(prim.GetPath()))
+        polys.append(np.ascontiguousarray(poly))
+        heights.append(top)
+    return model.Obstacles(paths, polys, np.array(heights, dtype=np.float64)), ground
+
+
+def _behavior_field(r: _Reader, prim) -> model.BehaviorField:
+    meaning = str(r.get(prim, "meaning"))
+    generator = str(r.get(prim, "generator"))
+    lo = np.array(r.get(prim, "extentMin"), dtype=np.float64) * r.frame.meters_per_unit
+    hi = np.array(r.get(prim, "extentMax"), dtype=np.float64) * r.frame.meters_per_unit
+    if np.any(hi <= lo):
+        r.fail(f"extent max {tuple(hi)} must exceed extent min {tuple(lo)}", prim, "crowd:extentMax")
+    vrange = np.array(r.get(prim, "valueRange"), dtype=np.float64)
+    influence = float(r.get(prim, "influence"))
+    values = None
+    if generator == "painted":
+        values = _read_image(r, prim, vrange)
+    origin = r.frame.points_to_canonical(np.array(r.get(prim, "origin"), dtype=np.float64))
+    radius = float(r.frame.length_to_canonical(r.get(prim, "radius")))
+    if meaning == "height" and values is not None:
+        values = values * r.frame.meters_per_unit
+    return model.BehaviorField(str(prim.GetPath()), model.LAYER_MEANINGS.index(meaning),
+                               model.LAYER_GENERATORS.index(generator), values, lo, hi, influence,
+                               origin, radius, float(r.get(prim, "startTime")))
+
+
+def _read_image(r: _Reader, prim, vrange) -> np.ndarray:
+    from PIL import Image
+
+    attr = prim.GetAttribute("crowd:image")
+    asset = attr.Get() if attr.HasAuthoredValue() else None
+    if asset is None or not asset.path:
+        r.fail("a painted behavior layer needs an image", prim, "crowd:image")
+    resolved = asset.resolvedPath
+    if not resolved or not os.path.isfile(resolved):
+        r.fail(f"image @{asset.path}@ not found", prim, "crowd:image")
+    try:
+        with Image.open(resolved) as im:
+            arr = np.asarray(im)
+    except Exception as exc:
+        r.fail(f"image @{asset.path}@ cannot be read ({exc.__class__.__name__})", prim, "crowd:image")
+    if arr.ndim == 3:
+        arr = arr[..., 0]
+    if arr.dtype.kind in "ui":
+        arr = arr.astype(np.float32) / float(np.iinfo(arr.dtype).max)
+    arr = arr.astype(np.float32)
+    return (vrange[0] + (vrange[1] - vrange[0]) * arr).astype(np.float32)
+
+
+def _interest(r: _Reader, prims) -> model.InterestTable:
+    if not prims:
+        return model.InterestTable.empty()
+    names = ("interest", "radius", "visibility", "priorKnowledge", "decayRate", "viewDuration")
+    vals = {n: np.array([float(r.get(p, n)) for p in prims]) for n in names}
+    vals["radius"] = vals["radius"] * r.frame.meters_per_unit
+    pos = np.array([r.world_matrix(p)[3, :3] for p in prims])
+    return model.InterestTable([str(p.GetPath()) for p in prims], pos, vals["interest"], vals["radius"],
+                               vals["visibility"], vals["priorKnowledge"], vals["decayRate"], vals["viewDuration"])
+
+
+def _bounds(ground, obstacles: model.Obstacles, agents: model.AgentTable, interest, fields) -> np.ndarray:
+    """Walkable bounds: the ground's extent if there is ground, else everything padded."""
+    if ground:
+        pts = np.concatenate(ground)
+        return np.array([pts.min(0), pts.max(0)])
+    pts = [agents.start[:, :2], interest.position[:, :2]] + list(obstacles.polygons)
+    pts += [np.array([f.extent_min, f.extent_max]) for f in fields]
+    allp = np.concatenate([p for p in pts if len(p)])
+    return np.array([allp.min(0) - BOUNDS_MARGIN, allp.max(0) + BOUNDS_MARGIN])
