@@ -17,9 +17,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..model import ANIM_CLASSES, CrowdFrames
-from .rig import (EYE_HEIGHT, HEAD_TOP, PELVIS_HEIGHT, REST_TRANSLATIONS, quat_angle,
-                  quat_conjugate, quat_from_axis_angle, quat_multiply, quat_rotate,
-                  quat_slerp, quat_to_matrix)
+from .rig import (EYE_HEIGHT, HEAD_TOP, PELVIS_HEIGHT, REST_TRANSLATIONS, quat_conjugate,
+                  quat_from_axis_angle, quat_multiply, quat_rotate, quat_slerp, quat_to_matrix)
 
 IDLE, WALK, RUN, STRIDE_LEFT, STRIDE_RIGHT = range(len(ANIM_CLASSES))
 
@@ -156,7 +155,7 @@ def pose(anim_class: np.ndarray, phase: np.ndarray, speed: np.ndarray):
                                         quat_from_axis_angle(_Y, TORSO_LEAN[cls] * k + BREATH[cls] * s)),
                           quat_from_axis_angle(_X, -TORSO_SIDE_LEAN[cls]))
     head = quat_multiply(quat_from_axis_angle(_Z, HEAD_SWAY[cls] * s),
-                         quat_from_axis_angle(_Y, HEAD_NOD[cls] * s2 - 0.5 * TORSO_LEAN[cls] * k))
+                         quat_from_axis_angle(_Y, HEAD_NOD[cls] * s2 + 0.25 * TORSO_LEAN[cls] * k))
     rotations = np.stack([legs,
                           quat_multiply(quat_conjugate(legs), torso),
                           quat_multiply(quat_conjugate(torso), head)], axis=-2)
@@ -270,7 +269,9 @@ def apply_look_at(rotations: np.ndarray, position: np.ndarray, heading: np.ndarr
         for t in range(1, len(yaw)):
             for a in (yaw, pitch):
                 a[t] = a[t - 1] + np.clip(a[t] - a[t - 1], -max_step, max_step)
-            weight[t] = weight[t - 1] + np.clip(weight[t] - weight[t - 1], -max_step, max_step)
+            # Fading in or out takes as long as sweeping the head over its range.
+            w_step = max_step / HEAD_YAW_LIMIT
+            weight[t] = weight[t - 1] + np.clip(weight[t] - weight[t - 1], -w_step, w_step)
             # Where there is no target, the angles hold while the weight fades.
             yaw[t] = np.where(has[t], yaw[t], yaw[t - 1])
             pitch[t] = np.where(has[t], pitch[t], pitch[t - 1])
@@ -324,6 +325,3 @@ def animate(frames: CrowdFrames, dt: float, height: np.ndarray):
                         max_step=LOOK_TURN_RATE * dt)
     return rot.astype(np.float32), tr.astype(np.float32)
 
-
-__all__ = ["IDLE_SPEED", "RUN_SPEED", "BLEND_FRAMES", "classify", "advance_phase", "pose",
-           "blend_transitions", "apply_look_at", "head_forward", "animate", "quat_angle"]

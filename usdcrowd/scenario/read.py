@@ -30,6 +30,30 @@ _POINTS = ("spawnCenter", "goal", "startPosition")
 _LENGTHS = ("spawnRadius",)
 
 
+def range_problem(name: str, v) -> str | None:
+    """What is wrong with value ``v`` of crowd:``name`` (the schema's documented
+    constraints), or None."""
+    if name in ("speedRange", "heightRange", "elevationRange"):
+        low_ok = v[0] > 0 if name == "heightRange" else v[0] >= 0
+        if not low_ok or v[1] < v[0]:
+            need = "0 < min <= max" if name == "heightRange" else "0 <= min <= max"
+            return f"{tuple(v)} is not a valid range (need {need})"
+    elif name == "speed" and v < 0:
+        return f"negative speed {v}"
+    elif name in ("height", "visitBudget", "radius", "viewDuration", "camera:maxSpeed", "camera:maxForce",
+                  "camera:maxAngularSpeed") and v <= 0:
+        return f"must be > 0, got {v}"
+    elif name in ("maxSlope", "spawnRadius", "decayRate", "clones", "interest") and v < 0:
+        return f"must be >= 0, got {v}"
+    elif name == "subclones" and v < 1:
+        return f"must be >= 1, got {v}"
+    elif name in ("behaviorMapInfluence", "influence", "visibility", "priorKnowledge") and not 0 <= v <= 1:
+        return f"must be in [0, 1], got {v}"
+    elif name == "camera:viewAngle" and not 0 < v < 1:
+        return f"must be in (0, 1), got {v}"
+    return None
+
+
 class _Reader:
     def __init__(self, stage, source: str):
         self.stage = stage
@@ -66,30 +90,17 @@ class _Reader:
         return out
 
     def check(self, prim, name, v):
-        """Range checks of the schema's documented constraints."""
-        attr = f"crowd:{name}"
-        if name in ("speedRange", "heightRange"):
-            low_ok = v[0] >= 0 if name == "speedRange" else v[0] > 0
-            if not low_ok or v[1] < v[0]:
-                self.fail(f"{v} is not a valid range (need {'0 <=' if name == 'speedRange' else '0 <'} min <= max)", prim, attr)
-        elif name in ("speed",) and v < 0:
-            self.fail(f"negative speed {v}", prim, attr)
-        elif name == "height" and v <= 0:
-            self.fail(f"height must be > 0, got {v}", prim, attr)
-        elif name == "maxSlope" and v < 0:
-            self.fail(f"maximum slope must be >= 0, got {v}", prim, attr)
-        elif name in ("behaviorMapInfluence", "influence", "visibility", "priorKnowledge") and not 0 <= v <= 1:
-            self.fail(f"must be in [0, 1], got {v}", prim, attr)
-        elif name in ("spawnRadius", "decayRate") and v < 0:
-            self.fail(f"must be >= 0, got {v}", prim, attr)
-        elif name in ("visitBudget", "radius", "viewDuration") and v <= 0:
-            self.fail(f"must be > 0, got {v}", prim, attr)
+        problem = range_problem(name, v)
+        if problem:
+            self.fail(problem, prim, f"crowd:{name}")
 
     def get(self, prim, name):
         """Value (authored or fallback) of crowd:name, range-checked."""
         value = prim.GetAttribute(f"crowd:{name}").Get()
-        if isinstance(value, (int, float)):
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
             self.check(prim, name, value)
+        elif hasattr(value, "__len__") and not isinstance(value, str) and len(value) in (2, 3):
+            self.check(prim, name, tuple(value))
         return value
 
     # --------------------------------------------------------------- scenery
@@ -163,10 +174,6 @@ def load_scenario(path: str | os.PathLike, seed: int | None = None, stage=None) 
             parent = _nearest_group(prim, group_row)
             clones = int(r.get(prim, "clones"))
             subclones = int(r.get(prim, "subclones"))
-            if clones < 0:
-                r.fail(f"must be >= 0, got {clones}", prim, "crowd:clones")
-            if subclones < 1:
-                r.fail(f"must be >= 1, got {subclones}", prim, "crowd:subclones")
             group_row[path] = len(groups)
             groups.append(GroupSpec(path, parent, r.authored(prim, INHERITED), clones, subclones))
         elif schema.is_agent(prim):
@@ -191,6 +198,11 @@ def load_scenario(path: str | os.PathLike, seed: int | None = None, stage=None) 
     bounds = _bounds(ground, obstacles, table, interest, fields)
     return model.Scenario(source, _time_range(stage), int(seed), group_table, table, fields,
                           interest, obstacles, bounds)
+
+
+def clone_path(group_path: str, k: int) -> str:
+    """Prim path of a group's k-th clone."""
+    return f"{group_path}/clone_{k:04d}"
 
 
 def _lux_base():
@@ -250,7 +262,11 @@ def _resolve(r: _Reader, seed, groups, agents):
     rows: list[AgentSpec] = []
     cols: dict[str, list[np.ndarray]] = {}
     for gi, g in enumerate(groups):
-        members = by_group[gi] + [AgentSpec(f"{g.path}/clone_{k:04d}", gi) for k in range(g.clones)]
+        # A shot stage already holds the clones a run made: they are read as
+        # authored agents, not made again.
+        have = {a.path for a in by_group[gi]}
+        clones = [AgentSpec(p, gi) for p in (clone_path(g.path, k) for k in range(g.clones)) if p not in have]
+        members = by_group[gi] + clones
         has_subgroups = any(h.parent == gi for h in groups)
         if not members and not has_subgroups:
             prim = r.stage.GetPrimAtPath(g.path)

@@ -1,0 +1,47 @@
+"""The ``usdcrowd`` command line.
+
+Each command lives in its own module with ``add_parser(subparsers)`` and
+``run(args) -> int``. A user's mistake (a :class:`~usdcrowd.errors.UsdcrowdError`)
+prints one line and exits 2; a bug still shows its traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from .. import __version__
+from ..errors import UsdcrowdError
+from . import demo, inspect_cmd, new, simulate, validate
+
+COMMANDS = (new, inspect_cmd, validate, simulate, demo)
+EXIT_USER_ERROR = 2
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="usdcrowd",
+        description="Crowd scenes described in USD: simulated, filmed and rendered with exact ground truth.")
+    parser.add_argument("--version", action="version", version=f"usdcrowd {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for module in COMMANDS:
+        module.add_parser(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; returns the exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.run(args) or 0)
+    except UsdcrowdError as exc:
+        print(f"usdcrowd {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_USER_ERROR
+    except KeyboardInterrupt:
+        print(f"usdcrowd {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,58 @@
+"""Argument groups shared by the commands (after usdrecord): frames, camera,
+resolution, seed, output."""
+
+from __future__ import annotations
+
+import argparse
+import re
+
+import numpy as np
+
+_FRAMES = re.compile(r"^\s*(-?\d+(?:\.\d+)?)\s*(?::\s*(-?\d+(?:\.\d+)?)\s*(?:x\s*(\d+(?:\.\d+)?))?)?\s*$")
+
+
+def parse_frames(spec: str) -> np.ndarray:
+    """Time codes of a frame spec: ``10``, ``1:240`` or ``1:240x2`` (inclusive, stride).
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        On a malformed spec, an end before the start, or a stride <= 0.
+    """
+    m = _FRAMES.match(spec)
+    if not m:
+        raise argparse.ArgumentTypeError(f"bad frame spec {spec!r}: use N, START:END or START:ENDxSTRIDE")
+    start = float(m.group(1))
+    end = float(m.group(2)) if m.group(2) is not None else start
+    stride = float(m.group(3)) if m.group(3) is not None else 1.0
+    if end < start or stride <= 0:
+        raise argparse.ArgumentTypeError(f"bad frame spec {spec!r}: need START <= END and STRIDE > 0")
+    return np.arange(start, end + stride * 0.5, stride)
+
+
+def add_frames(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--frames", type=parse_frames, metavar="SPEC",
+                        help="frames to use: N, START:END or START:ENDxSTRIDE (default: the stage's range)")
+
+
+def add_seed(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--seed", type=int, help="seed of every random draw (default: the stage's, else 0)")
+
+
+def add_camera(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--camera", metavar="PATH", help="camera prim path (default: the first camera)")
+
+
+def add_resolution(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--resolution", type=_resolution, metavar="WxH", help="image size, e.g. 640x360")
+
+
+def _resolution(spec: str) -> tuple[int, int]:
+    m = re.match(r"^(\d+)x(\d+)$", spec.strip())
+    if not m or int(m.group(1)) < 1 or int(m.group(2)) < 1:
+        raise argparse.ArgumentTypeError(f"bad resolution {spec!r}: use WIDTHxHEIGHT, e.g. 640x360")
+    return int(m.group(1)), int(m.group(2))
+
+
+def add_progress(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--no-progress", dest="progress", action="store_false", help="hide progress bars")

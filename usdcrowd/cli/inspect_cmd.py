@@ -1,0 +1,21 @@
+"""usdcrowd inspect STAGE [--json]"""
+
+from __future__ import annotations
+
+import json
+
+
+def add_parser(sub):
+    p = sub.add_parser("inspect", help="summarise a stage: layers, groups, agents, layers, cameras, lights",
+                       description="Print a readable summary of a scenario or shot stage.")
+    p.add_argument("stage", help="a .usda/.usdc/.usd stage")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    from ..summary import format_summary, summarize
+
+    s = summarize(args.stage)
+    print(json.dumps(s, indent=2, default=str) if args.json else format_summary(s))
+    return 0

@@ -1,0 +1,27 @@
+"""usdcrowd new TEMPLATE -o scenario.usda [--agents N] [--seed S]"""
+
+from __future__ import annotations
+
+from .args import add_seed
+
+
+def add_parser(sub):
+    from ..templates import list_templates
+
+    p = sub.add_parser("new", help="write a scenario stage from an example template",
+                       description="Write a scenario stage from one of the example scenes in stages/.")
+    p.add_argument("template", help=f"one of: {', '.join(list_templates())}")
+    p.add_argument("-o", "--output", required=True, help="the new stage (.usda, .usdc or .usd)")
+    p.add_argument("--agents", type=int, help="total number of agents (clones are rescaled per group)")
+    add_seed(p)
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    from ..templates import new_scenario
+
+    info = new_scenario(args.template, args.output, args.agents, args.seed)
+    print(f"wrote {info['path']}: template {args.template}, {info['agents']} agents, seed {info['seed']}")
+    for asset in info["assets"]:
+        print(f"  asset {asset}")
+    return 0

@@ -1,0 +1,28 @@
+"""usdcrowd simulate STAGE -o OUT/ [--seed S] [--frames 1:240]"""
+
+from __future__ import annotations
+
+from .args import add_frames, add_progress, add_seed
+
+
+def add_parser(sub):
+    p = sub.add_parser("simulate", help="simulate a scenario and write a shot (shot.usda, crowd.usdc, cameras.usda)",
+                       description="Simulate a scenario stage and author the crowd as UsdSkel animation in a shot "
+                                   "folder. The scenario is referred to, never rewritten.")
+    p.add_argument("stage", help="the scenario stage")
+    p.add_argument("-o", "--output", required=True, help="output folder for the shot")
+    add_seed(p)
+    add_frames(p)
+    add_progress(p)
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    from ..pipeline import simulate_shot
+
+    frames = (float(args.frames[0]), float(args.frames[-1])) if args.frames is not None else None
+    r = simulate_shot(args.stage, args.output, seed=args.seed, frames=frames, progress=args.progress)
+    print(f"wrote {r.shot}: {r.n_agents} agents x {r.n_frames} frames, seed {r.seed}")
+    print(f"  crowd   {r.crowd}")
+    print(f"  cameras {r.cameras}")
+    return 0

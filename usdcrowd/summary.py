@@ -1,0 +1,184 @@
+"""A readable summary of a stage: what ``usdcrowd inspect`` prints.
+
+Works on scenario and shot stages alike: layers, time range, the group tree
+with counts and resolved attributes, agents, behavior layers, interest
+points, cameras, lights and events.
+"""
+
+from __future__ import annotations
+
+import os
+from collections import Counter
+
+import numpy as np
+
+from . import model, schema
+
+
+def summarize(path: str | os.PathLike, stage=None) -> dict:
+    """Collect the summary of a stage as plain JSON-able data."""
+    from pxr import Usd, UsdGeom, UsdLux
+
+    from .scenario import load_scenario, open_stage, stage_frame
+    from .scenario.read import stored_seed
+
+    path = os.fspath(path)
+    stage = stage or open_stage(path)
+    frame = stage_frame(stage)
+    out: dict = {
+        "stage": path,
+        "upAxis": frame.up_axis,
+        "metersPerUnit": frame.meters_per_unit,
+        "defaultPrim": stage.GetDefaultPrim().GetName() if stage.GetDefaultPrim() else None,
+        "time": {"start": stage.GetStartTimeCode(), "end": stage.GetEndTimeCode(),
+                 "fps": stage.GetTimeCodesPerSecond(), "authored": stage.HasAuthoredTimeCodeRange()},
+        "seed": stored_seed(stage),
+        "layers": [_layer_name(layer, path) for layer in stage.GetLayerStack(includeSessionLayers=False)],
+    }
+    has_crowd = any(p.GetTypeName() == schema.GROUP or schema.is_agent(p) for p in stage.Traverse())
+    if has_crowd:
+        sc = load_scenario(path, stage=stage)
+        out["groups"] = _groups(stage, sc)
+        out["agents"] = _agents(sc)
+        out["behaviorLayers"] = [{
+            "path": f.path, "meaning": model.LAYER_MEANINGS[f.meaning],
+            "generator": model.LAYER_GENERATORS[f.generator],
+            "extent": [f.extent_min.tolist(), f.extent_max.tolist()],
+            "resolution": list(f.values.shape[::-1]) if f.values is not None else None,
+            "influence": f.influence} for f in sc.fields]
+        out["interestPoints"] = [{
+            "path": p, "position": sc.interest.position[i].round(3).tolist(),
+            "interest": float(sc.interest.interest[i]), "radius": float(sc.interest.radius[i]),
+            "visibility": float(sc.interest.visibility[i])} for i, p in enumerate(sc.interest.path)]
+        out["obstacles"] = len(sc.obstacles)
+    cams, lights, events = [], [], []
+    for prim in stage.Traverse():
+        if prim.IsA(UsdGeom.Camera):
+            cam = UsdGeom.Camera(prim)
+            xf = UsdGeom.Xformable(prim)
+            cams.append({
+                "path": str(prim.GetPath()), "focalLength": cam.GetFocalLengthAttr().Get(),
+                "aperture": [cam.GetHorizontalApertureAttr().Get(), cam.GetVerticalApertureAttr().Get()],
+                "clipping": list(cam.GetClippingRangeAttr().Get()),
+                "animated": bool(xf.TransformMightBeTimeVarying()),
+                "cameraAgent": prim.HasAPI(schema.CAMERA_AGENT_API)})
+        elif prim.HasAPI(UsdLux.LightAPI):
+            light = UsdLux.LightAPI(prim)
+            lights.append({"path": str(prim.GetPath()), "type": str(prim.GetTypeName()),
+                           "intensity": light.GetIntensityAttr().Get(),
+                           "exposure": light.GetExposureAttr().Get(),
+                           "color": list(light.GetColorAttr().Get())})
+        elif prim.GetTypeName() == schema.EVENT:
+            rel = prim.GetRelationship("crowd:members")
+            events.append({"path": str(prim.GetPath()), "kind": str(prim.GetAttribute("crowd:kind").Get()),
+                           "members": len(rel.GetTargets()) if rel else 0,
+                           "start": prim.GetAttribute("crowd:startTime").Get(),
+                           "end": prim.GetAttribute("crowd:endTime").Get()})
+    out["cameras"], out["lights"], out["events"] = cams, lights, events
+    return out
+
+
+def _layer_name(layer, stage_path: str) -> str:
+    real = layer.realPath
+    if not real:
+        return layer.identifier
+    return os.path.relpath(real, os.path.dirname(os.path.abspath(stage_path)))
+
+
+def _groups(stage, sc: model.Scenario) -> list[dict]:
+    a = sc.agents
+    per_group = np.bincount(a.group, minlength=len(sc.groups))
+    total = per_group.astype(np.int64).copy()
+    for gi in range(len(sc.groups) - 1, -1, -1):       # parents come first: sum bottom-up
+        if sc.groups.parent[gi] >= 0:
+            total[sc.groups.parent[gi]] += total[gi]
+    rows = []
+    for gi, path in enumerate(sc.groups.path):
+        prim = stage.GetPrimAtPath(path)
+        members = np.flatnonzero(a.group == gi)
+        authored = {p.GetName().split(":", 1)[1]: _plain(p.Get()) for p in prim.GetAttributes()
+                    if p.GetName().startswith("crowd:") and p.HasAuthoredValue()}
+        resolved = {}
+        if members.size:
+            for key, vocab in (("characterType", model.CHARACTER_TYPES), ("personality", model.PERSONALITIES),
+                               ("behavior", model.BEHAVIORS), ("condition", model.CONDITIONS),
+                               ("visitProfile", model.VISIT_PROFILES)):
+                col = getattr(a, _snake(key))[members]
+                resolved[key] = dict(Counter(vocab[c] for c in col))
+            resolved["speed"] = [round(float(a.speed[members].min()), 3), round(float(a.speed[members].max()), 3)]
+            resolved["height"] = [round(float(a.height[members].min()), 3), round(float(a.height[members].max()), 3)]
+        depth, p = 0, sc.groups.parent[gi]
+        while p >= 0:
+            depth, p = depth + 1, sc.groups.parent[p]
+        rows.append({"path": path, "depth": depth, "agents": int(per_group[gi]), "agentsInTree": int(total[gi]),
+                     "authored": authored, "resolved": resolved})
+    return rows
+
+
+def _agents(sc: model.Scenario) -> dict:
+    a = sc.agents
+    return {
+        "count": len(a),
+        "visible": int(a.visible.sum()),
+        "roles": dict(Counter(model.ROLES[c] for c in a.role)),
+        "personality": dict(Counter(model.PERSONALITIES[c] for c in a.personality)),
+        "ids": [int(a.agent_id.min()), int(a.agent_id.max())] if len(a) else [],
+        "withLeader": int((a.leader >= 0).sum()),
+    }
+
+
+def _snake(name: str) -> str:
+    return "".join("_" + c.lower() if c.isupper() else c for c in name)
+
+
+def _plain(v):
+    if hasattr(v, "path"):          # Sdf.AssetPath
+        return v.path
+    if hasattr(v, "__len__") and not isinstance(v, str):
+        return [round(float(x), 4) for x in v]
+    if isinstance(v, float):
+        return round(v, 4)
+    return v if isinstance(v, (int, bool)) else str(v)
+
+
+def format_summary(s: dict) -> str:
+    """Render :func:`summarize`'s data as the text ``inspect`` prints."""
+    t = s["time"]
+    lines = [f"stage   {s['stage']}",
+             f"        {s['upAxis']} up, {s['metersPerUnit']:g} m/unit, frames {t['start']:g}-{t['end']:g} "
+             f"at {t['fps']:g} fps{'' if t['authored'] else ' (not authored)'}, "
+             f"seed {s['seed'] if s['seed'] is not None else 'unset'}",
+             "layers  " + "  >  ".join(s["layers"])]
+    if "groups" in s:
+        lines.append(f"groups  {len(s['groups'])}")
+        for g in s["groups"]:
+            name = g["path"] if g["depth"] == 0 else "  " * g["depth"] + g["path"].rsplit("/", 1)[-1]
+            res = g["resolved"]
+            bits = [f"{k}={'/'.join(f'{v}:{c}' if len(res[k]) > 1 else v for v, c in res[k].items())}"
+                    for k in ("characterType", "personality", "behavior", "condition", "visitProfile") if k in res]
+            if "speed" in res:
+                bits.append(f"speed={res['speed'][0]:g}-{res['speed'][1]:g} m/s")
+            lines.append(f"  {name:<34} {g['agents']:>6} agents ({g['agentsInTree']} in tree)  " + " ".join(bits))
+        a = s["agents"]
+        lines.append(f"agents  {a['count']} ({a['visible']} visible), ids {a['ids'][0]}-{a['ids'][1]}, "
+                     f"roles {a['roles']}, {a['withLeader']} follow a leader" if a["count"] else "agents  0")
+        lines.append(f"layers  {len(s['behaviorLayers'])} behavior layer(s)")
+        for f in s["behaviorLayers"]:
+            lines.append(f"  {f['path']}  {f['meaning']} ({f['generator']}), extent {f['extent']}, influence {f['influence']:g}")
+        lines.append(f"interest {len(s['interestPoints'])} point(s)")
+        for p in s["interestPoints"]:
+            lines.append(f"  {p['path']}  at {p['position']}, interest {p['interest']:g}, radius {p['radius']:g} m, "
+                         f"visibility {p['visibility']:g}")
+        lines.append(f"scenery {s['obstacles']} obstacle(s)")
+    lines.append(f"cameras {len(s['cameras'])}")
+    for c in s["cameras"]:
+        lines.append(f"  {c['path']}  {c['focalLength']:g} mm, aperture {c['aperture'][0]:g}x{c['aperture'][1]:g} mm, "
+                     f"clip {c['clipping'][0]:g}-{c['clipping'][1]:g}{', animated' if c['animated'] else ''}"
+                     f"{', camera agent' if c['cameraAgent'] else ''}")
+    lines.append(f"lights  {len(s['lights'])}")
+    for li in s["lights"]:
+        lines.append(f"  {li['path']}  {li['type']}, intensity {li['intensity']:g}, exposure {li['exposure']:g}")
+    lines.append(f"events  {len(s['events'])}")
+    for e in s["events"]:
+        lines.append(f"  {e['path']}  {e['kind']}, {e['members']} members, frames {e['start']:g}-{e['end']:g}")
+    return "\n".join(lines)

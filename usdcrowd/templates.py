@@ -1,0 +1,92 @@
+"""``usdcrowd new``: a scenario stage from one of the examples in stages/."""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from . import schema
+from .atomic import atomic_path
+from .errors import UsdcrowdError
+from .resources import data_dir
+
+
+def list_templates() -> list[str]:
+    """Names of the example scenarios shipped in stages/."""
+    return sorted(p.stem for p in data_dir("stages").glob("*.usda"))
+
+
+def _split(total: int, weights: np.ndarray) -> np.ndarray:
+    """Split ``total`` in proportion to ``weights`` (largest remainder), each >= 0."""
+    if weights.sum() <= 0:
+        weights = np.ones_like(weights, dtype=np.float64)
+    exact = total * weights / weights.sum()
+    out = np.floor(exact).astype(int)
+    out[np.argsort(-(exact - out))[: total - out.sum()]] += 1
+    return out
+
+
+def new_scenario(template: str, out: str | os.PathLike, agents: int | None = None, seed: int | None = None) -> dict:
+    """Write a copy of a template, optionally resized to ``agents`` agents and reseeded.
+
+    Image assets the template refers to (behavior maps) are copied next to
+    the new stage so its relative asset paths keep working.
+
+    Returns
+    -------
+    dict
+        ``{"path", "agents", "seed", "assets"}``.
+    """
+    from pxr import Sdf, Usd
+
+    names = list_templates()
+    if template not in names:
+        raise UsdcrowdError(f"unknown template {template!r}; choose one of: {', '.join(names)}")
+    if agents is not None and agents < 1:
+        raise UsdcrowdError(f"--agents must be >= 1, got {agents}")
+    src = data_dir("stages") / f"{template}.usda"
+    out = Path(out)
+    if out.suffix not in (".usda", ".usdc", ".usd"):
+        raise UsdcrowdError("the output must end in .usda, .usdc or .usd", file=str(out))
+
+    layer = Sdf.Layer.CreateAnonymous(out.suffix)
+    layer.TransferContent(Sdf.Layer.FindOrOpen(str(src)))
+    stage = Usd.Stage.Open(layer)
+    groups = [p for p in stage.Traverse() if p.GetTypeName() == schema.GROUP]
+    n_authored = sum(1 for p in stage.Traverse() if schema.is_agent(p))
+    if agents is not None:
+        clones = np.array([p.GetAttribute("crowd:clones").Get() for p in groups], dtype=np.float64)
+        target = _split(max(agents - n_authored, 0), clones)
+        for prim, k in zip(groups, target):
+            if k or prim.GetAttribute("crowd:clones").HasAuthoredValue():
+                prim.GetAttribute("crowd:clones").Set(int(k))
+    data = dict(layer.customLayerData)
+    crowd = dict(data.get("usdcrowd", {}))
+    if seed is not None:
+        crowd["seed"] = int(seed)
+    crowd["template"] = template
+    data["usdcrowd"] = crowd
+    layer.customLayerData = data
+
+    # Copy the image assets the template points at, keeping relative paths.
+    assets = []
+    for prim in stage.Traverse():
+        for attr in prim.GetAttributes():
+            if attr.GetTypeName() == Sdf.ValueTypeNames.Asset and attr.HasAuthoredValue():
+                rel = attr.Get().path
+                if rel and not os.path.isabs(rel):
+                    source_file = src.parent / rel
+                    if source_file.is_file():
+                        assets.append((source_file, out.parent / rel))
+    with atomic_path(out) as tmp:
+        if not layer.Export(str(tmp)):
+            raise UsdcrowdError("could not be written", file=str(out))
+        for source_file, dest in assets:
+            dest.parent.mkdir(parents=True, exist_ok=True)
+            if source_file.resolve() != dest.resolve():
+                shutil.copyfile(source_file, dest)
+    total = n_authored + sum(int(p.GetAttribute("crowd:clones").Get()) for p in groups)
+    return {"path": str(out), "agents": total, "seed": crowd.get("seed"), "assets": [str(d) for _, d in assets]}

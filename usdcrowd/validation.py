@@ -1,0 +1,152 @@
+"""``usdcrowd validate``: USD's own validators plus the crowd schemas' rules.
+
+USD does not enforce allowedTokens or the documented ranges of our
+attributes; these checks do, and collect every problem instead of stopping at
+the first.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+from . import schema
+from .errors import UsdcrowdError
+
+# USD validators that judge packaging for delivery formats, not stages in a
+# working folder: a .usdc sublayer is exactly what the design asks for.
+_SKIPPED_VALIDATORS = {
+    "usdUtilsValidators:UsdzPackageValidator",
+    "usdUtilsValidators:RootPackageValidator",
+    "usdUtilsValidators:PackageEncapsulationValidator",
+    "usdUtilsValidators:FileExtensionValidator",
+}
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One finding: where, what, and from which check."""
+
+    file: str
+    prim: str
+    attribute: str
+    message: str
+    source: str          # the validator's name, or "usdcrowd"
+    severity: str = "error"
+
+    def __str__(self) -> str:
+        where = self.file + (f":{self.prim}" if self.prim else "") + (f".{self.attribute}" if self.attribute else "")
+        return f"{where}: {self.severity}: {' '.join(self.message.split())} [{self.source}]"
+
+
+def usd_problems(stage, source: str) -> list[Problem]:
+    """Findings of pxr.UsdValidation's registered validators."""
+    from pxr import UsdValidation
+
+    reg = UsdValidation.ValidationRegistry()
+    validators = [v for v in reg.GetOrLoadAllValidators() if str(v.GetMetadata().name) not in _SKIPPED_VALIDATORS]
+    out = []
+    for err in UsdValidation.ValidationContext(validators).Validate(stage):
+        if err.HasNoError():
+            continue
+        sev = {UsdValidation.ValidationErrorType.Error: "error",
+               UsdValidation.ValidationErrorType.Warn: "warning"}.get(err.GetType(), "info")
+        prim = attr = ""
+        for site in err.GetSites():
+            if site.IsPrim():
+                prim = str(site.GetPrim().GetPath())
+            elif site.IsProperty():
+                prop = site.GetProperty()
+                prim, attr = str(prop.GetPrim().GetPath()), prop.GetName()
+        validator = err.GetValidator()
+        name = str(validator.GetMetadata().name) if validator else str(err.GetName())
+        out.append(Problem(source, prim, attr, err.GetMessage(), name, sev))
+    return out
+
+
+def schema_problems(stage, source: str) -> list[Problem]:
+    """Crowd-schema rules: allowed tokens, documented ranges, relationships, assets, ids."""
+    from pxr import UsdGeom
+
+    from .scenario.read import range_problem
+
+    out: list[Problem] = []
+    ids: dict[int, str] = {}
+
+    def add(prim, attr, msg):
+        out.append(Problem(source, str(prim.GetPath()), attr, msg, "usdcrowd"))
+
+    for prim in stage.Traverse():
+        tname = prim.GetTypeName()
+        ours = tname in (schema.GROUP, schema.BEHAVIOR_LAYER, schema.INTEREST_POINT, schema.EVENT) \
+            or schema.is_agent(prim) or prim.HasAPI(schema.CAMERA_AGENT_API)
+        if not ours:
+            continue
+        for attr in prim.GetAttributes():
+            name = attr.GetName()
+            if not name.startswith("crowd:") or not attr.HasAuthoredValue():
+                continue
+            value = attr.Get()
+            allowed = attr.GetMetadata("allowedTokens")
+            if allowed and value is not None and str(value) not in [str(t) for t in allowed]:
+                add(prim, name, f"{value!r} is not one of {', '.join(str(t) for t in allowed)}")
+                continue
+            key = name[len("crowd:"):]
+            if isinstance(value, (int, float)) and not isinstance(value, bool):
+                problem = range_problem(key, value)
+            elif hasattr(value, "__len__") and not isinstance(value, str) and len(value) in (2, 3):
+                problem = range_problem(key, tuple(value))
+            else:
+                problem = None
+            if problem:
+                add(prim, name, problem)
+        if prim.HasAPI(schema.CAMERA_AGENT_API) and not prim.IsA(UsdGeom.Camera):
+            add(prim, "", "CameraAgentAPI is applied to a prim that is not a Camera")
+        if schema.is_agent(prim):
+            aid = prim.GetAttribute("crowd:agentId").Get()
+            if aid is not None and aid != -1:
+                if aid in ids:
+                    add(prim, "crowd:agentId", f"agent id {aid} is also used by {ids[aid]}")
+                ids[aid] = str(prim.GetPath())
+            for rel_name, want in (("crowd:leader", "agent"), ("crowd:group", schema.GROUP)):
+                rel = prim.GetRelationship(rel_name)
+                for target in (rel.GetTargets() if rel else []):
+                    t = stage.GetPrimAtPath(target)
+                    ok = t and (schema.is_agent(t) if want == "agent" else t.GetTypeName() == want)
+                    if not ok:
+                        add(prim, rel_name, f"target {target} is not a {'CrowdAgentAPI agent' if want == 'agent' else want}")
+        if tname == schema.EVENT:
+            start, end = prim.GetAttribute("crowd:startTime").Get(), prim.GetAttribute("crowd:endTime").Get()
+            if end < start:
+                add(prim, "crowd:endTime", f"ends ({end}) before it starts ({start})")
+            rel = prim.GetRelationship("crowd:members")
+            for target in (rel.GetTargets() if rel else []):
+                t = stage.GetPrimAtPath(target)
+                if not (t and schema.is_agent(t)):
+                    add(prim, "crowd:members", f"target {target} is not a CrowdAgentAPI agent")
+    return out
+
+
+def scenario_problem(stage, source: str) -> list[Problem]:
+    """The first structural problem the scenario reader finds (empty group, missing image...)."""
+    from .scenario import load_scenario
+
+    if not any(p.GetTypeName() == schema.GROUP or schema.is_agent(p) for p in stage.Traverse()):
+        return []
+    try:
+        load_scenario(source, stage=stage)
+    except UsdcrowdError as exc:
+        return [Problem(exc.file or source, exc.prim or "", exc.attribute or "", exc.message, "usdcrowd")]
+    return []
+
+
+def validate(path: str | os.PathLike, stage=None) -> list[Problem]:
+    """Every problem found in a stage; errors first. Empty means valid."""
+    from .scenario import open_stage
+
+    source = os.fspath(path)
+    stage = stage or open_stage(source)
+    found = usd_problems(stage, source) + schema_problems(stage, source)
+    seen = {(p.prim, p.attribute, p.message) for p in found}
+    found += [p for p in scenario_problem(stage, source) if (p.prim, p.attribute, p.message) not in seen]
+    return sorted(found, key=lambda p: (p.severity != "error", p.prim, p.attribute))
