@@ -7,6 +7,7 @@ together; the CLI's ``simulate`` and ``demo`` call it.
 from __future__ import annotations
 
 import os
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -51,11 +52,26 @@ def simulate_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike, 
     chunk_frames : int
         Frames simulated and authored at a time (memory stays linear in it).
     """
+    from .sim import SimSettings, simulate_chunks
+
+    return author_shot(scenario_path, out_dir, lambda sc: simulate_chunks(sc, SimSettings(chunk_frames=chunk_frames)),
+                       seed=seed, frames=frames, progress=progress)
+
+
+def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
+                crowd_source: Callable[[model.Scenario], Iterable[model.CrowdFrames]],
+                seed: int | None = None, frames: tuple[float, float] | None = None,
+                progress: bool = True) -> ShotResult:
+    """Read a scenario, take its crowd from ``crowd_source`` and write the shot.
+
+    ``crowd_source(scenario)`` yields consecutive :class:`CrowdFrames` chunks
+    covering the scenario's time range: the simulation, or any other source
+    of trajectories (recorded tracks, tests).
+    """
     from pxr import UsdLux
 
     from .character.animation import animate
     from .scenario import load_scenario, open_stage, stage_frame
-    from .sim import SimSettings, simulate_chunks
     from .usd import CROWD, CrowdLayerWriter, write_cameras, write_shot
 
     scenario_path = os.fspath(scenario_path)
@@ -73,11 +89,12 @@ def simulate_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike, 
 
     writer = CrowdLayerWriter(out_dir / CROWD, scenario, sframe, default_prim, scenario_ref, authored)
     visible = scenario.agents.visible
+    if not visible.any():
+        visible = np.ones_like(visible)
     centres, spreads = [], []
     dt = 1.0 / scenario.time.fps
-    settings = SimSettings(chunk_frames=chunk_frames)
     with _progress(scenario.time.n_frames, "simulate", progress) as bar:
-        for chunk in simulate_chunks(scenario, settings):
+        for chunk in crowd_source(scenario):
             rot, trans = animate(chunk, dt, scenario.agents.height)
             writer.write_chunk(chunk, rot, trans)
             pos = chunk.position[:, visible].astype(np.float64)

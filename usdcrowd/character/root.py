@@ -37,7 +37,9 @@ def apply_root_motion(rotations: np.ndarray, translations: np.ndarray, position:
     scale : (n,) float32
         Uniform scale of each agent's root joint.
     """
-    scale = (np.asarray(height, dtype=np.float64) / HEAD_TOP)
+    # UsdSkel stores joint scales as half floats: quantise here so that every
+    # position usdcrowd derives (ground truth included) is the stage's own.
+    scale = (np.asarray(height, dtype=np.float64) / HEAD_TOP).astype(np.float16).astype(np.float64)
     q_heading = quat_from_axis_angle(np.array([0.0, 0.0, 1.0]), np.asarray(heading, dtype=np.float64))
     rot = np.array(rotations, dtype=np.float64, copy=True)
     trans = np.array(translations, dtype=np.float64, copy=True)

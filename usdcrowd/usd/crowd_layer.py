@@ -101,7 +101,7 @@ class CrowdLayerWriter:
         self._lo = np.full((n, 3), np.inf)
         self._hi = np.full((n, 3), -np.inf)
         self._last_tokens: dict[str, np.ndarray] = {}
-        self._scale = (scenario.agents.height / rig.HEAD_TOP).astype(np.float32)
+        self._scale = (scenario.agents.height / rig.HEAD_TOP).astype(np.float16).astype(np.float32)
         self._anim_paths: list = []
         self._write_static()
 

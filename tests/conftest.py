@@ -1,0 +1,52 @@
+"""Shared fixtures, named after what they set up."""
+
+from __future__ import annotations
+
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import usdcrowd  # noqa: F401  (registers the schemas before any stage opens)
+from usdcrowd.resources import data_dir
+
+sys.path.insert(0, str(Path(__file__).parent))
+
+
+@pytest.fixture
+def rng():
+    """A seeded generator: tests are reproducible."""
+    return np.random.default_rng(1234)
+
+
+@pytest.fixture
+def museum_path() -> Path:
+    return data_dir("stages") / "museum.usda"
+
+
+HEADER = '''#usda 1.0
+(
+    defaultPrim = "World"
+    metersPerUnit = {mpu}
+    upAxis = "{up}"
+    startTimeCode = 1
+    endTimeCode = {end}
+    timeCodesPerSecond = 24
+)
+'''
+
+
+@pytest.fixture
+def write_stage(tmp_path):
+    """Write a small .usda from a body of prims; returns its path."""
+    counter = {"n": 0}
+
+    def _write(body: str, name: str | None = None, up: str = "Z", mpu: float = 1, end: int = 12) -> Path:
+        counter["n"] += 1
+        path = tmp_path / (name or f"stage{counter['n']}.usda")
+        path.write_text(HEADER.format(up=up, mpu=mpu, end=end) + textwrap.dedent(body))
+        return path
+
+    return _write

@@ -1,0 +1,159 @@
+"""The shot stage as another USD reader sees it: layers, skinning, round trip, units."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel
+
+from frames_factory import straight_walk
+from usdcrowd.character import animation, body, rig
+from usdcrowd.character.root import apply_root_motion
+from usdcrowd.pipeline import author_shot
+from usdcrowd.scenario import load_scenario
+from usdcrowd.tolerances import ROUND_TRIP_ATOL, SKINNING_ATOL
+from usdcrowd.validation import validate
+
+
+def _walk(sc):
+    yield straight_walk(sc.agents, sc.time)
+
+
+@pytest.fixture
+def museum_shot(tmp_path, museum_path):
+    """The museum scenario with every agent walking straight, authored as a shot."""
+    result = author_shot(museum_path, tmp_path / "shot", _walk, frames=(1, 24), progress=False)
+    return result, load_scenario(museum_path)
+
+
+def _skinned(stage, agent_path, time):
+    """Points of an agent's body skinned by UsdSkel itself, in world space."""
+    cache = UsdSkel.Cache()
+    root = UsdSkel.Root(stage.GetPrimAtPath(agent_path))
+    cache.Populate(root, Usd.TraverseInstanceProxies())
+    (binding,) = cache.ComputeSkelBindings(root, Usd.TraverseInstanceProxies())
+    skel_query = cache.GetSkelQuery(binding.GetSkeleton())
+    (target,) = binding.GetSkinningTargets()
+    xforms = skel_query.ComputeSkinningTransforms(time)
+    points = target.GetPrim().GetAttribute("points").Get(time)
+    assert target.ComputeSkinnedPoints(xforms, points, time)
+    world = np.array(UsdGeom.Xformable(binding.GetSkeleton().GetPrim()).ComputeLocalToWorldTransform(time))
+    p = np.hstack([np.array(points, dtype=np.float64), np.ones((len(points), 1))])
+    return (p @ world)[:, :3]
+
+
+def test_shot_sublayers_generated_layers_over_the_untouched_scenario(museum_shot, museum_path):
+    result, _ = museum_shot
+    before = museum_path.read_bytes()
+    layer = Sdf.Layer.FindOrOpen(result.shot)
+    assert [p.split("/")[-1] for p in layer.subLayerPaths] == ["cameras.usda", "crowd.usdc", "museum.usda"]
+    assert museum_path.read_bytes() == before
+    stage = Usd.Stage.Open(result.shot)
+    assert UsdGeom.GetStageUpAxis(stage) == "Z" and stage.GetStartTimeCode() == 1 and stage.GetEndTimeCode() == 24
+
+
+def test_characters_skin_in_usdskel_as_usdcrowd_computes_them(museum_shot):
+    result, sc = museum_shot
+    stage = Usd.Stage.Open(result.shot)
+    frames = straight_walk(sc.agents, sc.time)
+    rot, trans = animation.animate(frames, 1 / 24, sc.agents.height)
+    rot_w, trans_w, scale = apply_root_motion(rot, trans, frames.position, frames.heading, sc.agents.height)
+    b = body.build_body()
+    for i in (1, 6, 18):
+        for t in (1, 12, 24):
+            k = t - 1
+            local = rig.compose_local(rot_w[k, i], trans_w[k, i])
+            local[0, :3, :3] *= scale[i]        # uniform scale of the root joint
+            ours = rig.skin_points(b.points, b.joint_indices, b.joint_weights,
+                                   rig.skinning_transforms(rig.local_to_skel(local)))
+            theirs = _skinned(stage, sc.agents.path[i], t)
+            assert np.abs(ours - theirs).max() < SKINNING_ATOL
+            # The body stands where the simulation put it, feet on the ground.
+            assert np.allclose(theirs[:, :2].mean(0), frames.position[k, i, :2], atol=0.25)
+            assert theirs[:, 2].min() == pytest.approx(0.0, abs=0.06)
+            assert theirs[:, 2].max() == pytest.approx(sc.agents.height[i], rel=0.05)
+
+
+def test_round_trip_time_samples_and_resolved_table(museum_shot):
+    result, sc = museum_shot
+    stage = Usd.Stage.Open(result.shot)
+    frames = straight_walk(sc.agents, sc.time)
+    rot, trans = animation.animate(frames, 1 / 24, sc.agents.height)
+    rot_w, trans_w, _ = apply_root_motion(rot, trans, frames.position, frames.heading, sc.agents.height)
+    for i in (0, 7):
+        anim = UsdSkel.Animation(stage.GetPrimAtPath(f"{sc.agents.path[i]}/Anim"))
+        for t in (1, 5, 24):
+            q = np.array([[x.GetReal(), *x.GetImaginary()] for x in anim.GetRotationsAttr().Get(t)])
+            assert np.allclose(q, rot_w[t - 1, i], atol=ROUND_TRIP_ATOL)
+            assert np.allclose(np.array(anim.GetTranslationsAttr().Get(t)), trans_w[t - 1, i], atol=1e-4)
+    again = load_scenario(result.shot)
+    assert again.agents.path == sc.agents.path
+    for name in ("agent_id", "leader", "personality", "behavior", "color", "speed", "height", "start"):
+        assert np.allclose(getattr(again.agents, name), getattr(sc.agents, name), atol=1e-5), name
+
+
+def test_state_tokens_and_visibility(museum_shot):
+    result, sc = museum_shot
+    stage = Usd.Stage.Open(result.shot)
+    guide = stage.GetPrimAtPath("/World/Crowd/Visitors/Family/Guide")
+    assert UsdGeom.Imageable(guide).ComputeVisibility(1) == UsdGeom.Tokens.invisible
+    clone = stage.GetPrimAtPath(sc.agents.path[1])
+    assert clone.GetAttribute("crowd:state:animClass").Get(10) == "walk"
+    assert clone.GetAttribute("crowd:agentId").Get() == sc.agents.agent_id[1]
+
+
+def test_every_generated_stage_validates_with_no_errors(museum_shot):
+    result, _ = museum_shot
+    for path in (result.shot, result.crowd, result.cameras):
+        errors = [p for p in validate(path) if p.severity == "error"]
+        assert errors == [], [str(e) for e in errors]
+
+
+Y_UP_CM = '''
+def Xform "World"
+{
+    def CrowdGroup "Crowd"
+    {
+        uniform int crowd:clones = 3
+        uniform point3f crowd:spawnCenter = (100, 0, -200)
+        uniform float crowd:spawnRadius = 50
+        def SkelRoot "Walker" (prepend apiSchemas = ["CrowdAgentAPI"])
+        {
+            uniform point3f crowd:startPosition = (300, 0, -400)
+        }
+    }
+    def Cube "Box"
+    {
+        double size = 100
+        double3 xformOp:translate = (0, 50, 500)
+        uniform token[] xformOpOrder = ["xformOp:translate"]
+    }
+}
+'''
+
+
+def test_y_up_centimetre_stage_is_read_in_metres_z_up(write_stage):
+    sc = load_scenario(write_stage(Y_UP_CM, up="Y", mpu=0.01))
+    walker = sc.agents.path.index("/World/Crowd/Walker")
+    # Y-up (x, y, z) -> Z-up (x, -z, y), centimetres -> metres.
+    assert np.allclose(sc.agents.start[walker], (3.0, 4.0, 0.0))
+    clones = [i for i, p in enumerate(sc.agents.path) if "clone_" in p]
+    d = np.linalg.norm(sc.agents.start[clones, :2] - np.array([1.0, 2.0]), axis=1)
+    assert np.all(d <= 0.5 + 1e-9)
+    (box,) = sc.obstacles.polygons
+    assert np.allclose(box.min(0), (-0.5, -5.5)) and np.allclose(box.max(0), (0.5, -4.5))
+    assert sc.obstacles.height[0] == pytest.approx(1.0)
+
+
+def test_y_up_centimetre_shot_places_characters_in_stage_units(write_stage, tmp_path):
+    path = write_stage(Y_UP_CM, up="Y", mpu=0.01)
+    result = author_shot(path, tmp_path / "shot", _walk, progress=False)
+    stage = Usd.Stage.Open(result.shot)
+    assert UsdGeom.GetStageUpAxis(stage) == "Y" and UsdGeom.GetStageMetersPerUnit(stage) == pytest.approx(0.01)
+    sc = load_scenario(path)
+    i = sc.agents.path.index("/World/Crowd/Walker")
+    pts = _skinned(stage, "/World/Crowd/Walker", 1)
+    # Standing upright along +Y, in centimetres, at the authored start.
+    assert pts[:, 1].min() == pytest.approx(0.0, abs=6) and pts[:, 1].max() == pytest.approx(100 * sc.agents.height[i], rel=0.05)
+    assert np.allclose([pts[:, 0].mean(), pts[:, 2].mean()], [300, -400], atol=25)
+    assert [p for p in validate(result.shot) if p.severity == "error"] == []

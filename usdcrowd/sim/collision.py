@@ -1,0 +1,218 @@
+"""Collision avoidance from expected time to impact, and the hard constraints.
+
+Seed 003's collision field: ``grad E_C = -sigma(t_o) n_o`` with ``t_o`` the
+expected time to impact and ``sigma`` a positive decreasing function (a
+Gaussian, its Figure 8). It uses velocity as well as position, so
+
+- an agent walking away from a wall or another agent feels nothing, however
+  close (``t_o`` is infinite when the gap is not closing);
+- two agents walking the same way (small relative velocity) may stay close;
+- two agents walking toward each other start to swerve seconds in advance.
+
+Here ``t_o = max(gap, GAP_MIN) / closing_speed`` uses the gap between the two
+bodies (centre distance minus both radii) rather than the centre distance of
+the seed's formula, so large and small characters behave alike. Against
+another agent the push points along the predicted relative position at
+``min(t_o, horizon)`` (a side-step rather than a brake), with a slight
+pass-on-the-right bias that breaks the symmetry of exact head-on encounters.
+
+Hard constraints applied after each integration step (so tests can bound
+them): a position-based overlap correction between neighbours, and an
+*exact* projection out of obstacle polygons for agents near them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import params as P
+from .grid import WalkGrid
+
+_GAP_MIN = np.float32(0.02)  # m, floor of the gap in t_o (contact)
+
+
+def agent_avoidance(dx, dv, dist, gap, vel_i, gain=P.AGENT_AVOID_GAIN, tau=P.AGENT_AVOID_TAU,
+                    horizon=P.AVOID_HORIZON):
+    """Time-to-impact avoidance force from neighbours (seed 003, E_C dynamic).
+
+    Parameters
+    ----------
+    dx, dv : (2, n, k) float32
+        Own position / velocity minus each neighbour's.
+    dist, gap : (n, k) float32
+        Centre distance, and the same minus both radii, metres.
+    vel_i : (2, n) float32
+        Own velocity (for the pass-on-the-right bias).
+
+    Returns
+    -------
+    (2, n) float32 force, m/s^2
+    """
+    dot = dx[0] * dv[0] + dx[1] * dv[1]
+    inv_d = 1.0 / np.maximum(dist, 1e-6)
+    closing = -dot * inv_d  # m/s, > 0 when the gap shrinks
+    approaching = closing > 1e-3
+    t = np.maximum(gap, _GAP_MIN) / np.where(approaching, closing, 1.0)
+    mag = np.where(approaching, np.exp((-0.5 / (tau * tau)) * t * t), 0.0).astype(np.float32) * np.float32(gain)
+    tc = np.minimum(t, np.float32(horizon))
+    sx = dx[0] + dv[0] * tc
+    sy = dx[1] + dv[1] * tc
+    inv_s = 1.0 / np.maximum(np.sqrt(sx * sx + sy * sy), 1e-6)
+    # Right of the own velocity: (vy, -vx) / |v|.
+    sp = np.sqrt(vel_i[0] * vel_i[0] + vel_i[1] * vel_i[1])
+    inv_v = np.float32(P.PASS_RIGHT_BIAS) / np.maximum(sp, 1e-3)
+    rx = (vel_i[1] * inv_v)[:, None]
+    ry = (-vel_i[0] * inv_v)[:, None]
+    fx = (sx * inv_s + rx) * mag
+    fy = (sy * inv_s + ry) * mag
+    return np.stack([fx.sum(axis=1), fy.sum(axis=1)])
+
+
+def wall_avoidance(grid: WalkGrid, pos, vel, radius, gain=P.WALL_AVOID_GAIN, tau=P.WALL_AVOID_TAU):
+    """Time-to-impact avoidance of static obstacles (seed 003, E_C static).
+
+    Only agents walking toward a wall are repelled (``t_o`` infinite
+    otherwise), plus a contact push below :data:`params.WALL_CONTACT_GAP`.
+
+    Parameters
+    ----------
+    grid : WalkGrid
+    pos, vel : (2, n) float32
+    radius : (n,) float32
+
+    Returns
+    -------
+    (2, n) float32 force
+    """
+    sdf, nx, ny = grid.clearance(pos[0], pos[1])
+    clear = sdf - radius
+    approach = -(vel[0] * nx + vel[1] * ny)
+    toward = approach > 1e-3
+    t = np.maximum(clear, _GAP_MIN) / np.where(toward, approach, 1.0)
+    mag = np.where(toward, np.exp((-0.5 / (tau * tau)) * t * t), 0.0) * gain
+    mag = mag + np.clip((P.WALL_CONTACT_GAP - clear) / P.WALL_CONTACT_GAP, 0.0, 1.0) * P.WALL_CONTACT_GAIN
+    mag = mag.astype(np.float32)
+    return np.stack([nx * mag, ny * mag])
+
+
+def resolve_overlaps(pos, idx, radius, movable, relax=P.OVERLAP_RELAX):
+    """Position-based correction of body overlaps (one Jacobi pass, in place).
+
+    Parameters
+    ----------
+    pos : (2, n + 1) float32
+        Positions, ghost last; rows ``:n`` are corrected.
+    idx : (n, k) int32
+        Neighbour table.
+    radius : (n + 1,) float32
+    movable : (n,) float32
+        1 for agents that may be pushed, 0 to pin (dead bodies stay put).
+    """
+    n = idx.shape[0]
+    pj = pos[:, idx]
+    dx = pos[:, :n, None] - pj
+    dist = np.sqrt(dx[0] * dx[0] + dx[1] * dx[1])
+    over = radius[:n, None] + radius[idx] - dist
+    w = np.where(over > 0, over * np.float32(0.5 * relax) / np.maximum(dist, 1e-6), 0.0).astype(np.float32)
+    # Coincident agents: push apart along an arbitrary but fixed direction.
+    same = dist < 1e-6
+    if same.any():
+        dx[0][same] = 1.0
+        w[same] = np.float32(0.5 * relax) * over[same]
+    corr = np.einsum("cnk,nk->cn", dx, w)
+    pos[:, :n] += corr * movable
+
+
+def project_out_of_walls(grid: WalkGrid, pos, radius, rows=None, passes: int = 2):
+    """Push agents out of obstacle polygons (exact) and forbidden cells (grid), in place.
+
+    Parameters
+    ----------
+    grid : WalkGrid
+    pos : (2, n + 1) float32
+    radius : (n + 1,) float32
+    rows : (m,) int, optional
+        Agents to consider (default all but the ghost).
+    passes : int
+        Repetitions, for agents squeezed between two obstacles.
+    """
+    if not grid.has_solid:
+        return
+    n = pos.shape[1] - 1
+    if rows is None:
+        rows = np.arange(n)
+    polys = grid.polygons
+    for _ in range(passes):
+        x = pos[0, rows]
+        y = pos[1, rows]
+        sdf, nx, ny = grid.clearance(x, y)
+        r = radius[rows]
+        near = sdf < r + P.WALL_PROJECT_MARGIN
+        if not near.any():
+            return
+        sel = rows[near]
+        lab = grid.nearest_label(pos[0, sel], pos[1, sel])
+        # Forbidden areas (no polygon): push along the clearance gradient.
+        fb = lab < 0
+        if fb.any():
+            s = sel[fb]
+            depth = np.maximum(radius[s] - sdf[near][fb], 0.0)
+            pos[0, s] += nx[near][fb] * depth
+            pos[1, s] += ny[near][fb] * depth
+        pl = ~fb
+        if pl.any() and len(polys):
+            s = sel[pl]
+            p = np.stack([pos[0, s], pos[1, s]], axis=1).astype(np.float64)  # (m, 2)
+            new = _push_out_of_convex(p, polys[lab[pl]], radius[s].astype(np.float64))
+            pos[0, s] = new[:, 0]
+            pos[1, s] = new[:, 1]
+
+
+def polygon_signed_distance(p: np.ndarray, poly: np.ndarray):
+    """Exact signed distance of points to convex CCW polygons.
+
+    Parameters
+    ----------
+    p : (m, 2) float64
+    poly : (m, K, 2) float64
+        One (padded) polygon per point.
+
+    Returns
+    -------
+    dist : (m,) signed distance, negative inside, metres
+    closest : (m, 2) nearest boundary point
+    normal : (m, 2) outward normal of the nearest edge
+    """
+    a = poly
+    b = np.roll(poly, -1, axis=1)
+    e = b - a  # (m, K, 2)
+    ap = p[:, None, :] - a
+    ll = np.einsum("mkc,mkc->mk", e, e)
+    t = np.clip(np.einsum("mkc,mkc->mk", ap, e) / np.maximum(ll, 1e-18), 0.0, 1.0)
+    c = a + e * t[..., None]
+    d2 = np.einsum("mkc,mkc->mk", p[:, None, :] - c, p[:, None, :] - c)
+    d2 = np.where(ll > 1e-18, d2, np.inf)  # padded zero-length edges
+    k = np.argmin(d2, axis=1)
+    r = np.arange(len(p))
+    dist = np.sqrt(d2[r, k])
+    cross = e[..., 0] * ap[..., 1] - e[..., 1] * ap[..., 0]
+    inside = np.all((cross >= 0) | (ll <= 1e-18), axis=1)
+    ek = e[r, k]
+    nrm = np.stack([ek[:, 1], -ek[:, 0]], axis=1) / np.maximum(np.sqrt(ll[r, k]), 1e-12)[:, None]
+    return np.where(inside, -dist, dist), c[r, k], nrm
+
+
+def _push_out_of_convex(p: np.ndarray, poly: np.ndarray, r: np.ndarray) -> np.ndarray:
+    sd, c, nrm = polygon_signed_distance(p, poly)
+    bad = sd < r
+    if not bad.any():
+        return p
+    d = p - c
+    dn = np.linalg.norm(d, axis=1)
+    # Outside a vertex region the push is radial from the nearest point;
+    # inside (or exactly on an edge) along the nearest edge's normal.
+    direction = np.where(((sd > 1e-9) & (dn > 1e-9))[:, None], d / np.maximum(dn, 1e-12)[:, None], nrm)
+    out = p.copy()
+    # A hair beyond r so float32 storage doesn't round back inside.
+    out[bad] = c[bad] + direction[bad] * (r[bad] + 1e-4)[:, None]
+    return out

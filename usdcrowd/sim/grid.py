@@ -1,0 +1,215 @@
+"""The walkable occupancy grid: obstacles and forbidden areas rasterised.
+
+The grid covers the scenario bounds. Row ``i`` is ``y = origin_y + (i + 0.5)
+* cell`` (row 0 at the *low* y edge, unlike image-like BehaviorField values).
+It holds
+
+- ``solid``: cells whose centre lies inside an obstacle footprint or a
+  forbidden area (used for line of sight);
+- ``sdf``: signed clearance of each cell centre to the solid region, metres
+  (negative inside), and its unit gradient ``normal`` (pointing away from
+  the nearest solid); used for wall avoidance forces;
+- ``label``: the obstacle polygon nearest to each cell (-1 where the nearest
+  solid is a forbidden area), for the exact wall projection in
+  :mod:`usdcrowd.sim.collision`.
+
+Agents' positions are handled in structure-of-arrays layout ``(2, n)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+
+from ..model import Obstacles, Scenario, code, LAYER_MEANINGS, LAYER_GENERATORS
+from . import params as P
+
+
+def polygon_table(obstacles: Obstacles) -> np.ndarray:
+    """Obstacle polygons padded to a common vertex count.
+
+    Returns
+    -------
+    (o, K, 2) float64
+        Counter-clockwise vertices; short polygons repeat their last vertex
+        (a zero-length edge, harmless to distance and inside tests).
+    """
+    if not obstacles.polygons:
+        return np.zeros((0, 3, 2))
+    kmax = max(len(p) for p in obstacles.polygons)
+    out = np.empty((len(obstacles.polygons), kmax, 2))
+    for i, poly in enumerate(obstacles.polygons):  # once per obstacle, not per agent
+        poly = np.asarray(poly, dtype=np.float64)
+        # Shoelace: make sure the winding is counter-clockwise.
+        area = 0.5 * np.sum(poly[:, 0] * np.roll(poly[:, 1], -1) - np.roll(poly[:, 0], -1) * poly[:, 1])
+        if area < 0:
+            poly = poly[::-1]
+        out[i, :len(poly)] = poly
+        out[i, len(poly):] = poly[-1]
+    return out
+
+
+class WalkGrid:
+    """Occupancy grid, clearance field and line-of-sight queries.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Bounds, obstacles and forbidden behavior fields are read from it.
+    cell : float, optional
+        Cell size in metres; grows from :data:`params.GRID_CELL` so the grid
+        stays under :data:`params.GRID_MAX_CELLS` cells.
+    """
+
+    def __init__(self, scenario: Scenario, cell: float | None = None):
+        lo = np.asarray(scenario.bounds[0], dtype=np.float64)
+        hi = np.asarray(scenario.bounds[1], dtype=np.float64)
+        size = np.maximum(hi - lo, 1e-3)
+        if cell is None:
+            cell = max(P.GRID_CELL, float(np.sqrt(size[0] * size[1] / P.GRID_MAX_CELLS)))
+        self.cell = float(cell)
+        # One extra cell of margin all around so agents on the bounds sample
+        # valid cells.
+        self.origin = lo - self.cell
+        self.w = int(np.ceil(size[0] / self.cell)) + 2
+        self.h = int(np.ceil(size[1] / self.cell)) + 2
+        xs = self.origin[0] + (np.arange(self.w) + 0.5) * self.cell
+        ys = self.origin[1] + (np.arange(self.h) + 0.5) * self.cell
+        self.centers_x, self.centers_y = np.meshgrid(xs, ys)  # (h, w)
+
+        self.polygons = polygon_table(scenario.obstacles)
+        label = np.full((self.h, self.w), -1, dtype=np.int32)
+        for i, poly in enumerate(self.polygons):  # per obstacle, bbox-limited
+            self._raster_polygon(poly, i, label)
+        solid = label >= 0
+        forb = scenario.field("forbidden")
+        if forb is not None and forb.values is not None:
+            pts = np.stack([self.centers_x.ravel(), self.centers_y.ravel()], axis=1)
+            fmask = (forb.sample(pts) > P.MAP_THRESHOLD).reshape(self.h, self.w)
+            solid |= fmask
+        self.solid = solid
+        self.has_solid = bool(solid.any())
+        if self.has_solid:
+            out_d, inds = ndimage.distance_transform_edt(~solid, return_indices=True)
+            in_d = ndimage.distance_transform_edt(solid)
+            # Cell-centre distances to the nearest solid centre, shifted by half
+            # a cell so that the zero level sits on the solid's edge.
+            sdf = np.where(solid, -(in_d - 0.5), out_d - 0.5) * self.cell
+            self.label = label[inds[0], inds[1]].astype(np.int32)
+            self.label[solid] = label[solid]
+        else:
+            sdf = np.full((self.h, self.w), 1e3)
+            self.label = label
+        self.sdf = sdf.astype(np.float32)
+        gy, gx = np.gradient(self.sdf.astype(np.float64), self.cell)
+        norm = np.hypot(gx, gy)
+        norm[norm == 0] = 1.0
+        self.normal = np.stack([gx / norm, gy / norm]).astype(np.float32)  # (2, h, w)
+        self._flat_sdf = self.sdf.ravel()
+        self._flat_nx = self.normal[0].ravel()
+        self._flat_ny = self.normal[1].ravel()
+        self._flat_solid = self.solid.ravel()
+        self._flat_label = self.label.ravel()
+
+    # -- rasterisation -------------------------------------------------------
+    def _raster_polygon(self, poly: np.ndarray, index: int, label: np.ndarray) -> None:
+        """Mark cells whose centre lies inside a convex CCW polygon."""
+        lo = poly.min(axis=0)
+        hi = poly.max(axis=0)
+        c0 = np.clip(np.floor((lo - self.origin) / self.cell - 0.5).astype(int), 0, [self.w - 1, self.h - 1])
+        c1 = np.clip(np.ceil((hi - self.origin) / self.cell + 0.5).astype(int), 0, [self.w - 1, self.h - 1])
+        cx = self.centers_x[c0[1]:c1[1] + 1, c0[0]:c1[0] + 1]
+        cy = self.centers_y[c0[1]:c1[1] + 1, c0[0]:c1[0] + 1]
+        a = poly
+        b = np.roll(poly, -1, axis=0)
+        # Left of every CCW edge (cross >= 0) is inside.
+        cross = ((b[:, 0] - a[:, 0])[:, None, None] * (cy[None] - a[:, 1, None, None])
+                 - (b[:, 1] - a[:, 1])[:, None, None] * (cx[None] - a[:, 0, None, None]))
+        inside = np.all(cross >= -1e-12, axis=0)
+        sub = label[c0[1]:c1[1] + 1, c0[0]:c1[0] + 1]
+        sub[inside] = index
+
+    # -- sampling ------------------------------------------------------------
+    def flat_index(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Flat cell index of points (clamped to the grid).
+
+        Parameters
+        ----------
+        x, y : (n,) float
+            World coordinates, metres.
+
+        Returns
+        -------
+        (n,) int64
+        """
+        ix = ((x - self.origin[0]) * (1.0 / self.cell)).astype(np.int64)
+        iy = ((y - self.origin[1]) * (1.0 / self.cell)).astype(np.int64)
+        np.clip(ix, 0, self.w - 1, out=ix)
+        np.clip(iy, 0, self.h - 1, out=iy)
+        return iy * self.w + ix
+
+    def clearance(self, x: np.ndarray, y: np.ndarray):
+        """Nearest-cell clearance and wall normal at points.
+
+        Returns
+        -------
+        sdf : (n,) float32
+            Signed distance to the nearest solid, metres.
+        nx, ny : (n,) float32
+            Unit normal pointing away from it.
+        """
+        f = self.flat_index(x, y)
+        return self._flat_sdf[f], self._flat_nx[f], self._flat_ny[f]
+
+    def is_solid(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """(n,) bool: points whose cell is solid."""
+        return self._flat_solid[self.flat_index(x, y)]
+
+    def nearest_label(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """(n,) int32: nearest obstacle polygon per point (-1: none / forbidden)."""
+        return self._flat_label[self.flat_index(x, y)]
+
+    def line_of_sight(self, ax, ay, bx, by, max_samples: int = 96) -> np.ndarray:
+        """Whether segments a->b cross no solid cell.
+
+        Samples every segment at (up to) cell spacing; a segment longer than
+        ``max_samples`` cells is sampled more coarsely (thin walls may then be
+        missed, which only matters beyond the perception range).
+
+        Parameters
+        ----------
+        ax, ay, bx, by : (n,) float
+            Segment end points, metres.
+        max_samples : int
+            Upper bound on samples per segment.
+
+        Returns
+        -------
+        (n,) bool
+        """
+        n = len(ax)
+        if n == 0 or not self.has_solid:
+            return np.ones(n, dtype=bool)
+        dx = bx - ax
+        dy = by - ay
+        length = np.sqrt(dx * dx + dy * dy)
+        s = int(min(max_samples, max(2, np.ceil(length.max() / (0.7 * self.cell)) + 1)))
+        # Sample strictly inside the segment: the end points are agents'
+        # positions, which may touch a wall's cell.
+        t = ((np.arange(s, dtype=np.float32) + 0.5) / s)[None, :]
+        px = ax[:, None] + dx[:, None] * t
+        py = ay[:, None] + dy[:, None] * t
+        blocked = self._flat_solid[self.flat_index(px.ravel(), py.ravel())].reshape(n, s)
+        return ~blocked.any(axis=1)
+
+    def cell_centers(self) -> np.ndarray:
+        """(2, h*w) float64 centres of all cells, flat order."""
+        return np.stack([self.centers_x.ravel(), self.centers_y.ravel()])
+
+
+def field_is(field, meaning: str) -> bool:
+    return field.meaning == code(LAYER_MEANINGS, meaning)
+
+
+def generator_is(field, generator: str) -> bool:
+    return field.generator == code(LAYER_GENERATORS, generator)
