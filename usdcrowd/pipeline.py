@@ -52,10 +52,12 @@ def simulate_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike, 
     chunk_frames : int
         Frames simulated and authored at a time (memory stays linear in it).
     """
-    from .sim import SimSettings, simulate_chunks
+    def crowd(scenario):
+        from .sim import SimSettings, simulate_chunks
 
-    return author_shot(scenario_path, out_dir, lambda sc: simulate_chunks(sc, SimSettings(chunk_frames=chunk_frames)),
-                       seed=seed, frames=frames, progress=progress)
+        return simulate_chunks(scenario, SimSettings(chunk_frames=chunk_frames))
+
+    return author_shot(scenario_path, out_dir, crowd, seed=seed, frames=frames, progress=progress)
 
 
 def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,

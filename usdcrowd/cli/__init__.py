@@ -18,12 +18,19 @@ COMMANDS = (new, inspect_cmd, validate, simulate, demo)
 EXIT_USER_ERROR = 2
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors, like every other user mistake."""
+
+    def error(self, message):
+        self.exit(EXIT_USER_ERROR, f"{self.prog}: error: {message} (see --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="usdcrowd",
         description="Crowd scenes described in USD: simulated, filmed and rendered with exact ground truth.")
     parser.add_argument("--version", action="version", version=f"usdcrowd {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True, parser_class=_Parser)
     for module in COMMANDS:
         module.add_parser(sub)
     return parser

@@ -1,0 +1,117 @@
+"""The command line as a user runs it: outputs, and one-line errors for mistakes."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from usdcrowd.cli import main
+
+GROUP = '''
+def Xform "World"
+{{
+    def CrowdGroup "Crowd"
+    {{
+        uniform int crowd:clones = 3
+        {extra}
+    }}
+    {more}
+}}
+'''
+
+
+def _run(capsys, *argv):
+    with pytest.raises(SystemExit) as ex:
+        raise SystemExit(main(list(argv)))
+    out = capsys.readouterr()
+    return ex.value.code, out.out, out.err
+
+
+def test_new_inspect_validate(tmp_path, capsys):
+    out = tmp_path / "s.usda"
+    code, stdout, _ = _run(capsys, "new", "museum", "-o", str(out), "--agents", "30", "--seed", "9")
+    assert code == 0 and out.exists() and "30 agents" in stdout
+    code, stdout, _ = _run(capsys, "inspect", str(out))
+    assert code == 0 and "Family" in stdout and "seed 9" in stdout and "DistantLight" in stdout
+    code, stdout, _ = _run(capsys, "inspect", str(out), "--json")
+    data = json.loads(stdout)
+    assert data["agents"]["count"] == 30 and data["seed"] == 9
+    assert sum(g["agents"] for g in data["groups"]) == 30
+    code, stdout, _ = _run(capsys, "validate", str(out))
+    assert code == 0 and "0 error(s)" in stdout
+
+
+def test_validate_reports_problems_and_exits_1(write_stage, capsys):
+    bad = write_stage(GROUP.format(extra='uniform token crowd:behavior = "dance"\n        uniform float crowd:maxSlope = -1',
+                                   more='def SkelRoot "A" (prepend apiSchemas = ["CrowdAgentAPI"])\n    {\n'
+                                        '        rel crowd:leader = </World>\n    }'))
+    code, stdout, _ = _run(capsys, "validate", str(bad))
+    assert code == 1
+    assert "/World/Crowd.crowd:behavior" in stdout and "'dance' is not one of" in stdout
+    assert "/World/Crowd.crowd:maxSlope" in stdout and "/World/A.crowd:leader" in stdout
+
+
+def _assert_one_line_error(code, stderr, *must_contain):
+    assert code == 2
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1, stderr
+    assert "Traceback" not in stderr
+    for text in must_contain:
+        assert text in lines[0], (text, lines[0])
+
+
+@pytest.mark.parametrize("case", ["missing", "not_usd", "garbage_usda"])
+def test_unreadable_inputs(tmp_path, capsys, case):
+    path = tmp_path / {"missing": "nope.usda", "not_usd": "notes.txt", "garbage_usda": "broken.usda"}[case]
+    if case == "not_usd":
+        path.write_text("shopping list")
+    elif case == "garbage_usda":
+        path.write_text("#usda 1.0\ndef Xform \"A\" {\n  float x = \n}\n")
+    for command in ("inspect", "validate", "simulate"):
+        argv = [command, str(path)] + (["-o", str(tmp_path / "out")] if command == "simulate" else [])
+        code, _, err = _run(capsys, *argv)
+        _assert_one_line_error(code, err, str(path))
+    assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
+
+
+@pytest.mark.parametrize("extra, more, prim, attribute", [
+    ("uniform float2 crowd:speedRange = (-1, 2)", "", "/World/Crowd", "crowd:speedRange"),
+    ("", 'def SkelRoot "A" (prepend apiSchemas = ["CrowdAgentAPI"])\n    {\n        rel crowd:group = </World>\n    }',
+     "/World/A", "crowd:group"),
+    ("", 'def BehaviorLayer "Food"\n    {\n        uniform asset crowd:image = @maps/missing.png@\n    }',
+     "/World/Food", "crowd:image"),
+    ("", 'def BehaviorLayer "Map"\n    {\n        uniform float2 crowd:extentMax = (-60, 10)\n'
+         '        uniform token crowd:generator = "explosion"\n    }', "/World/Map", "crowd:extentMax"),
+])
+def test_bad_scenarios_fail_simulate_with_one_line_and_no_output(write_stage, tmp_path, capsys, extra, more, prim,
+                                                                 attribute):
+    path = write_stage(GROUP.format(extra=extra, more=more))
+    out = tmp_path / "shot"
+    code, _, err = _run(capsys, "simulate", str(path), "-o", str(out))
+    _assert_one_line_error(code, err, str(path), prim, attribute)
+    assert not out.exists() or not any(out.iterdir())
+
+
+@pytest.mark.parametrize("argv, text", [
+    (["new", "nowhere", "-o", "x.usda"], "unknown template 'nowhere'"),
+    (["new", "museum", "-o", "x.usda", "--agents", "0"], "--agents must be >= 1"),
+    (["simulate", "s.usda", "-o", "o", "--frames", "10:1"], "bad frame spec"),
+    (["frobnicate"], "invalid choice"),
+])
+def test_usage_mistakes(tmp_path, capsys, monkeypatch, argv, text):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as ex:
+        raise SystemExit(main(argv))
+    err = capsys.readouterr().err
+    _assert_one_line_error(ex.value.code, err, text)
+    assert not (tmp_path / "x.usda").exists()
+
+
+def test_console_script_runs_as_installed(tmp_path):
+    exe = Path(sys.executable).with_name("usdcrowd")
+    out = subprocess.run([str(exe), "inspect", str(tmp_path / "missing.usda")], capture_output=True, text=True)
+    _assert_one_line_error(out.returncode, out.stderr, "missing.usda", "no such file")
