@@ -16,10 +16,16 @@ API). Layout, for an agent at ``<group>/<name>``::
 Tokens of the agent's state (behavior, animation class, health) are sampled
 only where they change: tokens hold their value between samples, so this is
 exact and keeps the layer small.
+
+Large crowds are split into part layers (crowd.part000.usdc, ...) that
+crowd.usdc sublayers; each part is authored and saved by its own process,
+because writing and serialising time samples is single-threaded in USD and
+dominates the cost (about 2 s per million samples here).
 """
 
 from __future__ import annotations
 
+import multiprocessing as mp
 import os
 
 import numpy as np
@@ -66,6 +72,210 @@ def _prim(layer, path, type_name="", specifier=None):
     return spec
 
 
+# Below this many agents a single process writes everything (spawning
+# workers costs about a second).
+PARALLEL_MIN_AGENTS = 1500
+
+
+def _layer_metadata(layer, scenario: model.Scenario, frame: StageFrame, default_prim: str) -> None:
+    layer.defaultPrim = default_prim
+    layer.startTimeCode, layer.endTimeCode = scenario.time.start, scenario.time.end
+    layer.timeCodesPerSecond = layer.framesPerSecond = scenario.time.fps
+    layer.pseudoRoot.SetInfo("upAxis", frame.up_axis)
+    layer.pseudoRoot.SetInfo("metersPerUnit", frame.meters_per_unit)
+
+
+def _write_prototypes(layer) -> None:
+    """The skeleton and skinned body every agent references."""
+    from pxr import Gf, Sdf, Vt
+
+    T = _types()
+    body = body_mod.build_body()
+    _prim(layer, PROTOTYPES, "", Sdf.SpecifierClass)
+    skel = _prim(layer, SKEL_PROTO, "Skeleton", Sdf.SpecifierClass)
+    _attr(skel, "joints", T.TokenArray, Vt.TokenArray(list(rig.JOINTS)), Sdf.VariabilityUniform)
+    _attr(skel, "bindTransforms", T.Matrix4dArray,
+          Vt.Matrix4dArray([Gf.Matrix4d(m.tolist()) for m in rig.BIND_SKEL]), Sdf.VariabilityUniform)
+    _attr(skel, "restTransforms", T.Matrix4dArray,
+          Vt.Matrix4dArray([Gf.Matrix4d(m.tolist()) for m in rig.REST_LOCAL]), Sdf.VariabilityUniform)
+
+    mesh = _prim(layer, BODY_PROTO, "Mesh", Sdf.SpecifierClass)
+    mesh.SetInfo("apiSchemas", Sdf.TokenListOp.Create(prependedItems=["SkelBindingAPI"]))
+    _attr(mesh, "points", T.Point3fArray, Vt.Vec3fArray.FromNumpy(body.points))
+    _attr(mesh, "normals", T.Normal3fArray, Vt.Vec3fArray.FromNumpy(body.normals)).SetInfo("interpolation", "vertex")
+    _attr(mesh, "faceVertexCounts", T.IntArray, Vt.IntArray.FromNumpy(body.face_vertex_counts))
+    _attr(mesh, "faceVertexIndices", T.IntArray, Vt.IntArray.FromNumpy(body.face_vertex_indices))
+    _attr(mesh, "subdivisionScheme", T.Token, "none", Sdf.VariabilityUniform)
+    lo, hi = body.points.min(0), body.points.max(0)
+    _attr(mesh, "extent", T.Float3Array, Vt.Vec3fArray([Gf.Vec3f(*lo.tolist()), Gf.Vec3f(*hi.tolist())]))
+    k = body.joint_indices.shape[1]
+    for name, vt, arr in (("primvars:skel:jointIndices", T.IntArray, Vt.IntArray.FromNumpy(body.joint_indices.ravel())),
+                          ("primvars:skel:jointWeights", T.FloatArray, Vt.FloatArray.FromNumpy(body.joint_weights.ravel()))):
+        spec = _attr(mesh, name, vt, arr)
+        spec.SetInfo("interpolation", "vertex")
+        spec.SetInfo("elementSize", k)
+    _attr(mesh, "primvars:skel:geomBindTransform", T.Matrix4d, Gf.Matrix4d(1.0))
+
+
+def _write_group_profiles(layer, scenario: model.Scenario) -> None:
+    """Groups carry their resolved visit profile (drawn once per group)."""
+    from pxr import Sdf
+
+    a = scenario.agents
+    for gi, gpath in enumerate(scenario.groups.path):
+        members = np.flatnonzero(a.group == gi)
+        if members.size:
+            _attr(_prim(layer, gpath), "crowd:visitProfile", _types().Token,
+                  model.VISIT_PROFILES[a.visit_profile[members[0]]], Sdf.VariabilityUniform)
+
+
+_TOKEN_SLOTS = (("behavior", model.BEHAVIORS), ("anim_class", model.ANIM_CLASSES), ("health", model.HEALTH_STATES))
+
+
+class _AgentPart:
+    """Authors the prims and time samples of a subset of the agents into one layer."""
+
+    def __init__(self, layer, scenario: model.Scenario, frame: StageFrame, rows: np.ndarray, authored: set[str]):
+        self.layer = layer
+        self.scenario = scenario
+        self.frame = frame
+        self.rows = np.asarray(rows)
+        self.authored = authored
+        self._last: dict[str, np.ndarray] = {}
+        self._paths: list = []
+        from pxr import Sdf
+
+        with Sdf.ChangeBlock():
+            for i in self.rows:
+                self._paths.append(self._write_agent(int(i)))
+
+    def _write_agent(self, i: int):
+        from pxr import Gf, Sdf, Vt
+
+        T, U = _types(), Sdf.VariabilityUniform
+        layer, sc, a = self.layer, self.scenario, self.scenario.agents
+        path = a.path[i]
+        spec = _prim(layer, path, "SkelRoot", Sdf.SpecifierOver if path in self.authored else Sdf.SpecifierDef)
+        spec.SetInfo("apiSchemas", Sdf.TokenListOp.Create(prependedItems=["CrowdAgentAPI", "SkelBindingAPI"]))
+        _attr(spec, "crowd:agentId", T.Int, int(a.agent_id[i]), U)
+        _attr(spec, "crowd:role", T.Token, model.ROLES[a.role[i]], U)
+        _attr(spec, "crowd:characterType", T.Token, model.CHARACTER_TYPES[a.character_type[i]], U)
+        _attr(spec, "crowd:personality", T.Token, model.PERSONALITIES[a.personality[i]], U)
+        _attr(spec, "crowd:behavior", T.Token, model.BEHAVIORS[a.behavior[i]], U)
+        _attr(spec, "crowd:condition", T.Token, model.CONDITIONS[a.condition[i]], U)
+        _attr(spec, "crowd:fearResponse", T.Token, model.FEAR_RESPONSES[a.fear_response[i]], U)
+        _attr(spec, "crowd:maxSlope", T.Float, float(a.max_slope[i]), U)
+        _attr(spec, "crowd:behaviorMapInfluence", T.Float, float(a.map_influence[i]), U)
+        _attr(spec, "crowd:color", T.Color3f, Gf.Vec3f(*a.color[i].tolist()), U)
+        _attr(spec, "crowd:speed", T.Float, float(a.speed[i]), U)
+        _attr(spec, "crowd:height", T.Float, float(a.height[i]), U)
+        start = self.frame.points_from_canonical(a.start[i])
+        _attr(spec, "crowd:startPosition", T.Point3f, Gf.Vec3f(*start.tolist()), U)
+        Sdf.RelationshipSpec(spec, "crowd:group", custom=False).targetPathList.explicitItems = [sc.groups.path[a.group[i]]]
+        if a.leader[i] >= 0:
+            Sdf.RelationshipSpec(spec, "crowd:leader", custom=False).targetPathList.explicitItems = [a.path[a.leader[i]]]
+        Sdf.RelationshipSpec(spec, "skel:skeleton", custom=False).targetPathList.explicitItems = [f"{path}/Skel"]
+        Sdf.RelationshipSpec(spec, "skel:animationSource", custom=False).targetPathList.explicitItems = [f"{path}/Anim"]
+        if a.role[i] == model.ROLES.index("invisibleLeader"):
+            _attr(spec, "visibility", T.Token, "invisible")
+        if not self.frame.is_canonical:
+            _attr(spec, "xformOp:transform:stageFrame", T.Matrix4d, Gf.Matrix4d(self.frame.from_canonical.tolist()))
+            _attr(spec, "xformOpOrder", T.TokenArray, Vt.TokenArray(["xformOp:transform:stageFrame"]), U)
+        for name in ("crowd:state:behavior", "crowd:state:animClass", "crowd:state:health"):
+            _attr(spec, name, T.Token, custom=True)
+        _attr(spec, "crowd:pathMethod", T.Token, None, U, custom=True)
+
+        skel = _prim(layer, f"{path}/Skel", "Skeleton", Sdf.SpecifierDef)
+        skel.referenceList.prependedItems = [Sdf.Reference(primPath=SKEL_PROTO)]
+        anim = _prim(layer, f"{path}/Anim", "SkelAnimation", Sdf.SpecifierDef)
+        _attr(anim, "joints", T.TokenArray, Vt.TokenArray(list(rig.JOINTS)), U)
+        s = float(np.float16(a.height[i] / rig.HEAD_TOP))
+        _attr(anim, "scales", T.Half3Array, Vt.Vec3hArray([Gf.Vec3h(s, s, s), Gf.Vec3h(1, 1, 1), Gf.Vec3h(1, 1, 1)]))
+        _attr(anim, "rotations", T.QuatfArray)
+        _attr(anim, "translations", T.Float3Array)
+        body = _prim(layer, f"{path}/Body", "Mesh", Sdf.SpecifierDef)
+        body.referenceList.prependedItems = [Sdf.Reference(primPath=BODY_PROTO)]
+        _attr(body, "primvars:displayColor", T.Color3fArray,
+              Vt.Vec3fArray([Gf.Vec3f(*a.color[i].tolist())])).SetInfo("interpolation", "constant")
+        return tuple(Sdf.Path(p) for p in (f"{path}/Anim.rotations", f"{path}/Anim.translations",
+                                           f"{path}.crowd:state:behavior", f"{path}.crowd:state:animClass",
+                                           f"{path}.crowd:state:health"))
+
+    def write_samples(self, times: np.ndarray, rot_usd: np.ndarray, trans: np.ndarray, tokens: dict) -> None:
+        """Samples of this part's agents.
+
+        Parameters
+        ----------
+        times : (t,) float
+        rot_usd : (t, m, 3, 4) float32, quaternions in USD's (x, y, z, w) order
+        trans : (t, m, 3, 3) float32
+        tokens : dict of (t, m) int8 codes, keyed like CrowdFrames' fields
+        """
+        from pxr import Sdf, Vt
+
+        layer = self.layer
+        times = [float(t) for t in times]
+        quat_from, vec_from = Vt.QuatfArray.FromNumpy, Vt.Vec3fArray.FromNumpy
+        with Sdf.ChangeBlock():
+            for j, (rpath, tpath, *_rest) in enumerate(self._paths):
+                r_j, t_j = rot_usd[:, j], trans[:, j]
+                for k, t in enumerate(times):
+                    layer.SetTimeSample(rpath, t, quat_from(r_j[k]))
+                    layer.SetTimeSample(tpath, t, vec_from(t_j[k]))
+            for slot, (key, vocab) in enumerate(_TOKEN_SLOTS, start=2):
+                values = tokens[key]
+                changed = np.ones_like(values, dtype=bool)
+                changed[1:] = values[1:] != values[:-1]
+                if key in self._last:
+                    changed[0] = values[0] != self._last[key]
+                for k, j in zip(*np.nonzero(changed)):
+                    layer.SetTimeSample(self._paths[j][slot], times[k], vocab[values[k, j]])
+                self._last[key] = values[-1]
+
+    def finish(self, lo: np.ndarray, hi: np.ndarray, path_method: np.ndarray | None) -> None:
+        """Extents (m, 3) in the SkelRoots' canonical space, and the path method per agent."""
+        from pxr import Gf, Sdf, Vt
+
+        T = _types()
+        with Sdf.ChangeBlock():
+            for j, i in enumerate(self.rows):
+                spec = self.layer.GetPrimAtPath(self.scenario.agents.path[i])
+                _attr(spec, "extent", T.Float3Array, Vt.Vec3fArray([Gf.Vec3f(*lo[j].tolist()), Gf.Vec3f(*hi[j].tolist())]))
+                if path_method is not None:
+                    spec.attributes["crowd:pathMethod"].default = model.PATH_METHODS[path_method[j]]
+
+
+def _part_worker(conn, layer_path, scenario, frame, rows, authored, default_prim):
+    """A process that owns one part layer: commands arrive over ``conn``."""
+    from pxr import Sdf
+
+    from .. import schema
+
+    schema.register()
+    layer = Sdf.Layer.CreateAnonymous(".usdc")
+    _layer_metadata(layer, scenario, frame, default_prim)
+    part = _AgentPart(layer, scenario, frame, rows, authored)
+    conn.send(("ready", None))
+    while True:
+        cmd, payload = conn.recv()
+        try:
+            if cmd == "samples":
+                part.write_samples(*payload)
+                conn.send(("ok", None))
+            elif cmd == "finish":
+                part.finish(*payload)
+                with atomic_path(layer_path) as tmp:
+                    if not layer.Export(os.fspath(tmp)):
+                        raise OSError(f"could not write {layer_path}")
+                conn.send(("ok", None))
+                return
+            else:
+                return
+        except Exception as exc:       # report, the coordinator raises
+            conn.send(("error", f"{exc.__class__.__name__}: {exc}"))
+            return
+
+
 class CrowdLayerWriter:
     """Author one crowd layer, chunk by chunk, and save it atomically.
 
@@ -84,137 +294,64 @@ class CrowdLayerWriter:
     authored_agents : set[str]
         Paths of agents that exist in the scenario (written as ``over``);
         the others (clones) are defined here.
+    workers : int, optional
+        Part layers written in parallel; default: one per core when the crowd
+        has at least PARALLEL_MIN_AGENTS agents, else 1 (no extra process).
     """
 
     def __init__(self, path, scenario: model.Scenario, frame: StageFrame, default_prim: str = "",
-                 scenario_ref: str = "", authored_agents: set[str] | None = None):
+                 scenario_ref: str = "", authored_agents: set[str] | None = None, workers: int | None = None):
         from pxr import Sdf
 
         self.final = os.fspath(path)
         self.scenario = scenario
-        self.frame = frame
-        self.default_prim = default_prim
-        self.scenario_ref = scenario_ref
-        self.authored_agents = authored_agents or set()
-        self.layer = Sdf.Layer.CreateAnonymous(os.path.splitext(self.final)[1])
         n = len(scenario.agents)
+        if workers is None:
+            workers = min(os.cpu_count() or 1, 8) if n >= PARALLEL_MIN_AGENTS else 1
+        workers = max(1, min(workers, n))
         self._lo = np.full((n, 3), np.inf)
         self._hi = np.full((n, 3), -np.inf)
-        self._last_tokens: dict[str, np.ndarray] = {}
-        self._scale = (scenario.agents.height / rig.HEAD_TOP).astype(np.float16).astype(np.float32)
-        self._anim_paths: list = []
-        self._write_static()
-
-    # ------------------------------------------------------------------ static
-    def _write_static(self):
-        from pxr import Gf, Sdf, Vt
-
-        T = _types()
-        layer, sc, agents = self.layer, self.scenario, self.scenario.agents
-        layer.defaultPrim = self.default_prim
-        layer.startTimeCode, layer.endTimeCode = sc.time.start, sc.time.end
-        layer.timeCodesPerSecond = layer.framesPerSecond = sc.time.fps
-        layer.pseudoRoot.SetInfo("upAxis", self.frame.up_axis)
-        layer.pseudoRoot.SetInfo("metersPerUnit", self.frame.meters_per_unit)
-        layer.customLayerData = {"usdcrowd": {
-            "generator": "usdcrowd simulate", "version": __version__, "seed": int(sc.seed),
-            "scenario": self.scenario_ref, "agents": len(agents), "frames": sc.time.n_frames}}
-
-        body = body_mod.build_body()
+        self._path_method = None
+        self.layer = Sdf.Layer.CreateAnonymous(os.path.splitext(self.final)[1])
+        _layer_metadata(self.layer, scenario, frame, default_prim)
+        self.layer.customLayerData = {"usdcrowd": {
+            "generator": "usdcrowd simulate", "version": __version__, "seed": int(scenario.seed),
+            "scenario": scenario_ref, "agents": n, "frames": scenario.time.n_frames, "parts": workers}}
+        authored = authored_agents or set()
         with Sdf.ChangeBlock():
-            _prim(layer, PROTOTYPES, "", Sdf.SpecifierClass)
-            skel = _prim(layer, SKEL_PROTO, "Skeleton", Sdf.SpecifierClass)
-            _attr(skel, "joints", T.TokenArray, Vt.TokenArray(list(rig.JOINTS)), Sdf.VariabilityUniform)
-            _attr(skel, "bindTransforms", T.Matrix4dArray,
-                  Vt.Matrix4dArray([Gf.Matrix4d(m.tolist()) for m in rig.BIND_SKEL]), Sdf.VariabilityUniform)
-            _attr(skel, "restTransforms", T.Matrix4dArray,
-                  Vt.Matrix4dArray([Gf.Matrix4d(m.tolist()) for m in rig.REST_LOCAL]), Sdf.VariabilityUniform)
+            _write_prototypes(self.layer)
+            _write_group_profiles(self.layer, scenario)
+        self._splits = np.array_split(np.arange(n), workers)
+        self._local = None
+        self._workers = []
+        if workers == 1:
+            self._local = _AgentPart(self.layer, scenario, frame, self._splits[0], authored)
+            return
+        stem, ext = os.path.splitext(os.path.basename(self.final))
+        self.part_paths = [os.path.join(os.path.dirname(self.final), f"{stem}.part{k:03d}{ext}")
+                           for k in range(workers)]
+        ctx = mp.get_context("spawn")      # a fresh interpreter: pxr and fork do not mix
+        for k, rows in enumerate(self._splits):
+            here, there = ctx.Pipe()
+            proc = ctx.Process(target=_part_worker, daemon=True,
+                               args=(there, self.part_paths[k], scenario, frame, rows,
+                                     {scenario.agents.path[i] for i in rows} & authored, default_prim))
+            proc.start()
+            self._workers.append((proc, here))
+        self._pending = {proc.pid: 1 for proc, _ in self._workers}
+        self._collect()
+        self.layer.subLayerPaths = [f"./{os.path.basename(p)}" for p in self.part_paths]
 
-            mesh = _prim(layer, BODY_PROTO, "Mesh", Sdf.SpecifierClass)
-            mesh.SetInfo("apiSchemas", Sdf.TokenListOp.Create(prependedItems=["SkelBindingAPI"]))
-            _attr(mesh, "points", T.Point3fArray, Vt.Vec3fArray.FromNumpy(body.points))
-            _attr(mesh, "normals", T.Normal3fArray, Vt.Vec3fArray.FromNumpy(body.normals)).SetInfo(
-                "interpolation", "vertex")
-            _attr(mesh, "faceVertexCounts", T.IntArray, Vt.IntArray.FromNumpy(body.face_vertex_counts))
-            _attr(mesh, "faceVertexIndices", T.IntArray, Vt.IntArray.FromNumpy(body.face_vertex_indices))
-            _attr(mesh, "subdivisionScheme", T.Token, "none", Sdf.VariabilityUniform)
-            lo, hi = body.points.min(0), body.points.max(0)
-            _attr(mesh, "extent", T.Float3Array, Vt.Vec3fArray([Gf.Vec3f(*lo.tolist()), Gf.Vec3f(*hi.tolist())]))
-            k = body.joint_indices.shape[1]
-            for name, vt, arr in (("primvars:skel:jointIndices", T.IntArray, Vt.IntArray.FromNumpy(body.joint_indices.ravel())),
-                                  ("primvars:skel:jointWeights", T.FloatArray, Vt.FloatArray.FromNumpy(body.joint_weights.ravel()))):
-                spec = _attr(mesh, name, vt, arr)
-                spec.SetInfo("interpolation", "vertex")
-                spec.SetInfo("elementSize", k)
-            _attr(mesh, "primvars:skel:geomBindTransform", T.Matrix4d, Gf.Matrix4d(1.0))
+    def _collect(self) -> None:
+        """Wait for every outstanding reply of every worker."""
+        for proc, conn in self._workers:
+            while self._pending[proc.pid]:
+                status, detail = conn.recv()
+                self._pending[proc.pid] -= 1
+                if status == "error":
+                    self.abort()
+                    raise RuntimeError(f"crowd layer part writer failed: {detail}")
 
-            self._write_agents()
-
-    def _write_agents(self):
-        from pxr import Gf, Sdf, Vt
-
-        T = _types()
-        layer, sc, a = self.layer, self.scenario, self.scenario.agents
-        stage_xform = None if self.frame.is_canonical else Gf.Matrix4d(self.frame.from_canonical.tolist())
-        start_stage = self.frame.points_from_canonical(a.start)
-        joints = Vt.TokenArray(list(rig.JOINTS))
-        invisible = model.ROLES.index("invisibleLeader")
-        # Groups carry their resolved visit profile (drawn once per group).
-        for gi, gpath in enumerate(sc.groups.path):
-            members = np.flatnonzero(a.group == gi)
-            if members.size:
-                g = _prim(layer, gpath)
-                _attr(g, "crowd:visitProfile", T.Token,
-                      model.VISIT_PROFILES[a.visit_profile[members[0]]], Sdf.VariabilityUniform)
-        for i, path in enumerate(a.path):
-            spec = _prim(layer, path, "SkelRoot",
-                         Sdf.SpecifierOver if path in self.authored_agents else Sdf.SpecifierDef)
-            spec.SetInfo("apiSchemas", Sdf.TokenListOp.Create(prependedItems=["CrowdAgentAPI", "SkelBindingAPI"]))
-            U = Sdf.VariabilityUniform
-            _attr(spec, "crowd:agentId", T.Int, int(a.agent_id[i]), U)
-            _attr(spec, "crowd:role", T.Token, model.ROLES[a.role[i]], U)
-            _attr(spec, "crowd:characterType", T.Token, model.CHARACTER_TYPES[a.character_type[i]], U)
-            _attr(spec, "crowd:personality", T.Token, model.PERSONALITIES[a.personality[i]], U)
-            _attr(spec, "crowd:behavior", T.Token, model.BEHAVIORS[a.behavior[i]], U)
-            _attr(spec, "crowd:condition", T.Token, model.CONDITIONS[a.condition[i]], U)
-            _attr(spec, "crowd:fearResponse", T.Token, model.FEAR_RESPONSES[a.fear_response[i]], U)
-            _attr(spec, "crowd:maxSlope", T.Float, float(a.max_slope[i]), U)
-            _attr(spec, "crowd:behaviorMapInfluence", T.Float, float(a.map_influence[i]), U)
-            _attr(spec, "crowd:color", T.Color3f, Gf.Vec3f(*a.color[i].tolist()), U)
-            _attr(spec, "crowd:speed", T.Float, float(a.speed[i]), U)
-            _attr(spec, "crowd:height", T.Float, float(a.height[i]), U)
-            _attr(spec, "crowd:startPosition", T.Point3f, Gf.Vec3f(*start_stage[i].tolist()), U)
-            Sdf.RelationshipSpec(spec, "crowd:group", custom=False).targetPathList.explicitItems = [sc.groups.path[a.group[i]]]
-            if a.leader[i] >= 0:
-                Sdf.RelationshipSpec(spec, "crowd:leader", custom=False).targetPathList.explicitItems = [a.path[a.leader[i]]]
-            Sdf.RelationshipSpec(spec, "skel:skeleton", custom=False).targetPathList.explicitItems = [f"{path}/Skel"]
-            Sdf.RelationshipSpec(spec, "skel:animationSource", custom=False).targetPathList.explicitItems = [f"{path}/Anim"]
-            if a.role[i] == invisible:
-                _attr(spec, "visibility", T.Token, "invisible")
-            if stage_xform is not None:
-                _attr(spec, "xformOp:transform:stageFrame", T.Matrix4d, stage_xform)
-                _attr(spec, "xformOpOrder", T.TokenArray, Vt.TokenArray(["xformOp:transform:stageFrame"]), U)
-
-            skel = _prim(layer, f"{path}/Skel", "Skeleton", Sdf.SpecifierDef)
-            skel.referenceList.prependedItems = [Sdf.Reference(primPath=SKEL_PROTO)]
-            anim = _prim(layer, f"{path}/Anim", "SkelAnimation", Sdf.SpecifierDef)
-            _attr(anim, "joints", T.TokenArray, joints, U)
-            s = float(self._scale[i])
-            _attr(anim, "scales", T.Half3Array, Vt.Vec3hArray([Gf.Vec3h(s, s, s), Gf.Vec3h(1, 1, 1), Gf.Vec3h(1, 1, 1)]))
-            _attr(anim, "rotations", T.QuatfArray)
-            _attr(anim, "translations", T.Float3Array)
-            body = _prim(layer, f"{path}/Body", "Mesh", Sdf.SpecifierDef)
-            body.referenceList.prependedItems = [Sdf.Reference(primPath=BODY_PROTO)]
-            _attr(body, "primvars:displayColor", T.Color3fArray, Vt.Vec3fArray([Gf.Vec3f(*a.color[i].tolist())])).SetInfo(
-                "interpolation", "constant")
-            for name in ("crowd:state:behavior", "crowd:state:animClass", "crowd:state:health"):
-                _attr(spec, name, T.Token, custom=True)
-            _attr(spec, "crowd:pathMethod", T.Token, None, U, custom=True)
-            self._anim_paths.append((Sdf.Path(f"{path}/Anim.rotations"), Sdf.Path(f"{path}/Anim.translations"),
-                                     Sdf.Path(f"{path}.crowd:state:behavior"), Sdf.Path(f"{path}.crowd:state:animClass"),
-                                     Sdf.Path(f"{path}.crowd:state:health")))
-
-    # ------------------------------------------------------------------ frames
     def write_chunk(self, frames: model.CrowdFrames, rotations: np.ndarray, translations: np.ndarray) -> None:
         """Author the time samples of consecutive frames.
 
@@ -225,63 +362,52 @@ class CrowdLayerWriter:
         rotations, translations : (t, n, 3, 4), (t, n, 3, 3) float
             Local joint pose of the canonical skeleton (usdcrowd.character.animation.animate).
         """
-        from pxr import Sdf, Vt
-
         a = self.scenario.agents
         rot, trans, _ = apply_root_motion(rotations, translations, frames.position, frames.heading, a.height)
         rot_usd = rig.to_usd_quat_order(rot)
-        # Bounds of the motion, for the SkelRoot extents written at close.
         pos = frames.position.astype(np.float64)
         self._lo = np.minimum(self._lo, pos.min(0))
         self._hi = np.maximum(self._hi, pos.max(0))
-        times = [float(t) for t in frames.times]
-        layer = self.layer
-        quat_from, vec_from = Vt.QuatfArray.FromNumpy, Vt.Vec3fArray.FromNumpy
-        with Sdf.ChangeBlock():
-            for i, (rpath, tpath, *_rest) in enumerate(self._anim_paths):
-                r_i, t_i = rot_usd[:, i], trans[:, i]
-                for k, t in enumerate(times):
-                    layer.SetTimeSample(rpath, t, quat_from(r_i[k]))
-                    layer.SetTimeSample(tpath, t, vec_from(t_i[k]))
-            self._write_tokens(frames)
-        if self.path_method is None:
-            self.path_method = frames.path_method
+        if self._path_method is None:
+            self._path_method = np.asarray(frames.path_method)
+        tokens = {key: getattr(frames, key) for key, _ in _TOKEN_SLOTS}
+        if self._local is not None:
+            self._local.write_samples(frames.times, rot_usd, trans, tokens)
+            return
+        # No waiting here: the workers author this chunk while the caller
+        # simulates and animates the next one.
+        for (proc, conn), rows in zip(self._workers, self._splits):
+            conn.send(("samples", (frames.times, np.ascontiguousarray(rot_usd[:, rows]),
+                                   np.ascontiguousarray(trans[:, rows]), {k: v[:, rows] for k, v in tokens.items()})))
+            self._pending[proc.pid] += 1
 
-    path_method = None
-
-    def _write_tokens(self, frames: model.CrowdFrames) -> None:
-        layer = self.layer
-        for slot, key, vocab in ((2, "behavior", model.BEHAVIORS), (3, "anim_class", model.ANIM_CLASSES),
-                                 (4, "health", model.HEALTH_STATES)):
-            values = getattr(frames, key)
-            prev = self._last_tokens.get(key)
-            changed = np.ones_like(values, dtype=bool)
-            changed[1:] = values[1:] != values[:-1]
-            if prev is not None:
-                changed[0] = values[0] != prev
-            for k, i in zip(*np.nonzero(changed)):
-                layer.SetTimeSample(self._anim_paths[i][slot], float(frames.times[k]), vocab[values[k, i]])
-            self._last_tokens[key] = values[-1]
-
-    # ------------------------------------------------------------------ close
     def save(self) -> str:
-        """Write extents and per-agent summaries, then save atomically. Returns the path."""
-        from pxr import Gf, Sdf, Vt
-
-        T = _types()
-        a = self.scenario.agents
-        scale = self._scale.astype(np.float64)
+        """Write extents and per-agent summaries, then save every layer atomically. Returns the path."""
+        scale = (self.scenario.agents.height / rig.HEAD_TOP).astype(np.float16).astype(np.float64)
         # Extents are in the SkelRoot's space: canonical metres (the stage-frame
         # op, if any, sits above them).
         lo = self._lo - np.stack([_REACH * scale, _REACH * scale, 0 * scale], 1)
         hi = self._hi + np.stack([_REACH * scale, _REACH * scale, _TOP * scale], 1)
-        with Sdf.ChangeBlock():
-            for i, path in enumerate(a.path):
-                spec = self.layer.GetPrimAtPath(path)
-                _attr(spec, "extent", T.Float3Array, Vt.Vec3fArray([Gf.Vec3f(*lo[i].tolist()), Gf.Vec3f(*hi[i].tolist())]))
-                if self.path_method is not None:
-                    spec.attributes["crowd:pathMethod"].default = model.PATH_METHODS[self.path_method[i]]
+        pm = self._path_method
+        if self._local is not None:
+            self._local.finish(lo, hi, pm)
+        else:
+            for (proc, conn), rows in zip(self._workers, self._splits):
+                conn.send(("finish", (lo[rows], hi[rows], None if pm is None else pm[rows])))
+                self._pending[proc.pid] += 1
+            self._collect()
+            for proc, _ in self._workers:
+                proc.join()
         with atomic_path(self.final) as tmp:
             if not self.layer.Export(os.fspath(tmp)):
                 raise OSError(f"could not write {self.final}")
         return self.final
+
+    def abort(self) -> None:
+        """Stop the workers and remove any part already written."""
+        for proc, conn in self._workers:
+            if proc.is_alive():
+                proc.terminate()
+        for p in getattr(self, "part_paths", []):
+            if os.path.exists(p):
+                os.unlink(p)
