@@ -16,6 +16,9 @@ import numpy as np
 from . import model
 
 
+PLOT_MAX_AGENTS = 3000
+
+
 @dataclass
 class ShotResult:
     """Where a simulated shot was written and what it holds."""
@@ -23,6 +26,7 @@ class ShotResult:
     shot: str
     crowd: str
     cameras: str
+    plot: str
     n_agents: int
     n_frames: int
     seed: int
@@ -74,6 +78,7 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
 
     from .character.animation import animate
     from .scenario import load_scenario, open_stage, stage_frame
+    from .plots import trajectory_map
     from .usd import CROWD, CrowdLayerWriter, write_cameras, write_shot
 
     scenario_path = os.fspath(scenario_path)
@@ -93,7 +98,11 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     visible = scenario.agents.visible
     if not visible.any():
         visible = np.ones_like(visible)
-    centres, spreads = [], []
+    centres, spreads, tracks = [], [], []
+    # The trajectory map draws at most this many agents at about 200 instants.
+    plotted = np.sort(np.random.default_rng(0).permutation(len(scenario.agents))[:PLOT_MAX_AGENTS])
+    stride = max(1, scenario.time.n_frames // 200)
+    done = 0
     dt = 1.0 / scenario.time.fps
     with _progress(scenario.time.n_frames, "simulate", progress) as bar:
         for chunk in crowd_source(scenario):
@@ -103,10 +112,25 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
             c = pos.mean(axis=1)
             centres.append(c)
             spreads.append(np.linalg.norm(pos - c[:, None], axis=2).max(axis=1))
+            keep = (done + np.arange(len(chunk.times))) % stride == 0
+            tracks.append(chunk.position[keep][:, plotted])
+            done += len(chunk.times)
             bar.update(len(chunk.times))
     crowd = writer.save()
     cameras = write_cameras(out_dir, np.concatenate(centres), np.concatenate(spreads), scenario.time.codes,
                             sframe, default_prim, scenario.time)
     shot = write_shot(out_dir, scenario_path, scenario.time, sframe, default_prim, scenario.seed,
                       add_lights=not has_lights)
-    return ShotResult(shot, crowd, cameras, len(scenario.agents), scenario.time.n_frames, scenario.seed)
+    plot = trajectory_map(_subset(scenario, plotted), np.concatenate(tracks), out_dir / "trajectories.png",
+                          title=f"{Path(scenario_path).name}: {len(scenario.agents)} agents, "
+                                f"{scenario.time.n_frames} frames, seed {scenario.seed}")
+    return ShotResult(shot, crowd, cameras, plot, len(scenario.agents), scenario.time.n_frames, scenario.seed)
+
+
+def _subset(scenario: model.Scenario, rows: np.ndarray) -> model.Scenario:
+    """The scenario with only the given agents (for pictures)."""
+    from dataclasses import replace
+
+    a = scenario.agents
+    fields = {k: (v[rows] if isinstance(v, np.ndarray) else [v[i] for i in rows]) for k, v in vars(a).items()}
+    return replace(scenario, agents=model.AgentTable(**fields))

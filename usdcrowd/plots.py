@@ -1,0 +1,112 @@
+"""Pictures of a simulated shot: a top-down map of every trajectory.
+
+Scenery footprints in grey, behavior layers as faint tints, interest points as
+rings, each agent's path in its clothing colour (linear RGB encoded to sRGB
+with colour-science), a dot where it ends, leaders outlined, a scale bar.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from . import model
+from .atomic import atomic_path
+
+_BACKGROUND = (250, 249, 246)
+_OBSTACLE = (150, 150, 155)
+_INTEREST = (200, 120, 0)
+_TEXT = (40, 40, 40)
+
+
+def srgb8(linear: np.ndarray) -> np.ndarray:
+    """Linear RGB in [0, 1] to 8-bit sRGB through colour-science's sRGB encoding."""
+    import colour
+
+    encoded = colour.cctf_encoding(np.clip(np.asarray(linear, dtype=np.float64), 0.0, 1.0), function="sRGB")
+    return np.round(encoded * 255).astype(np.uint8)
+
+
+def trajectory_map(scenario: model.Scenario, positions: np.ndarray, out_png: str | os.PathLike,
+                   width: int = 1200, title: str = "") -> str:
+    """Draw every agent's path from above.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    positions : (t, n, 3) float
+        Agents' positions at sampled frames, canonical metres.
+    out_png : path-like
+    width : int
+        Image width in pixels; the height follows the bounds' aspect.
+    """
+    from PIL import Image, ImageDraw
+
+    lo, hi = scenario.bounds
+    pts = positions[..., :2]
+    finite = np.isfinite(pts).all(-1)
+    if finite.any():
+        lo = np.minimum(lo, pts[finite].min(0))
+        hi = np.maximum(hi, pts[finite].max(0))
+    pad = 0.04 * (hi - lo).max() + 1.0
+    lo, hi = lo - pad, hi + pad
+    scale = width / (hi[0] - lo[0])
+    height = max(200, int(round((hi[1] - lo[1]) * scale)))
+    img = Image.new("RGB", (width, height + 40), _BACKGROUND)
+    draw = ImageDraw.Draw(img)
+
+    def px(xy):
+        xy = np.asarray(xy, dtype=np.float64)
+        return np.stack([(xy[..., 0] - lo[0]) * scale, (hi[1] - xy[..., 1]) * scale], -1)
+
+    for f in scenario.fields:
+        if f.values is None:
+            if f.generator in (model.LAYER_GENERATORS.index("explosion"), model.LAYER_GENERATORS.index("volcano")):
+                c = px(f.origin[:2])
+                r = f.radius * scale
+                draw.ellipse([c[0] - r, c[1] - r, c[0] + r, c[1] + r], outline=(220, 60, 40), width=2)
+            continue
+        a0, a1 = px(f.extent_min), px(f.extent_max)
+        v = f.values
+        span = float(v.max() - v.min()) or 1.0
+        tint = Image.fromarray(np.uint8(255 - 60 * (v - v.min()) / span)).resize(
+            (max(1, int(a1[0] - a0[0])), max(1, int(a0[1] - a1[1]))))
+        img.paste(Image.merge("RGB", (tint, tint, tint.point(lambda x: min(255, x + 10)))), (int(a0[0]), int(a1[1])))
+    for poly in scenario.obstacles.polygons:
+        draw.polygon([tuple(p) for p in px(poly)], fill=_OBSTACLE)
+    for p, r in zip(scenario.interest.position, scenario.interest.radius):
+        c, rr = px(p[:2]), r * scale
+        draw.ellipse([c[0] - rr, c[1] - rr, c[0] + rr, c[1] + rr], outline=_INTEREST, width=2)
+
+    a = scenario.agents
+    colors = srgb8(a.color)
+    line_w = max(1, int(round(scale * 0.06)))
+    dot = max(2.0, scale * 0.25)
+    leaders = set(np.flatnonzero(a.role != model.ROLES.index("member")))
+    for i in range(len(a)):
+        track = px(pts[:, i][finite[:, i]])
+        if len(track) == 0:
+            continue
+        col = tuple(int(c) for c in colors[i])
+        if not a.visible[i]:
+            col = (120, 120, 120)
+        if len(track) > 1:
+            draw.line([tuple(p) for p in track], fill=col, width=line_w)
+        x, y = track[-1]
+        outline = (0, 0, 0) if i in leaders else col
+        draw.ellipse([x - dot, y - dot, x + dot, y + dot], fill=col, outline=outline, width=2 if i in leaders else 1)
+
+    # Scale bar: the largest round number of metres under a fifth of the width.
+    metres = 10 ** np.floor(np.log10((hi[0] - lo[0]) / 5))
+    for m in (5 * metres, 2 * metres, metres):
+        if m * scale < width / 5:
+            break
+    y0 = height + 20
+    draw.line([(20, y0), (20 + m * scale, y0)], fill=_TEXT, width=3)
+    draw.text((25 + m * scale, y0 - 7), f"{m:g} m", fill=_TEXT)
+    label = title or os.path.basename(scenario.source)
+    draw.text((width - 10 - 7 * len(label), y0 - 7), label, fill=_TEXT)
+    with atomic_path(out_png) as tmp:
+        img.save(tmp, format="PNG")
+    return os.fspath(out_png)
