@@ -115,3 +115,12 @@ def test_console_script_runs_as_installed(tmp_path):
     exe = Path(sys.executable).with_name("usdcrowd")
     out = subprocess.run([str(exe), "inspect", str(tmp_path / "missing.usda")], capture_output=True, text=True)
     _assert_one_line_error(out.returncode, out.stderr, "missing.usda", "no such file")
+
+
+def test_demo_runs_the_whole_chain(tmp_path, capsys):
+    code, stdout, _ = _run(capsys, "demo", "-o", str(tmp_path / "demo"), "--no-progress")
+    assert code == 0, stdout
+    shot = tmp_path / "demo" / "shot"
+    for name in ("shot.usda", "crowd.usdc", "cameras.usda", "trajectories.png"):
+        assert (shot / name).stat().st_size > 0, name
+    assert "validate  shot: 0 errors" in stdout

@@ -52,4 +52,5 @@ def run(args) -> int:
     print(f"  shot      {r.shot}   (open it in usdview, Blender, Houdini...)")
     print(f"  crowd     {r.crowd}")
     print(f"  cameras   {r.cameras}")
+    print(f"  picture   {r.plot}   (every trajectory, seen from above)")
     return 0

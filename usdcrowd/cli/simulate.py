@@ -25,4 +25,5 @@ def run(args) -> int:
     print(f"wrote {r.shot}: {r.n_agents} agents x {r.n_frames} frames, seed {r.seed}")
     print(f"  crowd   {r.crowd}")
     print(f"  cameras {r.cameras}")
+    print(f"  picture {r.plot}")
     return 0
