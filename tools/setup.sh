@@ -33,5 +33,5 @@ if [ ! -x .venv/bin/python ]; then
 fi
 .venv/bin/python -m pip install -q --upgrade pip >/dev/null
 echo "setup: installing usdcrowd[$EXTRAS] into .venv"
-.venv/bin/python -m pip install -q -e ".[$EXTRAS]" 2>&1 | grep -v -E "^WARNING: Location|^$" || true
+.venv/bin/python -m pip install -q -e ".[$EXTRAS]"
 .venv/bin/python -c "import usdcrowd, pxr, numpy; print('setup: usdcrowd', usdcrowd.__version__, 'ready in .venv')"
