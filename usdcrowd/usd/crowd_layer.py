@@ -197,6 +197,8 @@ class _AgentPart:
         body.referenceList.prependedItems = [Sdf.Reference(primPath=BODY_PROTO)]
         _attr(body, "primvars:displayColor", T.Color3fArray,
               Vt.Vec3fArray([Gf.Vec3f(*a.color[i].tolist())])).SetInfo("interpolation", "constant")
+        # Height for shaders and tools; the geometry is scaled by the root joint.
+        _attr(body, "primvars:crowd:height", T.Float, float(a.height[i])).SetInfo("interpolation", "constant")
         return tuple(Sdf.Path(p) for p in (f"{path}/Anim.rotations", f"{path}/Anim.translations",
                                            f"{path}.crowd:state:behavior", f"{path}.crowd:state:animClass",
                                            f"{path}.crowd:state:health"))

@@ -1,0 +1,597 @@
+"""A shot stage as renderers see it, frame by frame, in canonical units.
+
+Both renderers (the Mitsuba final path and the OpenGL preview) and the
+ground-truth exporters read the stage through :class:`ShotScene`, so they
+agree on every vertex, light and lens. Everything returned is numpy, in Z-up
+metres (the stage's upAxis and metersPerUnit are undone here), with USD's
+row-vector matrix convention (``p' = p @ M``).
+
+Static things (scenery meshes, materials, lights, the shared body) are read
+once; what moves (agents' skeletons, animated scenery, cameras) is read per
+time code.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from ..character import rig
+
+# Agents' ids are small positive integers (their track ids); scenery gets ids
+# from this offset up so the two never collide in an id buffer.
+SCENERY_ID_BASE = 1 << 24
+
+
+@dataclass
+class Material:
+    """What UsdPreviewSurface (or displayColor) says about a surface, linear RGB."""
+
+    base_color: np.ndarray = field(default_factory=lambda: np.array([0.6, 0.6, 0.6]))
+    roughness: float = 0.5
+    metallic: float = 0.0
+    opacity: float = 1.0
+    base_color_texture: str | None = None      # resolved file path
+
+
+@dataclass
+class MeshData:
+    """A triangle mesh in its own (local) space.
+
+    Attributes
+    ----------
+    vertices : (v, 3) float32
+        Local positions, canonical metres *after* the prim's transform is
+        applied; see :attr:`SceneryItem.local_to_world`.
+    faces : (f, 3) int32
+    normals : (v, 3) float32 or None
+    uv : (v, 2) float32 or None
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    normals: np.ndarray | None = None
+    uv: np.ndarray | None = None
+
+
+@dataclass
+class SceneryItem:
+    """One piece of static or animated scenery."""
+
+    path: str
+    shape_id: int
+    mesh: MeshData
+    material: Material
+    animated: bool
+    _prim: object = field(repr=False, default=None)
+    _scene: object = field(repr=False, default=None)
+
+    def local_to_world(self, time) -> np.ndarray:
+        """(4, 4) mesh space to canonical world at ``time``."""
+        return self._scene._world(self._prim, time)
+
+
+@dataclass
+class Light:
+    """A UsdLux light, resolved to what a renderer needs.
+
+    Attributes
+    ----------
+    kind : str
+        "distant", "dome", "sphere", "rect", "disk" or "cylinder".
+    rgb : (3,) float
+        Linear colour times the colour-temperature tint.
+    intensity : float
+        ``inputs:intensity * 2 ** inputs:exposure``.
+    to_world : (4, 4) float
+        Light space to canonical world (lights shine along their local -Z).
+    radius, width, height, length, angle : float
+        Shape parameters in metres (angle in degrees).
+    texture : str or None
+        Dome texture file, resolved.
+    normalize : bool
+        inputs:normalize (power independent of size).
+    """
+
+    path: str
+    kind: str
+    rgb: np.ndarray
+    intensity: float
+    to_world: np.ndarray
+    radius: float = 0.0
+    width: float = 0.0
+    height: float = 0.0
+    length: float = 0.0
+    angle: float = 0.0
+    texture: str | None = None
+    normalize: bool = False
+
+
+@dataclass
+class CameraView:
+    """A camera at one time code.
+
+    Attributes
+    ----------
+    cam_to_world : (4, 4) float64
+        Camera space to canonical world; the camera looks down its local -Z
+        with +Y up (USD's convention).
+    focal_length, horizontal_aperture, vertical_aperture : float
+        Lens values as authored (their unit cancels out in the field of view).
+    near, far : float
+        Clipping range in metres.
+    """
+
+    path: str
+    time: float
+    cam_to_world: np.ndarray
+    focal_length: float
+    horizontal_aperture: float
+    vertical_aperture: float
+    near: float
+    far: float
+
+    @property
+    def world_to_cam(self) -> np.ndarray:
+        return np.linalg.inv(self.cam_to_world)
+
+    @property
+    def position(self) -> np.ndarray:
+        return self.cam_to_world[3, :3].copy()
+
+    def fov_x(self) -> float:
+        """Horizontal field of view in degrees."""
+        return float(np.degrees(2 * np.arctan(0.5 * self.horizontal_aperture / self.focal_length)))
+
+    def intrinsics(self, width: int, height: int) -> np.ndarray:
+        """(3, 3) pinhole matrix K for an image of ``width`` x ``height`` pixels.
+
+        The horizontal aperture fills the image width; pixels are square, so
+        the vertical field of view follows the image's aspect (usdrecord's
+        behaviour when the aspects differ). Pixel centres are at +0.5.
+        """
+        f = width * self.focal_length / self.horizontal_aperture
+        return np.array([[f, 0.0, width / 2.0], [0.0, f, height / 2.0], [0.0, 0.0, 1.0]])
+
+    def project(self, points: np.ndarray, width: int, height: int):
+        """Project world points to pixels.
+
+        Parameters
+        ----------
+        points : (..., 3) float
+            Canonical world positions.
+
+        Returns
+        -------
+        uv : (..., 2) float64
+            Pixel coordinates (x right, y down; pixel centres at +0.5).
+        z : (...) float64
+            Depth along the view axis, metres (positive in front).
+        """
+        p = np.asarray(points, dtype=np.float64)
+        cam = p @ self.world_to_cam[:3, :3] + self.world_to_cam[3, :3]
+        z = -cam[..., 2]
+        k = self.intrinsics(width, height)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u = k[0, 2] + k[0, 0] * cam[..., 0] / z
+            v = k[1, 2] - k[1, 1] * cam[..., 1] / z
+        return np.stack([u, v], -1), z
+
+
+@dataclass
+class AgentPoses:
+    """Every agent at one time code.
+
+    Attributes
+    ----------
+    time : float
+    paths : list[str]
+    agent_ids : (n,) int32
+        Track ids (crowd:agentId).
+    visible : (n,) bool
+        Rendered (not an invisible leader, not hidden).
+    color : (n, 3) float32
+        Linear RGB clothing colour.
+    joints_world : (n, 3, 4, 4) float64
+        Joint-to-world matrices (canonical), legs / torso / head.
+    """
+
+    time: float
+    paths: list[str]
+    agent_ids: np.ndarray
+    visible: np.ndarray
+    color: np.ndarray
+    joints_world: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.paths)
+
+    @property
+    def skinning(self) -> np.ndarray:
+        """(n, 3, 4, 4) skinning transforms, bind pose to canonical world."""
+        return np.linalg.inv(rig.BIND_SKEL) @ self.joints_world
+
+    def keypoints(self) -> np.ndarray:
+        """(n, 5, 3) world keypoints in rig.KEYPOINT_NAMES order (the ground point
+        is the pelvis dropped by its rest height, which follows terrain)."""
+        k = rig.keypoints(self.joints_world)
+        scale = np.linalg.norm(self.joints_world[:, 0, 0, :3], axis=-1)
+        k[:, 4] = self.joints_world[:, 0, 3, :3] - np.stack(
+            [np.zeros_like(scale), np.zeros_like(scale), rig.PELVIS_HEIGHT * scale], -1)
+        return k
+
+
+class ShotScene:
+    """Read a shot stage for rendering.
+
+    Parameters
+    ----------
+    path : path-like
+        The shot (or any) stage.
+    stage : Usd.Stage, optional
+        Already opened.
+    """
+
+    def __init__(self, path: str | os.PathLike, stage=None):
+        from pxr import UsdGeom
+
+        from ..scenario import open_stage, stage_frame
+
+        self.path = os.fspath(path)
+        self.stage = stage or open_stage(self.path)
+        self.frame = stage_frame(self.stage)
+        self._to_canonical = self.frame.to_canonical
+        self._xf_caches: dict[float, object] = {}
+        self.time_codes = np.arange(self.stage.GetStartTimeCode(), self.stage.GetEndTimeCode() + 0.5)
+        self.fps = self.stage.GetTimeCodesPerSecond()
+        self._UsdGeom = UsdGeom
+        self._scan()
+
+    # ------------------------------------------------------------- traversal
+    def _scan(self) -> None:
+        from pxr import Usd, UsdGeom, UsdLux
+
+        from .. import schema
+
+        self._agent_prims, self._scenery_prims, self._light_prims, self._camera_prims = [], [], [], []
+        it = iter(Usd.PrimRange(self.stage.GetPseudoRoot()))
+        for prim in it:
+            if prim.IsA(UsdGeom.Imageable) and UsdGeom.Imageable(prim).GetPurposeAttr().Get() in ("guide", "proxy"):
+                it.PruneChildren()
+                continue
+            if schema.is_agent(prim):
+                self._agent_prims.append(prim)
+                it.PruneChildren()
+            elif prim.IsA(UsdGeom.Camera):
+                self._camera_prims.append(prim)
+            elif prim.HasAPI(UsdLux.LightAPI):
+                self._light_prims.append(prim)
+            elif prim.IsA(UsdGeom.Gprim):
+                self._scenery_prims.append(prim)
+
+    def _xf(self, time):
+        from pxr import Usd, UsdGeom
+
+        key = float(time)
+        cache = self._xf_caches.get(key)
+        if cache is None:
+            if len(self._xf_caches) > 8:
+                self._xf_caches.clear()
+            cache = self._xf_caches[key] = UsdGeom.XformCache(Usd.TimeCode(key))
+        return cache
+
+    def _world(self, prim, time) -> np.ndarray:
+        """(4, 4) prim-to-canonical-world at ``time``."""
+        m = np.array(self._xf(time).GetLocalToWorldTransform(prim), dtype=np.float64)
+        return m @ self._to_canonical
+
+    # --------------------------------------------------------------- cameras
+    @property
+    def camera_paths(self) -> list[str]:
+        return [str(p.GetPath()) for p in self._camera_prims]
+
+    def camera(self, path: str | None, time) -> CameraView:
+        """The camera at ``path`` (default: the first one) at ``time``.
+
+        Raises
+        ------
+        StageError
+            If the stage has no camera, or ``path`` is not a camera.
+        """
+        from pxr import UsdGeom
+
+        from ..errors import StageError
+
+        if path is None:
+            if not self._camera_prims:
+                raise StageError("the stage has no camera", file=self.path)
+            prim = self._camera_prims[0]
+        else:
+            prim = self.stage.GetPrimAtPath(path)
+            if not prim or not prim.IsA(UsdGeom.Camera):
+                found = ", ".join(self.camera_paths) or "none"
+                raise StageError(f"not a camera (cameras: {found})", file=self.path, prim=path)
+        cam = UsdGeom.Camera(prim)
+        m = self._world(prim, time)
+        # Remove scale from the camera's frame: lenses do not scale with units.
+        m[:3, :3] /= np.linalg.norm(m[:3, :3], axis=1, keepdims=True)
+        near, far = cam.GetClippingRangeAttr().Get(time)
+        mpu = self.frame.meters_per_unit
+        return CameraView(str(prim.GetPath()), float(time), m, float(cam.GetFocalLengthAttr().Get(time)),
+                          float(cam.GetHorizontalApertureAttr().Get(time)),
+                          float(cam.GetVerticalApertureAttr().Get(time)), near * mpu, far * mpu)
+
+    # --------------------------------------------------------------- scenery
+    @cached_property
+    def scenery(self) -> list[SceneryItem]:
+        """Every gprim that is not part of an agent, with its material."""
+        items = []
+        for k, prim in enumerate(self._scenery_prims):
+            mesh = _mesh_of(prim, self.frame.meters_per_unit)
+            if mesh is None or len(mesh.faces) == 0:
+                continue
+            xf = self._UsdGeom.Xformable(prim)
+            animated = bool(xf.TransformMightBeTimeVarying()) or _ancestors_animated(prim)
+            items.append(SceneryItem(str(prim.GetPath()), SCENERY_ID_BASE + k, mesh, _material_of(prim),
+                                     animated, prim, self))
+        return items
+
+    # ---------------------------------------------------------------- lights
+    @cached_property
+    def lights(self) -> list[Light]:
+        """The stage's UsdLux lights (read at the start time; lights are static here)."""
+        t = self.stage.GetStartTimeCode()
+        return [light for light in (_light_of(p, self._world(p, t), self.frame.meters_per_unit)
+                                    for p in self._light_prims) if light is not None]
+
+    # ---------------------------------------------------------------- agents
+    @cached_property
+    def body(self):
+        """The shared skinned body (points, faces, joint indices and weights) read from the stage."""
+        from pxr import UsdGeom, UsdSkel
+
+        from ..character.body import build_body
+
+        for prim in self._agent_prims:
+            body = prim.GetChild("Body")
+            if body and body.IsA(UsdGeom.Mesh):
+                mesh = UsdGeom.Mesh(body)
+                binding = UsdSkel.BindingAPI(body)
+                counts = np.array(mesh.GetFaceVertexCountsAttr().Get())
+                if len(counts) and np.all(counts == 3):
+                    k = binding.GetJointIndicesPrimvar().GetElementSize()
+                    return _Body(np.array(mesh.GetPointsAttr().Get(), dtype=np.float32),
+                                 np.array(mesh.GetFaceVertexIndicesAttr().Get(), dtype=np.int32).reshape(-1, 3),
+                                 np.array(binding.GetJointIndicesAttr().Get(), dtype=np.int32).reshape(-1, k),
+                                 np.array(binding.GetJointWeightsAttr().Get(), dtype=np.float32).reshape(-1, k))
+        b = build_body()
+        return _Body(b.points, b.face_vertex_indices.reshape(-1, 3), b.joint_indices, b.joint_weights)
+
+    @cached_property
+    def _agent_queries(self):
+        from pxr import Usd, UsdSkel
+
+        rows = []
+        for prim in self._agent_prims:
+            src = UsdSkel.BindingAPI(prim).GetAnimationSourceRel().GetTargets()
+            anim = UsdSkel.Animation(self.stage.GetPrimAtPath(src[0])) if src else None
+            if not anim:
+                continue
+            rows.append((prim, Usd.AttributeQuery(anim.GetRotationsAttr()),
+                         Usd.AttributeQuery(anim.GetTranslationsAttr()), Usd.AttributeQuery(anim.GetScalesAttr())))
+        return rows
+
+    @cached_property
+    def _agent_static(self):
+        from pxr import Gf
+
+        paths, ids, colors = [], [], []
+        for prim, *_ in self._agent_queries:
+            paths.append(str(prim.GetPath()))
+            ids.append(prim.GetAttribute("crowd:agentId").Get())
+            c = prim.GetAttribute("crowd:color").Get() or Gf.Vec3f(0.6, 0.6, 0.6)
+            body = prim.GetChild("Body")
+            dc = body.GetAttribute("primvars:displayColor").Get() if body else None
+            colors.append(tuple(dc[0]) if dc else tuple(c))
+        return paths, np.array(ids, dtype=np.int32), np.array(colors, dtype=np.float32).reshape(-1, 3)
+
+    @property
+    def agent_paths(self) -> list[str]:
+        return self._agent_static[0]
+
+    def agents(self, time) -> AgentPoses:
+        """Every agent's joints in the world at ``time``."""
+        from pxr import UsdGeom
+
+        paths, ids, colors = self._agent_static
+        n = len(paths)
+        rot = np.zeros((n, 3, 4))
+        trans = np.zeros((n, 3, 3))
+        scale = np.ones((n, 3, 3))
+        root = np.zeros((n, 4, 4))
+        visible = np.zeros(n, dtype=bool)
+        t = float(time)
+        for i, (prim, rq, tq, sq) in enumerate(self._agent_queries):
+            r, tr, s = rq.Get(t), tq.Get(t), sq.Get(t)
+            rot[i] = [(q.GetReal(), *q.GetImaginary()) for q in r]
+            trans[i] = np.array(tr)
+            if s:
+                scale[i] = np.array(s)
+            root[i] = self._world(prim, t)
+            visible[i] = UsdGeom.Imageable(prim).ComputeVisibility(t) != UsdGeom.Tokens.invisible
+        local = rig.compose_local(rot, trans)
+        local[..., :3, :3] *= scale[..., :, None]        # UsdSkel: scale, then rotate, then translate
+        joints = rig.local_to_skel(local) @ root[:, None]
+        return AgentPoses(t, paths, ids, visible, colors, joints)
+
+    def skinned_vertices(self, poses: AgentPoses) -> np.ndarray:
+        """(n, v, 3) float32 world positions of every agent's body vertices."""
+        b = self.body
+        return rig.skin_points(b.points, b.joint_indices, b.joint_weights, poses.skinning).astype(np.float32)
+
+
+@dataclass
+class _Body:
+    points: np.ndarray          # (v, 3) bind pose
+    faces: np.ndarray           # (f, 3)
+    joint_indices: np.ndarray   # (v, k)
+    joint_weights: np.ndarray   # (v, k)
+
+
+def _ancestors_animated(prim) -> bool:
+    from pxr import UsdGeom
+
+    p = prim.GetParent()
+    while p and not p.IsPseudoRoot():
+        if p.IsA(UsdGeom.Xformable) and UsdGeom.Xformable(p).TransformMightBeTimeVarying():
+            return True
+        p = p.GetParent()
+    return False
+
+
+def _triangulate(counts: np.ndarray, indices: np.ndarray) -> np.ndarray:
+    """Fan-triangulate USD polygons: (f, 3) int32."""
+    counts = np.asarray(counts, dtype=np.int64)
+    indices = np.asarray(indices, dtype=np.int64)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    n_tri = np.maximum(counts - 2, 0)
+    face = np.repeat(np.arange(len(counts)), n_tri)
+    k = np.arange(n_tri.sum()) - np.repeat(np.cumsum(n_tri) - n_tri, n_tri)
+    base = starts[face]
+    return np.stack([indices[base], indices[base + k + 1], indices[base + k + 2]], 1).astype(np.int32)
+
+
+def _mesh_of(prim, meters_per_unit: float) -> MeshData | None:
+    """Triangles of a gprim in its local space (stage units; scaled later by the world matrix)."""
+    import trimesh
+    from pxr import UsdGeom
+
+    if prim.IsA(UsdGeom.Mesh):
+        m = UsdGeom.Mesh(prim)
+        points = m.GetPointsAttr().Get()
+        if points is None or len(points) == 0:
+            return None
+        faces = _triangulate(m.GetFaceVertexCountsAttr().Get(), m.GetFaceVertexIndicesAttr().Get())
+        if m.GetOrientationAttr().Get() == UsdGeom.Tokens.leftHanded:
+            faces = faces[:, ::-1].copy()
+        uv = None
+        st = UsdGeom.PrimvarsAPI(prim).GetPrimvar("st")
+        if st and st.GetInterpolation() in ("vertex", "varying"):
+            uv = np.array(st.Get(), dtype=np.float32)
+        return MeshData(np.array(points, dtype=np.float32), faces, None, uv)
+    if prim.IsA(UsdGeom.Cube):
+        size = UsdGeom.Cube(prim).GetSizeAttr().Get()
+        t = trimesh.creation.box(extents=(size, size, size))
+    elif prim.IsA(UsdGeom.Sphere):
+        t = trimesh.creation.icosphere(subdivisions=3, radius=UsdGeom.Sphere(prim).GetRadiusAttr().Get())
+    elif prim.IsA(UsdGeom.Cylinder) or prim.IsA(UsdGeom.Cone) or prim.IsA(UsdGeom.Capsule):
+        schema_cls = (UsdGeom.Cylinder if prim.IsA(UsdGeom.Cylinder) else
+                      UsdGeom.Cone if prim.IsA(UsdGeom.Cone) else UsdGeom.Capsule)
+        g = schema_cls(prim)
+        r, h = g.GetRadiusAttr().Get(), g.GetHeightAttr().Get()
+        if schema_cls is UsdGeom.Cylinder:
+            t = trimesh.creation.cylinder(radius=r, height=h, sections=32)
+        elif schema_cls is UsdGeom.Cone:
+            t = trimesh.creation.cone(radius=r, height=h, sections=32)
+            t.apply_translation((0, 0, -h / 2))
+        else:
+            t = trimesh.creation.capsule(radius=r, height=h, count=(16, 16))
+        axis = g.GetAxisAttr().Get()
+        if axis == "X":
+            t.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, (0, 1, 0)))
+        elif axis == "Y":
+            t.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, (1, 0, 0)))
+    elif prim.IsA(UsdGeom.Plane):
+        p = UsdGeom.Plane(prim)
+        w, l = p.GetWidthAttr().Get(), p.GetLengthAttr().Get()
+        verts = np.array([[-w / 2, -l / 2, 0], [w / 2, -l / 2, 0], [w / 2, l / 2, 0], [-w / 2, l / 2, 0]], np.float32)
+        return MeshData(verts, np.array([[0, 1, 2], [0, 2, 3]], np.int32))
+    else:
+        return None
+    return MeshData(np.asarray(t.vertices, dtype=np.float32), np.asarray(t.faces, dtype=np.int32),
+                    np.asarray(t.vertex_normals, dtype=np.float32))
+
+
+def _material_of(prim) -> Material:
+    """UsdPreviewSurface inputs of the bound material, else displayColor/displayOpacity."""
+    from pxr import UsdGeom, UsdShade
+
+    mat = Material()
+    pv = UsdGeom.PrimvarsAPI(prim)
+    dc = pv.GetPrimvar("displayColor")
+    if dc and dc.Get():
+        mat.base_color = np.array(dc.Get()[0], dtype=np.float64)
+    do = pv.GetPrimvar("displayOpacity")
+    if do and do.Get():
+        mat.opacity = float(do.Get()[0])
+    material, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
+    if not material:
+        return mat
+    shader = material.ComputeSurfaceSource()[0]
+    if not shader or shader.GetIdAttr().Get() != "UsdPreviewSurface":
+        return mat
+    for name, attr in (("diffuseColor", "base_color"), ("roughness", "roughness"),
+                       ("metallic", "metallic"), ("opacity", "opacity")):
+        inp = shader.GetInput(name)
+        if not inp:
+            continue
+        source = inp.GetConnectedSource()
+        if source and name == "diffuseColor":
+            tex = UsdShade.Shader(source[0].GetPrim())
+            file_in = tex.GetInput("file")
+            if file_in and file_in.Get() is not None:
+                mat.base_color_texture = file_in.Get().resolvedPath or None
+            continue
+        value = inp.Get()
+        if value is not None:
+            setattr(mat, attr, np.array(value, dtype=np.float64) if attr == "base_color" else float(value))
+    return mat
+
+
+def color_temperature_rgb(kelvin: float) -> np.ndarray:
+    """Linear sRGB tint of a black body at ``kelvin``, normalised to luminance 1 (colour-science)."""
+    import colour
+
+    xy = colour.temperature.CCT_to_xy(float(kelvin), method="Kang 2002" if kelvin >= 1667 else "CIE Illuminant D Series")
+    xyz = colour.xy_to_XYZ(xy)
+    rgb = colour.XYZ_to_RGB(xyz, "sRGB", apply_cctf_encoding=False)
+    rgb = np.clip(rgb, 0.0, None)
+    return rgb / (0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2])
+
+
+def _light_of(prim, to_world: np.ndarray, mpu: float) -> Light | None:
+    from pxr import UsdLux
+
+    api = UsdLux.LightAPI(prim)
+    rgb = np.array(api.GetColorAttr().Get(), dtype=np.float64)
+    if api.GetEnableColorTemperatureAttr().Get():
+        rgb = rgb * color_temperature_rgb(api.GetColorTemperatureAttr().Get())
+    intensity = float(api.GetIntensityAttr().Get()) * 2.0 ** float(api.GetExposureAttr().Get())
+    kind = {"DistantLight": "distant", "DomeLight": "dome", "DomeLight_1": "dome", "SphereLight": "sphere",
+            "RectLight": "rect", "DiskLight": "disk", "CylinderLight": "cylinder"}.get(str(prim.GetTypeName()))
+    if kind is None:
+        return None
+    m = to_world.copy()
+    scale = np.linalg.norm(m[:3, :3], axis=1)
+    m[:3, :3] /= scale[:, None]
+    light = Light(str(prim.GetPath()), kind, rgb, intensity, m, normalize=bool(api.GetNormalizeAttr().Get()))
+    s = float(scale.mean())           # to_world already holds metersPerUnit
+    if kind == "distant":
+        light.angle = float(UsdLux.DistantLight(prim).GetAngleAttr().Get())
+    elif kind == "dome":
+        f = UsdLux.DomeLight(prim).GetTextureFileAttr().Get()
+        light.texture = (f.resolvedPath or None) if f else None
+    elif kind == "sphere":
+        light.radius = float(UsdLux.SphereLight(prim).GetRadiusAttr().Get()) * s
+    elif kind == "rect":
+        r = UsdLux.RectLight(prim)
+        light.width, light.height = float(r.GetWidthAttr().Get()) * s, float(r.GetHeightAttr().Get()) * s
+    elif kind == "disk":
+        light.radius = float(UsdLux.DiskLight(prim).GetRadiusAttr().Get()) * s
+    elif kind == "cylinder":
+        c = UsdLux.CylinderLight(prim)
+        light.radius, light.length = float(c.GetRadiusAttr().Get()) * s, float(c.GetLengthAttr().Get()) * s
+    return light
