@@ -145,6 +145,7 @@ class Reactions:
         self.attackers = np.where(pers == code(PERSONALITIES, "attacker"))[0]
         self.predators = np.where(pers == code(PERSONALITIES, "predator"))[0]
         herb = (pers == code(PERSONALITIES, "herbivore")) | (ctype == code(CHARACTER_TYPES, "herbivore"))
+        herb &= pers != code(PERSONALITIES, "predator")
         self.prey = np.where(herb)[0]
         eaters = herb | (ctype == code(CHARACTER_TYPES, "ant")) | (beh == code(BEHAVIORS, "graze"))
         self.eaters = np.where(eaters & (pers != code(PERSONALITIES, "predator")))[0]
@@ -287,9 +288,10 @@ class Reactions:
         k = np.empty(line.size, np.float32)
         k[order] = np.arange(line.size, dtype=np.float32) - 0.5 * (line.size - 1)
         slots = centre[:, None] + perp[:, None] * (k * np.float32(P.LINE_SPACING))[None, :]
-        v, _ = arrive(pos[:, line], slots, speed[line] * P.PANIC_SPEED_FACTOR, slow_radius=P.SLOW_RADIUS)
+        v, d = arrive(pos[:, line], slots, speed[line] * P.PANIC_SPEED_FACTOR, slow_radius=P.SLOW_RADIUS)
         look = np.broadcast_to(o[:, None], (2, line.size))
-        self._blend(intent, line, v, _B["walk"], look=look, face=True)
+        beh = np.where(d > P.SLOW_RADIUS, _B["run"], _B["walk"]).astype(np.int8)
+        self._blend(intent, line, v, beh, look=look, face=True)
 
     def _attackers(self, intent, pos, vel, speed, alive, threat):
         att = self.attackers[alive[self.attackers]]

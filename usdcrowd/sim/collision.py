@@ -89,10 +89,15 @@ def wall_avoidance(grid: WalkGrid, pos, vel, radius, gain=P.WALL_AVOID_GAIN, tau
     approach = -(vel[0] * nx + vel[1] * ny)
     toward = approach > 1e-3
     t = np.maximum(clear, _GAP_MIN) / np.where(toward, approach, 1.0)
-    mag = np.where(toward, np.exp((-0.5 / (tau * tau)) * t * t), 0.0) * gain
-    mag = mag + np.clip((P.WALL_CONTACT_GAP - clear) / P.WALL_CONTACT_GAP, 0.0, 1.0) * P.WALL_CONTACT_GAIN
+    avoid = (np.where(toward, np.exp((-0.5 / (tau * tau)) * t * t), 0.0) * gain).astype(np.float32)
+    mag = avoid + np.clip((P.WALL_CONTACT_GAP - clear) / P.WALL_CONTACT_GAP, 0.0, 1.0) * P.WALL_CONTACT_GAIN
     mag = mag.astype(np.float32)
-    return np.stack([nx * mag, ny * mag])
+    # Slide along the wall on the side the agent already leans to (or its
+    # left when square on), so that a pillar straight ahead is walked around
+    # rather than pushed against.
+    tx, ty = -ny, nx
+    side = np.where(vel[0] * tx + vel[1] * ty >= 0, 1.0, -1.0).astype(np.float32) * np.float32(P.WALL_SLIDE)
+    return np.stack([nx * mag + tx * side * avoid, ny * mag + ty * side * avoid])
 
 
 def resolve_overlaps(pos, idx, radius, movable, relax=P.OVERLAP_RELAX):

@@ -55,6 +55,7 @@ class DistanceMaps:
         if not self.free.any():
             self.free = grid.sdf > 0
         self._graph = None
+        self._nearest_free = None
         self._cache: dict = {}
 
     # -- graph ---------------------------------------------------------------
@@ -87,7 +88,7 @@ class DistanceMaps:
         """Flat indices of the free cells nearest to points (k, 2)."""
         g = self.grid
         f = g.flat_index(xy[:, 0], xy[:, 1])
-        if not hasattr(self, "_nearest_free"):
+        if self._nearest_free is None:
             _, inds = ndimage.distance_transform_edt(~self.free, return_indices=True)
             self._nearest_free = (inds[0] * g.w + inds[1]).ravel()
         return self._nearest_free[f]
@@ -225,7 +226,7 @@ class DistanceMaps:
         n2 /= np.maximum(np.linalg.norm(n2, axis=-1, keepdims=True), 1e-12)
         bis = n1 + n2
         bis /= np.maximum(np.linalg.norm(bis, axis=-1, keepdims=True), 1e-12)
-        c = (v + bis * 1.5 * g.cell).reshape(-1, 2)
+        c = (v + bis * 0.75 * g.cell).reshape(-1, 2)
         c = np.unique(np.round(c, 6), axis=0)
         keep = ~g.is_solid(c[:, 0], c[:, 1])
         return c[keep]

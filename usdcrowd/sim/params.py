@@ -20,6 +20,8 @@ SPEED_CAP = (6.0, 12.0, 0.6, 15.0)  # m/s
 MAX_SPEED_FACTOR = 1.5
 # Speed of fleeing / pursuing agents relative to the preferred speed.
 PANIC_SPEED_FACTOR = 2.2
+# Resting (and paralysed) agents are capped at this speed: jostled, not walking.
+REST_SPEED_MAX = 0.3  # m/s
 # Wounded agents move at this fraction of their speed.
 WOUNDED_SPEED_FACTOR = 0.5
 # Heading turn rate limit: bodies turn smoothly toward their velocity, rad/s.
@@ -60,6 +62,7 @@ PERSONAL_GAP = 0.08  # m
 SEPARATION_GAIN = 12.0  # m/s^2 at contact
 WALL_AVOID_GAIN = 5.0  # m/s^2
 WALL_AVOID_TAU = 0.8  # s
+WALL_SLIDE = 0.6  # tangential share of the wall avoidance force (walk around, not into)
 WALL_CONTACT_GAP = 0.10  # m, push-out below this clearance whatever the velocity
 WALL_CONTACT_GAIN = 15.0  # m/s^2
 # Position-based non-overlap correction after each step, fraction of the

@@ -1,0 +1,177 @@
+"""Benchmark of usdcrowd.sim against JuPedSim on the same scene.
+
+Scene (as in DESIGN.md): a 200 m x 200 m square, agents spread over it on a
+jittered lattice, half heading for a waypoint near the west edge and half
+for one near the east edge (JuPedSim: a journey shuttling between the two).
+usdcrowd runs with every force on: steering, time-to-impact avoidance of
+agents and of the square's walls (four wall obstacles around the square),
+personal-space separation, flocking and velocity matching (groups of 8 with
+a leader each; members follow it with line-of-sight memory), containment,
+overlap and wall constraints, heading turn limits, plus an explosion
+behavior map (health and reactions) at the start. Fixed dt = 0.01 s for both.
+
+Usage::
+
+    python tools/bench_sim.py                 # 1k, 10k, 100k
+    python tools/bench_sim.py 1000 10000      # chosen sizes
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+import tracemalloc
+
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+
+from usdcrowd.model import (BEHAVIORS, LAYER_GENERATORS, LAYER_MEANINGS, ROLES, AgentTable, BehaviorField,  # noqa: E402
+                            GroupTable, InterestTable, Obstacles, Scenario, TimeRange, code)
+from usdcrowd.sim import SimSettings, Simulation  # noqa: E402
+
+SIDE = 200.0  # m
+DT = 0.01  # s
+GROUP = 8  # agents per group (one leader)
+
+
+def positions(n: int, seed: int = 0) -> np.ndarray:
+    """(n, 2) jittered-lattice positions inside the square (no initial overlap)."""
+    rng = np.random.default_rng(seed)
+    m = int(np.ceil(np.sqrt(n)))
+    step = (SIDE - 4.0) / m
+    ij = np.stack(np.unravel_index(np.arange(n), (m, m)), axis=1).astype(float)
+    jitter = rng.uniform(-0.25, 0.25, (n, 2)) * max(step - 0.55, 0.0)
+    return -SIDE / 2 + 2.0 + (ij + 0.5) * step + jitter
+
+
+def scene(n: int, seed: int = 0, maps: bool = True) -> Scenario:
+    """The benchmark scenario for ``n`` agents (groups of 8, two waypoints)."""
+    xy = positions(n, seed)
+    g = int(np.ceil(n / GROUP))
+    group = np.arange(n) // GROUP
+    first = np.arange(g) * GROUP
+    leader = np.where(np.arange(n) % GROUP == 0, -1, first[group]).astype(np.int32)
+    role = np.where(leader < 0, code(ROLES, "leader"), code(ROLES, "member")).astype(np.int8)
+    goals = np.zeros((g, 3))
+    gx = np.zeros(g)
+    # Each group heads for the waypoint on the opposite side of where it stands.
+    gx = np.where(xy[first, 0] < 0, SIDE / 2 - 10.0, -SIDE / 2 + 10.0)
+    goals[:, 0] = gx
+    z8 = lambda v, dt=np.int8: np.full(n, v, dt)  # noqa: E731
+    agents = AgentTable(
+        path=[f"/a{i}" for i in range(n)], agent_id=np.arange(1, n + 1, dtype=np.int32),
+        group=group.astype(np.int32), leader=leader, role=role, character_type=z8(0), personality=z8(0),
+        behavior=z8(code(BEHAVIORS, "walk")), condition=z8(0), fear_response=z8(0), visit_profile=z8(0),
+        speed=np.random.default_rng(seed + 1).uniform(1.1, 1.5, n), height=np.full(n, 1.75),
+        max_slope=np.full(n, 1.0), map_influence=np.full(n, 1.0), color=np.full((n, 3), 0.5),
+        start=np.concatenate([xy, np.zeros((n, 1))], axis=1), start_heading=np.zeros(n))
+    groups = GroupTable([f"/g{i}" for i in range(g)], np.full(g, -1, np.int32), goals, np.full(g, 600.0),
+                        first.astype(np.int32))
+    h = SIDE / 2
+    t = 0.5  # wall thickness, m
+    walls = [np.array([[-h - t, -h - t], [h + t, -h - t], [h + t, -h], [-h - t, -h]]),
+             np.array([[-h - t, h], [h + t, h], [h + t, h + t], [-h - t, h + t]]),
+             np.array([[-h - t, -h], [-h, -h], [-h, h], [-h - t, h]]),
+             np.array([[h, -h], [h + t, -h], [h + t, h], [h, h]])]
+    fields = []
+    if maps:
+        fields.append(BehaviorField("/blast", code(LAYER_MEANINGS, "damage"), code(LAYER_GENERATORS, "explosion"),
+                                    None, np.array([-h, -h]), np.array([h, h]), origin=np.array([-60.0, -60.0, 0]),
+                                    radius=10.0, start_time=1.0))
+    return Scenario("bench", TimeRange(1, 10, 1.0 / DT), seed, groups, agents, fields, InterestTable.empty(),
+                    Obstacles([f"/w{i}" for i in range(4)], walls, np.full(4, 3.0)),
+                    np.array([[-h - t, -h - t], [h + t, h + t]]))
+
+
+def bench_usdcrowd(n: int, steps: int, warmup: int = 3) -> dict:
+    """Steps per second and peak traced memory (MiB) of usdcrowd.sim on the scene."""
+    sc = scene(n)
+    t0 = time.perf_counter()
+    sim = Simulation(sc, SimSettings(fps=1.0 / DT, substeps=1))
+    setup = time.perf_counter() - t0
+    for _ in range(warmup):
+        sim.step()
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        sim.step()
+    el = time.perf_counter() - t0
+    assert np.all(np.isfinite(sim.pos))
+    # Peak memory in a separate pass: tracemalloc slows numpy's allocations.
+    tracemalloc.start()
+    sim = Simulation(sc, SimSettings(fps=1.0 / DT, substeps=1))
+    for _ in range(warmup):
+        sim.step()
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    return {"agents": n, "steps_per_s": steps / el, "setup_s": setup, "peak_mib": peak / 2 ** 20,
+            "rebuilds": sim.nl.rebuilds}
+
+
+def bench_jupedsim(n: int, steps: int, warmup: int = 3) -> float | None:
+    """Steps per second of JuPedSim's CollisionFreeSpeedModel on the same scene, or None."""
+    try:
+        import jupedsim as jps
+        import shapely
+    except ImportError:
+        return None
+    h = SIDE / 2
+    sim = jps.Simulation(model=jps.CollisionFreeSpeedModel(),
+                         geometry=shapely.Polygon([(-h, -h), (h, -h), (h, h), (-h, h)]), dt=DT)
+    west = sim.add_waypoint_stage((-h + 10.0, 0.0), 5.0)
+    east = sim.add_waypoint_stage((h - 10.0, 0.0), 5.0)
+    journey = jps.JourneyDescription([west, east])
+    journey.set_transition_for_stage(west, jps.Transition.create_fixed_transition(east))
+    journey.set_transition_for_stage(east, jps.Transition.create_fixed_transition(west))
+    jid = sim.add_journey(journey)
+    xy = positions(n)
+    speed = np.random.default_rng(1).uniform(1.1, 1.5, n)
+    for i in range(n):  # JuPedSim's API adds agents one by one
+        stage = east if xy[i, 0] < 0 else west
+        sim.add_agent(jps.CollisionFreeSpeedModelAgentParameters(
+            journey_id=jid, stage_id=stage, position=(float(xy[i, 0]), float(xy[i, 1])), desired_speed=float(speed[i]),
+            radius=0.25))
+    for _ in range(warmup):
+        sim.iterate()
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        sim.iterate()
+    return steps / (time.perf_counter() - t0)
+
+
+def run(sizes=(1000, 10000, 100000), steps=None, jupedsim: bool = True) -> list[dict]:
+    """Benchmark usdcrowd.sim (and JuPedSim) at each size; print and return a table.
+
+    Parameters
+    ----------
+    sizes : iterable of int
+        Agent counts.
+    steps : int or dict, optional
+        Timed steps (default: 200 / 60 / 12 by size).
+    jupedsim : bool
+        Also time JuPedSim when it is installed.
+
+    Returns
+    -------
+    list of dict
+        Keys: agents, steps_per_s, setup_s, peak_mib, rebuilds, jupedsim_steps_per_s, ratio.
+    """
+    rows = []
+    print(f"{'agents':>8} {'steps/s':>9} {'setup s':>8} {'peak MiB':>9} {'JuPedSim/s':>11} {'ratio':>7}")
+    for n in sizes:
+        k = steps if isinstance(steps, int) else (steps or {}).get(n, 200 if n <= 2000 else 60 if n <= 20000 else 12)
+        r = bench_usdcrowd(n, k)
+        j = bench_jupedsim(n, max(3, k // 2 if n > 20000 else k)) if jupedsim else None
+        r["jupedsim_steps_per_s"] = j
+        r["ratio"] = (r["steps_per_s"] / j) if j else None
+        rows.append(r)
+        js = f"{j:11.1f}" if j else f"{'n/a':>11}"
+        rt = f"{r['ratio']:7.2f}" if j else f"{'n/a':>7}"
+        print(f"{n:8d} {r['steps_per_s']:9.1f} {r['setup_s']:8.2f} {r['peak_mib']:9.1f} {js} {rt}", flush=True)
+    return rows
+
+
+if __name__ == "__main__":
+    args = [int(a) for a in sys.argv[1:]]
+    run(tuple(args) if args else (1000, 10000, 100000))
