@@ -157,3 +157,20 @@ def test_y_up_centimetre_shot_places_characters_in_stage_units(write_stage, tmp_
     assert pts[:, 1].min() == pytest.approx(0.0, abs=6) and pts[:, 1].max() == pytest.approx(100 * sc.agents.height[i], rel=0.05)
     assert np.allclose([pts[:, 0].mean(), pts[:, 2].mean()], [300, -400], atol=25)
     assert [p for p in validate(result.shot) if p.severity == "error"] == []
+
+
+@pytest.mark.parametrize("agents", [30, 1600])    # 1600: written as parallel part layers
+def test_same_seed_gives_the_same_bytes(tmp_path, agents):
+    from usdcrowd.pipeline import simulate_shot
+    from usdcrowd.templates import new_scenario
+
+    scenario = tmp_path / "s.usda"
+    new_scenario("museum", scenario, agents=agents, seed=5)
+    runs = [simulate_shot(scenario, tmp_path / f"run{k}", frames=(1, 6), progress=False) for k in range(2)]
+    files = sorted(p.name for p in (tmp_path / "run0").iterdir() if p.suffix in (".usda", ".usdc"))
+    if agents >= 1600:
+        assert any(".part" in f for f in files)
+    for name in files:
+        assert (tmp_path / "run0" / name).read_bytes() == (tmp_path / "run1" / name).read_bytes(), name
+    other = simulate_shot(scenario, tmp_path / "other", seed=6, frames=(1, 6), progress=False)
+    assert open(other.crowd, "rb").read() != open(runs[0].crowd, "rb").read()
