@@ -174,3 +174,36 @@ def test_same_seed_gives_the_same_bytes(tmp_path, agents):
         assert (tmp_path / "run0" / name).read_bytes() == (tmp_path / "run1" / name).read_bytes(), name
     other = simulate_shot(scenario, tmp_path / "other", seed=6, frames=(1, 6), progress=False)
     assert open(other.crowd, "rb").read() != open(runs[0].crowd, "rb").read()
+
+
+PLACED = '''
+def Xform "World"
+{
+    double3 xformOp:translate = (100, 0, 0)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+    def CrowdGroup "Pair"
+    {
+        uniform token crowd:behavior = "rest"
+        def SkelRoot "B" (prepend apiSchemas = ["CrowdAgentAPI"])
+        {
+            double3 xformOp:translate = (0.75, 2, 0)
+            float xformOp:rotateZ = 180
+            uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateZ"]
+        }
+    }
+}
+'''
+
+
+def test_agents_stand_where_simulated_whatever_their_authored_transforms(write_stage, tmp_path):
+    # The scenario's placement says where B starts (world 100.75, 2) facing -X;
+    # the shot must not apply it a second time on top of the root motion.
+    path = write_stage(PLACED)
+    sc = load_scenario(path)
+    assert np.allclose(sc.agents.start[0], (100.75, 2, 0)) and np.isclose(abs(sc.agents.start_heading[0]), np.pi)
+    result = author_shot(path, tmp_path / "shot", _walk, frames=(1, 2), progress=False)
+    pts = _skinned(Usd.Stage.Open(result.shot), "/World/Pair/B", 1)
+    assert np.allclose(pts[:, :2].mean(0), (100.75, 2), atol=0.15)
+    # The feet point forward: facing -X puts them on the -X side of the body.
+    feet = pts[pts[:, 2] < 0.08]
+    assert feet[:, 0].mean() < pts[:, 0].mean() - 0.03

@@ -178,9 +178,14 @@ class _AgentPart:
         Sdf.RelationshipSpec(spec, "skel:animationSource", custom=False).targetPathList.explicitItems = [f"{path}/Anim"]
         if a.role[i] == model.ROLES.index("invisibleLeader"):
             _attr(spec, "visibility", T.Token, "invisible")
+        # The root joint already holds the world motion: the agent must not also
+        # inherit its parents' transforms or keep the placement authored in the
+        # scenario (which only said where it starts), so reset the stack.
+        ops = ["!resetXformStack!"]
         if not self.frame.is_canonical:
             _attr(spec, "xformOp:transform:stageFrame", T.Matrix4d, Gf.Matrix4d(self.frame.from_canonical.tolist()))
-            _attr(spec, "xformOpOrder", T.TokenArray, Vt.TokenArray(["xformOp:transform:stageFrame"]), U)
+            ops.append("xformOp:transform:stageFrame")
+        _attr(spec, "xformOpOrder", T.TokenArray, Vt.TokenArray(ops), U)
         for name in ("crowd:state:behavior", "crowd:state:animClass", "crowd:state:health"):
             _attr(spec, name, T.Token, custom=True)
         _attr(spec, "crowd:pathMethod", T.Token, None, U, custom=True)
