@@ -147,3 +147,30 @@ def test_empty_group_is_an_error(write_stage):
     path = write_stage('def CrowdGroup "Nobody"\n{\n}\n')
     with pytest.raises(ScenarioError, match=r"Nobody.*empty group"):
         load_scenario(path)
+
+
+@pytest.mark.parametrize("mode, top", [("I;16", 65535), ("I", 65535), ("L", 255)])
+def test_painted_layers_are_normalised_by_the_image_mode(write_stage, tmp_path, mode, top):
+    from PIL import Image
+
+    pixels = np.array([[0, top], [top // 2, top]], dtype=np.int32)
+    img = (Image.fromarray(pixels.astype(np.uint16)) if mode == "I;16"
+           else Image.fromarray(pixels.astype(np.int32 if mode == "I" else np.uint8), mode))
+    assert img.mode == mode
+    img.save(tmp_path / "h.png" if mode != "I" else tmp_path / "h.tif")
+    name = "h.png" if mode != "I" else "h.tif"
+    path = write_stage(f'''
+def CrowdGroup "G"
+{{
+    uniform int crowd:clones = 1
+}}
+def BehaviorLayer "Height"
+{{
+    uniform asset crowd:image = @{name}@
+    uniform token crowd:meaning = "height"
+    uniform float2 crowd:valueRange = (0, 40)
+}}
+''')
+    values = load_scenario(path).field("height").values
+    assert values.max() == pytest.approx(40.0) and values.min() == pytest.approx(0.0)
+    assert values[1, 0] == pytest.approx(20.0, abs=0.2)

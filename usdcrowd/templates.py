@@ -29,6 +29,30 @@ def _split(total: int, weights: np.ndarray) -> np.ndarray:
     return out
 
 
+def _resize(stage, groups, n_authored: int, agents: int, template: str) -> None:
+    """Rescale the groups' clones so the scenario has ``agents`` agents in all.
+
+    Groups keep their proportions; a group that had clones and no authored
+    agent of its own keeps at least one, so no group is left empty.
+    """
+    clones = np.array([p.GetAttribute("crowd:clones").Get() for p in groups], dtype=np.float64)
+    if clones.sum() == 0:
+        if agents != n_authored:
+            raise UsdcrowdError(f"template {template!r} has a fixed cast of {n_authored} agents; "
+                                f"--agents cannot change it")
+        return
+    own = np.array([any(schema.is_agent(c) for c in p.GetChildren()) for p in groups])
+    needs_one = (clones > 0) & ~own
+    minimum = n_authored + int(needs_one.sum())
+    if agents < minimum:
+        raise UsdcrowdError(f"template {template!r} needs at least {minimum} agents "
+                            f"(one per cloned group plus {n_authored} authored), got --agents {agents}")
+    target = needs_one.astype(int) + _split(agents - minimum, clones)
+    for prim, k in zip(groups, target):
+        if k or prim.GetAttribute("crowd:clones").HasAuthoredValue():
+            prim.GetAttribute("crowd:clones").Set(int(k))
+
+
 def new_scenario(template: str, out: str | os.PathLike, agents: int | None = None, seed: int | None = None) -> dict:
     """Write a copy of a template, optionally resized to ``agents`` agents and reseeded.
 
@@ -58,11 +82,7 @@ def new_scenario(template: str, out: str | os.PathLike, agents: int | None = Non
     groups = [p for p in stage.Traverse() if p.GetTypeName() == schema.GROUP]
     n_authored = sum(1 for p in stage.Traverse() if schema.is_agent(p))
     if agents is not None:
-        clones = np.array([p.GetAttribute("crowd:clones").Get() for p in groups], dtype=np.float64)
-        target = _split(max(agents - n_authored, 0), clones)
-        for prim, k in zip(groups, target):
-            if k or prim.GetAttribute("crowd:clones").HasAuthoredValue():
-                prim.GetAttribute("crowd:clones").Set(int(k))
+        _resize(stage, groups, n_authored, agents, template)
     data = dict(layer.customLayerData)
     crowd = dict(data.get("usdcrowd", {}))
     if seed is not None:

@@ -100,8 +100,14 @@ def schema_problems(stage, source: str) -> list[Problem]:
                 problem = None
             if problem:
                 add(prim, name, problem)
-        if prim.HasAPI(schema.CAMERA_AGENT_API) and not prim.IsA(UsdGeom.Camera):
-            add(prim, "", "CameraAgentAPI is applied to a prim that is not a Camera")
+        if prim.HasAPI(schema.CAMERA_AGENT_API):
+            if not prim.IsA(UsdGeom.Camera):
+                add(prim, "", "CameraAgentAPI is applied to a prim that is not a Camera")
+            rel = prim.GetRelationship("crowd:camera:target")
+            for target in (rel.GetTargets() if rel else []):
+                t = stage.GetPrimAtPath(target)
+                if not (t and (t.GetTypeName() == schema.EVENT or schema.is_agent(t))):
+                    add(prim, "crowd:camera:target", f"target {target} is neither a CrowdEvent nor an agent")
         if schema.is_agent(prim):
             aid = prim.GetAttribute("crowd:agentId").Get()
             if aid is not None and aid != -1:

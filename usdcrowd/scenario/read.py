@@ -388,14 +388,16 @@ def _read_image(r: _Reader, prim, vrange) -> np.ndarray:
         r.fail(f"image @{asset.path}@ not found", prim, "crowd:image")
     try:
         with Image.open(resolved) as im:
+            mode = im.mode
             arr = np.asarray(im)
     except Exception as exc:
         r.fail(f"image @{asset.path}@ cannot be read ({exc.__class__.__name__})", prim, "crowd:image")
     if arr.ndim == 3:
         arr = arr[..., 0]
-    if arr.dtype.kind in "ui":
-        arr = arr.astype(np.float32) / float(np.iinfo(arr.dtype).max)
-    arr = arr.astype(np.float32)
+    # Normalise by what the file stores, not by numpy's dtype: Pillow opens
+    # 16-bit PNGs as "I;16" or, in some versions, as 32-bit "I".
+    full = 65535.0 if mode.startswith("I") else 1.0 if mode == "F" else 255.0
+    arr = arr.astype(np.float32) / full
     return (vrange[0] + (vrange[1] - vrange[0]) * arr).astype(np.float32)
 
 
