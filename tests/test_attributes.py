@@ -174,3 +174,48 @@ def BehaviorLayer "Height"
     values = load_scenario(path).field("height").values
     assert values.max() == pytest.approx(40.0) and values.min() == pytest.approx(0.0)
     assert values[1, 0] == pytest.approx(20.0, abs=0.2)
+
+
+SCENERY = '''
+def CrowdGroup "G"
+{
+    uniform int crowd:clones = 1
+}
+def Cylinder "Fountain"
+{
+    double radius = 1.5
+    double height = 1
+    double3 xformOp:translate = (4, 0, 0.5)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}
+def Mesh "Terrain" (prepend apiSchemas = ["CrowdSceneryAPI"])
+{
+    uniform token crowd:scenery = "ground"
+    int[] faceVertexCounts = [4]
+    int[] faceVertexIndices = [0, 1, 2, 3]
+    point3f[] points = [(-20, -10, 0), (20, -10, 3), (20, 10, 3), (-20, 10, 0)]
+}
+def Xform "Decor" (prepend apiSchemas = ["CrowdSceneryAPI"])
+{
+    uniform token crowd:scenery = "ignore"
+    def Cube "Statue" { double size = 2 }
+}
+def Plane "Rope" (prepend apiSchemas = ["CrowdSceneryAPI"])
+{
+    uniform token crowd:scenery = "obstacle"
+    double width = 4
+    double length = 0.2
+    double3 xformOp:translate = (-5, 0, 0)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}
+'''
+
+
+def test_scenery_roles_and_round_footprints(write_stage):
+    sc = load_scenario(write_stage(SCENERY))
+    obstacles = dict(zip(sc.obstacles.path, sc.obstacles.polygons))
+    assert set(obstacles) == {"/Fountain", "/Rope"}          # terrain is ground, decor ignored
+    fountain = obstacles["/Fountain"]
+    radius = np.linalg.norm(fountain - (4, 0), axis=1)
+    assert len(fountain) >= 16 and np.allclose(radius, 1.5, atol=1e-3)      # round, not a 3 m square
+    assert np.allclose(sc.bounds, [[-20, -10], [20, 10]])                    # the tagged terrain sets the bounds

@@ -9,7 +9,8 @@ from pxr import Usd, UsdSkel
 from frames_factory import straight_walk
 from usdcrowd.errors import StageError
 from usdcrowd.pipeline import author_shot
-from usdcrowd.render.scene import SCENERY_ID_BASE, ShotScene, _triangulate, color_temperature_rgb
+from usdcrowd.geometry import triangulate
+from usdcrowd.render.scene import SCENERY_ID_BASE, ShotScene, color_temperature_rgb
 
 
 @pytest.fixture(scope="module")
@@ -75,5 +76,5 @@ def test_lights_and_colour_temperature(museum_scene):
 
 
 def test_triangulate_fans():
-    tris = _triangulate([4, 3], [0, 1, 2, 3, 4, 5, 6])
+    tris = triangulate([4, 3], [0, 1, 2, 3, 4, 5, 6])
     assert tris.tolist() == [[0, 1, 2], [0, 2, 3], [4, 5, 6]]

@@ -15,7 +15,7 @@ from usdcrowd.resources import data_dir
 
 ROOT = Path(__file__).resolve().parents[1]
 TYPED = (schema.GROUP, schema.BEHAVIOR_LAYER, schema.INTEREST_POINT, schema.EVENT)
-APPLIED = (schema.AGENT_API, schema.CAMERA_AGENT_API)
+APPLIED = (schema.AGENT_API, schema.CAMERA_AGENT_API, schema.SCENERY_API)
 
 
 def test_generated_schema_files_are_current():

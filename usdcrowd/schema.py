@@ -17,6 +17,7 @@ BEHAVIOR_LAYER = "BehaviorLayer"
 INTEREST_POINT = "InterestPoint"
 EVENT = "CrowdEvent"
 CAMERA_AGENT_API = "CameraAgentAPI"
+SCENERY_API = "CrowdSceneryAPI"
 
 _registered = False
 

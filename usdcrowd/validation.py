@@ -79,7 +79,8 @@ def schema_problems(stage, source: str) -> list[Problem]:
     for prim in stage.Traverse():
         tname = prim.GetTypeName()
         ours = tname in (schema.GROUP, schema.BEHAVIOR_LAYER, schema.INTEREST_POINT, schema.EVENT) \
-            or schema.is_agent(prim) or prim.HasAPI(schema.CAMERA_AGENT_API)
+            or schema.is_agent(prim) or prim.HasAPI(schema.CAMERA_AGENT_API) \
+            or prim.HasAPI(schema.SCENERY_API)
         if not ours:
             continue
         for attr in prim.GetAttributes():

@@ -321,34 +321,48 @@ def _resolve(r: _Reader, seed, groups, agents):
     return table, group_table
 
 
+def _scenery_role(prim) -> str:
+    """crowd:scenery of the nearest prim (itself or an ancestor) with CrowdSceneryAPI, else "auto"."""
+    p = prim
+    while p and not p.IsPseudoRoot():
+        if p.HasAPI(schema.SCENERY_API):
+            return str(p.GetAttribute("crowd:scenery").Get())
+        p = p.GetParent()
+    return "auto"
+
+
 def _obstacles(r: _Reader, prims):
-    """Footprints of the scenery that blocks walking; flat scenery is ground."""
-    from pxr import Usd, UsdGeom
+    """Footprints of the scenery that blocks walking; flat scenery is ground.
+
+    A footprint is the convex hull of the prim's tessellated vertices seen
+    from above (a round fountain stays round); what a prim is follows its
+    CrowdSceneryAPI role, or the height rule when it has none.
+    """
     from scipy.spatial import ConvexHull
 
-    cache = UsdGeom.BBoxCache(Usd.TimeCode.Default(), [UsdGeom.Tokens.default_, UsdGeom.Tokens.render])
+    from ..geometry import mesh_of
+
     paths, polys, heights, ground = [], [], [], []
-    unit = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=np.float64)
     for prim in prims:
-        box = cache.ComputeWorldBound(prim)
-        rng = box.GetRange()
-        if rng.IsEmpty():
+        role = _scenery_role(prim)
+        if role == "ignore":
             continue
-        lo, hi = np.array(rng.GetMin()), np.array(rng.GetMax())
-        corners = np.hstack([lo + unit * (hi - lo), np.ones((8, 1))]) @ np.array(box.GetMatrix())
-        pts = corners[:, :3] @ r.frame.to_canonical[:3, :3]
+        mesh = mesh_of(prim)
+        if mesh is None or len(mesh.vertices) == 0:
+            continue
+        m = r.world_matrix(prim)
+        pts = mesh.vertices.astype(np.float64) @ m[:3, :3] + m[3, :3]
         bottom, top = pts[:, 2].min(), pts[:, 2].max()
-        if top - bottom < OBSTACLE_MIN_HEIGHT:
+        if role == "ground" or (role == "auto" and top - bottom < OBSTACLE_MIN_HEIGHT):
             ground.append(pts[:, :2])
             continue
-        if bottom > OBSTACLE_MAX_BOTTOM:
+        if role == "auto" and bottom > OBSTACLE_MAX_BOTTOM:
             continue
         xy = pts[:, :2]
         try:
-            hull = ConvexHull(xy)
+            poly = xy[ConvexHull(xy).vertices]
         except Exception:      # degenerate footprint (a vertical plane): keep its segment
-            hull = None
-        poly = xy[hull.vertices] if hull is not None else xy[[np.argmin(xy[:, 0]), np.argmax(xy[:, 0])]]
+            poly = xy[[np.argmin(xy[:, 0]), np.argmax(xy[:, 0])]]
         paths.append(str(prim.GetPath()))
         polys.append(np.ascontiguousarray(poly))
         heights.append(top)

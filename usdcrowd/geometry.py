@@ -1,0 +1,96 @@
+"""Gprims as triangles: what the simulation and the renderers see of scenery.
+
+Meshes are fan-triangulated; implicit gprims (Cube, Sphere, Cylinder, Cone,
+Capsule, Plane) are tessellated with trimesh. Geometry stays in the prim's
+local space and stage units; callers apply the world matrix.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class MeshData:
+    """A triangle mesh in its own (local) space.
+
+    Attributes
+    ----------
+    vertices : (v, 3) float32
+        Positions in the prim's local space and the stage's units; the
+        prim's local-to-world matrix (times the stage frame's map to
+        canonical) brings them to world metres.
+    faces : (f, 3) int32
+    normals : (v, 3) float32 or None
+    uv : (v, 2) float32 or None
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    normals: np.ndarray | None = None
+    uv: np.ndarray | None = None
+
+
+def triangulate(counts: np.ndarray, indices: np.ndarray) -> np.ndarray:
+    """Fan-triangulate USD polygons: (f, 3) int32."""
+    counts = np.asarray(counts, dtype=np.int64)
+    indices = np.asarray(indices, dtype=np.int64)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    n_tri = np.maximum(counts - 2, 0)
+    face = np.repeat(np.arange(len(counts)), n_tri)
+    k = np.arange(n_tri.sum()) - np.repeat(np.cumsum(n_tri) - n_tri, n_tri)
+    base = starts[face]
+    return np.stack([indices[base], indices[base + k + 1], indices[base + k + 2]], 1).astype(np.int32)
+
+
+def mesh_of(prim) -> MeshData | None:
+    """Triangles of a gprim in its local space (stage units; scaled later by the world matrix)."""
+    import trimesh
+    from pxr import UsdGeom
+
+    if prim.IsA(UsdGeom.Mesh):
+        m = UsdGeom.Mesh(prim)
+        points = m.GetPointsAttr().Get()
+        if points is None or len(points) == 0:
+            return None
+        faces = triangulate(m.GetFaceVertexCountsAttr().Get(), m.GetFaceVertexIndicesAttr().Get())
+        if m.GetOrientationAttr().Get() == UsdGeom.Tokens.leftHanded:
+            faces = faces[:, ::-1].copy()
+        uv = None
+        st = UsdGeom.PrimvarsAPI(prim).GetPrimvar("st")
+        if st and st.GetInterpolation() in ("vertex", "varying"):
+            uv = np.array(st.Get(), dtype=np.float32)
+        return MeshData(np.array(points, dtype=np.float32), faces, None, uv)
+    if prim.IsA(UsdGeom.Cube):
+        size = UsdGeom.Cube(prim).GetSizeAttr().Get()
+        t = trimesh.creation.box(extents=(size, size, size))
+    elif prim.IsA(UsdGeom.Sphere):
+        t = trimesh.creation.icosphere(subdivisions=3, radius=UsdGeom.Sphere(prim).GetRadiusAttr().Get())
+    elif prim.IsA(UsdGeom.Cylinder) or prim.IsA(UsdGeom.Cone) or prim.IsA(UsdGeom.Capsule):
+        schema_cls = (UsdGeom.Cylinder if prim.IsA(UsdGeom.Cylinder) else
+                      UsdGeom.Cone if prim.IsA(UsdGeom.Cone) else UsdGeom.Capsule)
+        g = schema_cls(prim)
+        r, h = g.GetRadiusAttr().Get(), g.GetHeightAttr().Get()
+        if schema_cls is UsdGeom.Cylinder:
+            t = trimesh.creation.cylinder(radius=r, height=h, sections=32)
+        elif schema_cls is UsdGeom.Cone:
+            t = trimesh.creation.cone(radius=r, height=h, sections=32)
+            t.apply_translation((0, 0, -h / 2))
+        else:
+            t = trimesh.creation.capsule(radius=r, height=h, count=(16, 16))
+        axis = g.GetAxisAttr().Get()
+        if axis == "X":
+            t.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, (0, 1, 0)))
+        elif axis == "Y":
+            t.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, (1, 0, 0)))
+    elif prim.IsA(UsdGeom.Plane):
+        p = UsdGeom.Plane(prim)
+        w, l = p.GetWidthAttr().Get(), p.GetLengthAttr().Get()
+        verts = np.array([[-w / 2, -l / 2, 0], [w / 2, -l / 2, 0], [w / 2, l / 2, 0], [-w / 2, l / 2, 0]], np.float32)
+        return MeshData(verts, np.array([[0, 1, 2], [0, 2, 3]], np.int32))
+    else:
+        return None
+    return MeshData(np.asarray(t.vertices, dtype=np.float32), np.asarray(t.faces, dtype=np.int32),
+                    np.asarray(t.vertex_normals, dtype=np.float32))
