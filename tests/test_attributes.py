@@ -198,7 +198,10 @@ def Mesh "Terrain" (prepend apiSchemas = ["CrowdSceneryAPI"])
 def Xform "Decor" (prepend apiSchemas = ["CrowdSceneryAPI"])
 {
     uniform token crowd:scenery = "ignore"
-    def Cube "Statue" { double size = 2 }
+    def Cube "Statue"
+    {
+        double size = 2
+    }
 }
 def Plane "Rope" (prepend apiSchemas = ["CrowdSceneryAPI"])
 {
