@@ -2,11 +2,12 @@
 # One set-up command for a fresh machine: system packages, .venv, usdcrowd and its extras.
 #   bash tools/setup.sh            (make setup runs this)
 # System packages: libllvm19 for Mitsuba's llvm_ad_rgb variant (Debian 12's LLVM 15
-# aborts), Mesa's EGL and DRI drivers for headless OpenGL previews (llvmpipe).
+# aborts), Mesa's EGL and DRI drivers for headless OpenGL previews (llvmpipe), and
+# Xvfb so the tests can drive the interactive preview window on a virtual screen.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-APT_PACKAGES="libllvm19 libegl1 libegl-mesa0 libgl1-mesa-dri libgles2"
+APT_PACKAGES="libllvm19 libegl1 libegl-mesa0 libgl1-mesa-dri libgles2 xvfb"
 PYTHON="${PYTHON:-python3}"
 EXTRAS="${USDCROWD_EXTRAS:-dev,final,preview}"
 

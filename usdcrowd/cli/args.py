@@ -27,7 +27,8 @@ def parse_frames(spec: str) -> np.ndarray:
     stride = float(m.group(3)) if m.group(3) is not None else 1.0
     if end < start or stride <= 0:
         raise argparse.ArgumentTypeError(f"bad frame spec {spec!r}: need START <= END and STRIDE > 0")
-    return np.arange(start, end + stride * 0.5, stride)
+    # Inclusive of END only when the stride lands on it (1:48x12 -> 1, 13, 25, 37).
+    return np.arange(start, end + 1e-9, stride)
 
 
 def add_frames(parser: argparse.ArgumentParser) -> None:

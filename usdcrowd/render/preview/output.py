@@ -1,0 +1,182 @@
+"""Where preview frames go: PNG files, a contact sheet, an MP4.
+
+Every file is written whole or not at all (:func:`usdcrowd.atomic.atomic_path`).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ...atomic import atomic_path
+from ...errors import UsdcrowdError
+
+_PIP_HINT = "install usdcrowd[preview] (pip install 'usdcrowd[preview]')"
+
+
+def write_png(image: np.ndarray, path: str | os.PathLike) -> str:
+    """Write an (h, w, 3) or (h, w) uint8 image as PNG; returns the path."""
+    from PIL import Image
+
+    with atomic_path(path) as tmp:
+        Image.fromarray(np.ascontiguousarray(image)).save(tmp, format="PNG")
+    return os.fspath(path)
+
+
+def write_aovs(ids: np.ndarray, depth: np.ndarray, path: str | os.PathLike) -> str:
+    """Write the id (uint32) and depth (float32, metres, inf on background) buffers to one .npz."""
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as fh:
+            np.savez_compressed(fh, ids=ids, depth=depth)
+    return os.fspath(path)
+
+
+def contact_sheet(images: list[np.ndarray], labels: list[str] | None = None, columns: int = 4,
+                  thumb_width: int = 320, gap: int = 4) -> np.ndarray:
+    """Tile frames into one picture, each with an optional label.
+
+    Parameters
+    ----------
+    images : list of (h, w, 3) uint8
+        Frames of one size.
+    labels : list of str, optional
+        Drawn in each tile's corner (e.g. the time code).
+    columns : int
+    thumb_width : int
+        Width of a tile in pixels (aspect kept).
+
+    Returns
+    -------
+    (H, W, 3) uint8
+    """
+    from PIL import Image, ImageDraw
+
+    if not images:
+        raise UsdcrowdError("no frames for a contact sheet")
+    h, w = images[0].shape[:2]
+    tw = int(min(thumb_width, w))
+    th = max(1, int(round(h * tw / w)))
+    columns = max(1, min(columns, len(images)))
+    rows = -(-len(images) // columns)
+    sheet = Image.new("RGB", (columns * tw + (columns + 1) * gap, rows * th + (rows + 1) * gap), (24, 24, 24))
+    draw = ImageDraw.Draw(sheet)
+    for k, img in enumerate(images):
+        r, c = divmod(k, columns)
+        x, y = gap + c * (tw + gap), gap + r * (th + gap)
+        sheet.paste(Image.fromarray(np.ascontiguousarray(img)).resize((tw, th), Image.BILINEAR), (x, y))
+        if labels:
+            draw.rectangle([x, y, x + 7 * len(labels[k]) + 6, y + 14], fill=(0, 0, 0))
+            draw.text((x + 3, y + 1), labels[k], fill=(255, 255, 255))
+    return np.asarray(sheet)
+
+
+class Mp4Writer:
+    """Frames to an H.264 MP4 through imageio-ffmpeg, renamed into place on close.
+
+    Parameters
+    ----------
+    path : path-like
+    fps : float
+    quality : float
+        imageio's 0-10 scale.
+    """
+
+    def __init__(self, path: str | os.PathLike, fps: float, quality: float = 8.0):
+        try:
+            import imageio.v2 as imageio
+            import imageio_ffmpeg  # noqa: F401  (the ffmpeg binary comes with it)
+        except ImportError as exc:
+            raise UsdcrowdError(f"MP4 output needs imageio and imageio-ffmpeg ({exc}); {_PIP_HINT}") from None
+        self.path = Path(path)
+        self._ctx = atomic_path(self.path)
+        tmp = self._ctx.__enter__()
+        # yuv420p (what every player reads) needs even sizes: macro_block_size 2
+        # pads at most one row/column instead of rescaling to multiples of 16.
+        self._writer = imageio.get_writer(tmp, format="FFMPEG", mode="I", fps=float(fps), codec="libx264",
+                                          quality=quality, pixelformat="yuv420p", macro_block_size=2,
+                                          ffmpeg_log_level="error")
+
+    def append(self, frame: np.ndarray) -> None:
+        self._writer.append_data(np.ascontiguousarray(frame))
+
+    def close(self, ok: bool = True) -> str:
+        self._writer.close()
+        if ok:
+            self._ctx.__exit__(None, None, None)
+        else:
+            self._ctx.__exit__(RuntimeError, RuntimeError("aborted"), None)
+        return os.fspath(self.path)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        self._writer.close()
+        try:
+            self._ctx.__exit__(exc_type, exc, tb)
+        except BaseException:
+            if exc_type is None:
+                raise
+        return False
+
+
+def sheet_frames(times: np.ndarray, n: int = 12) -> np.ndarray:
+    """Up to ``n`` evenly spaced time codes from ``times`` for a contact sheet."""
+    times = np.asarray(times)
+    if len(times) <= n:
+        return times
+    return times[np.unique(np.round(np.linspace(0, len(times) - 1, n)).astype(int))]
+
+
+def render_shot(shot_path, out_dir, *, camera=None, resolution=(640, 360), frames=None, progress: bool = True,
+                mp4: bool = True, max_frames: int = 48) -> dict[str, str]:
+    """Render a preview MP4 and a contact sheet of a shot into ``out_dir``.
+
+    Parameters
+    ----------
+    shot_path : path-like
+    out_dir : path-like
+    camera : str, optional
+    resolution : (int, int)
+    frames : array of time codes, optional
+        Default: the stage's range, at most ``max_frames`` of it from the start.
+    progress : bool
+        tqdm bar.
+
+    Returns
+    -------
+    dict
+        ``{"mp4": ..., "contact_sheet": ...}``.
+    """
+    from tqdm import tqdm
+
+    from .renderer import PreviewRenderer
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    r = PreviewRenderer(shot_path, *resolution)
+    try:
+        times = np.asarray(frames) if frames is not None else r.scene.time_codes[:max_frames]
+        on_sheet = set(float(t) for t in sheet_frames(times))
+        thumbs, labels = [], []
+        paths = {}
+        writer = Mp4Writer(out / "preview.mp4", r.scene.fps) if mp4 else None
+        ok = False
+        try:
+            for t in tqdm(times, desc="preview", unit="frame", disable=not progress, leave=False):
+                f = r.render(float(t), camera)
+                if writer is not None:
+                    writer.append(f.color)
+                if float(t) in on_sheet:
+                    thumbs.append(f.color)
+                    labels.append(f"{t:g}")
+            ok = True
+        finally:
+            if writer is not None:
+                paths["mp4"] = writer.close(ok)
+        paths["contact_sheet"] = write_png(contact_sheet(thumbs, labels), out / "preview_sheet.png")
+        return paths
+    finally:
+        r.release()

@@ -1,0 +1,252 @@
+"""GLSL sources of the preview, assembled from shared pieces.
+
+Matrix convention: numpy matrices are row-vector ones (``p' = p @ M``, as in
+USD) and are uploaded unchanged. moderngl fills a ``mat4`` column by column,
+so GLSL sees ``transpose(M)`` and ``u_m * v`` is exactly ``v @ M``.
+
+Colour: shading is done in linear RGB and encoded to sRGB in the fragment
+shader with the exact piecewise sRGB curve (IEC 61966-2-1), so 8-bit frames
+come straight out of the read-back. ``tests/test_preview.py`` checks the
+encoding against colour-science to within one code value.
+"""
+
+from __future__ import annotations
+
+VERSION = "#version 430\n"
+
+# Per-instance record: 10 vec4. Rows 0-8: for joint j, the three columns
+# (c = 0, 1, 2) of its 4x4 row-vector skinning matrix, so a point's world
+# coordinate c is dot(vec4(p, 1), column c). Row 9: linear RGB colour and
+# the agent's track id (uint bits in .w). See instancing.pack_instances.
+INSTANCE_STRIDE = 10
+
+SKINNING = """
+layout(std430, binding = 0) readonly buffer Instances { vec4 inst[]; };
+// The same buffer seen as integers: the id is read as bits, never as a float
+// (a small uint's bits are a denormal, which a flush-to-zero unit would zero).
+layout(std430, binding = 0) readonly buffer InstanceIds { uvec4 inst_u[]; };
+uniform int u_base;          // first record of this draw (LOD levels are contiguous)
+
+void skin(vec3 p, vec3 n, vec3 w, out vec3 wp, out vec3 wn, out vec3 color, out uint id) {
+    int b = (u_base + gl_InstanceID) * 10;
+    // Linear blend skinning with dense weights over the three joints.
+    vec4 c0 = w.x * inst[b + 0] + w.y * inst[b + 3] + w.z * inst[b + 6];
+    vec4 c1 = w.x * inst[b + 1] + w.y * inst[b + 4] + w.z * inst[b + 7];
+    vec4 c2 = w.x * inst[b + 2] + w.y * inst[b + 5] + w.z * inst[b + 8];
+    vec4 hp = vec4(p, 1.0);
+    wp = vec3(dot(hp, c0), dot(hp, c1), dot(hp, c2));
+    // Joints are rotation times uniform scale, so the linear part maps normals.
+    wn = vec3(dot(n, c0.xyz), dot(n, c1.xyz), dot(n, c2.xyz));
+    color = inst[b + 9].rgb;
+    id = inst_u[b + 9].w;
+}
+"""
+
+LIGHTING = """
+uniform vec3 u_sun_dir;          // unit, from the surface towards the sun
+uniform vec3 u_sun;              // sun irradiance * rgb / pi (radiance per unit albedo)
+uniform vec3 u_sky;              // dome radiance * rgb
+uniform int u_n_lamps;
+uniform vec4 u_lamp_pos[8];      // xyz world position
+uniform vec4 u_lamp_rgb[8];      // rgb * emitted power factor / pi; E = rgb / d^2
+uniform vec4 u_lamp_dir[8];      // xyz emission axis, w = 1 for one-sided (rect, disk) lamps
+uniform sampler2DShadow u_shadow;
+uniform mat4 u_light_vp;
+uniform float u_shadow_texel;    // world size of one shadow-map texel, metres
+uniform float u_exposure;
+
+float sun_visibility(vec3 wp, vec3 n) {
+    // Normal offset by a couple of texels: no acne on floors, no peter-panning of feet.
+    vec4 lp = u_light_vp * vec4(wp + n * (2.0 * u_shadow_texel), 1.0);
+    vec3 s = lp.xyz / lp.w * 0.5 + 0.5;
+    if (any(lessThan(s, vec3(0.0))) || any(greaterThan(s, vec3(1.0)))) return 1.0;
+    // One hardware-filtered comparison (bilinear over 2x2 texels): soft
+    // enough for a preview, and a quarter of the cost of a 4-tap kernel on
+    // a software rasteriser.
+    return texture(u_shadow, s);
+}
+
+vec3 shade(vec3 albedo, vec3 wp, vec3 n) {
+    // Dome: the up-facing hemisphere sees all of the sky, a wall about half
+    // of it plus some light bounced from the ground.
+    vec3 c = albedo * u_sky * (0.6 + 0.4 * n.z);
+    float ndl = dot(n, u_sun_dir);
+    if (ndl > 0.0) c += albedo * u_sun * ndl * sun_visibility(wp, n);
+    for (int i = 0; i < u_n_lamps; ++i) {
+        vec3 d = u_lamp_pos[i].xyz - wp;
+        float r2 = max(dot(d, d), 1e-4);
+        vec3 l = d * inversesqrt(r2);
+        float emit = u_lamp_dir[i].w > 0.5 ? max(dot(-l, u_lamp_dir[i].xyz), 0.0) : 1.0;
+        c += albedo * u_lamp_rgb[i].rgb * max(dot(n, l), 0.0) * emit / r2;
+    }
+    return c * u_exposure;
+}
+
+vec3 srgb_encode(vec3 c) {
+    c = clamp(c, 0.0, 1.0);
+    return mix(12.92 * c, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, step(vec3(0.0031308), c));
+}
+"""
+
+OUTPUTS = """
+layout(location = 0) out vec4 o_color;
+layout(location = 1) out uint o_id;
+layout(location = 2) out float o_depth;
+"""
+
+# ---------------------------------------------------------------- characters
+CHARACTER_VS = VERSION + SKINNING + """
+uniform mat4 u_view;
+uniform mat4 u_proj;
+uniform float u_focal_px;        // pixels per metre at 1 m depth (points only)
+uniform float u_point_size;      // world size of a point splat, metres (points only)
+in vec3 in_pos;
+in vec3 in_nrm;
+in vec3 in_w;
+out vec3 v_world;
+out vec3 v_nrm;
+out vec3 v_color;
+out float v_z;
+flat out uint v_id;
+
+void main() {
+    vec3 wp, wn, color; uint id;
+    skin(in_pos, in_nrm, in_w, wp, wn, color, id);
+    vec4 vp = u_view * vec4(wp, 1.0);
+    gl_Position = u_proj * vp;
+    // Used only when drawing GL_POINTS (seed 004's point-based LOD).
+    gl_PointSize = max(1.0, u_point_size * u_focal_px / max(-vp.z, 1e-3));
+    v_world = wp;
+    v_nrm = wn;
+    v_color = color;
+    v_z = -vp.z;
+    v_id = id;
+}
+"""
+
+CHARACTER_FS = VERSION + LIGHTING + OUTPUTS + """
+in vec3 v_world;
+in vec3 v_nrm;
+in vec3 v_color;
+in float v_z;
+flat in uint v_id;
+
+void main() {
+    vec3 n = normalize(v_nrm);
+    o_color = vec4(srgb_encode(shade(v_color, v_world, n)), 1.0);
+    o_id = v_id;
+    o_depth = v_z;
+}
+"""
+
+# ------------------------------------------------------------------- scenery
+SCENERY_VS = VERSION + """
+uniform mat4 u_model;
+uniform mat3 u_normal_m;
+uniform mat4 u_view;
+uniform mat4 u_proj;
+in vec3 in_pos;
+in vec3 in_nrm;
+in vec2 in_uv;
+out vec3 v_world;
+out vec3 v_nrm;
+out vec2 v_uv;
+out float v_z;
+
+void main() {
+    vec4 wp = u_model * vec4(in_pos, 1.0);
+    vec4 vp = u_view * wp;
+    gl_Position = u_proj * vp;
+    v_world = wp.xyz;
+    v_nrm = u_normal_m * in_nrm;
+    v_uv = in_uv;
+    v_z = -vp.z;
+}
+"""
+
+SCENERY_FS = VERSION + LIGHTING + OUTPUTS + """
+uniform vec3 u_base_color;
+uniform uint u_shape_id;
+uniform bool u_has_tex;
+uniform sampler2D u_tex;          // sRGB texture: sampling linearises it
+in vec3 v_world;
+in vec3 v_nrm;
+in vec2 v_uv;
+in float v_z;
+
+void main() {
+    vec3 n = normalize(v_nrm);
+    if (!gl_FrontFacing) n = -n;   // open meshes (floors, planes) are seen from both sides
+    vec3 albedo = u_has_tex ? texture(u_tex, v_uv).rgb : u_base_color;
+    o_color = vec4(srgb_encode(shade(albedo, v_world, n)), 1.0);
+    o_id = u_shape_id;
+    o_depth = v_z;
+}
+"""
+
+# ------------------------------------------------------------------- shadows
+SHADOW_CHARACTER_VS = VERSION + SKINNING + """
+uniform mat4 u_light_vp;
+uniform float u_point_size_px;     // splat size in shadow texels (points only)
+in vec3 in_pos;
+in vec3 in_nrm;
+in vec3 in_w;
+
+void main() {
+    vec3 wp, wn, color; uint id;
+    skin(in_pos, in_nrm, in_w, wp, wn, color, id);
+    gl_Position = u_light_vp * vec4(wp, 1.0);
+    gl_PointSize = max(1.0, u_point_size_px);
+}
+"""
+
+SHADOW_SCENERY_VS = VERSION + """
+uniform mat4 u_model;
+uniform mat4 u_light_vp;
+in vec3 in_pos;
+
+void main() {
+    gl_Position = u_light_vp * (u_model * vec4(in_pos, 1.0));
+}
+"""
+
+DEPTH_ONLY_FS = VERSION + """
+void main() {}
+"""
+
+# ------------------------------------------------------------------ overlays
+OVERLAY_VS = VERSION + """
+uniform mat4 u_view;
+uniform mat4 u_proj;
+in vec3 in_pos;
+in vec4 in_color;
+in vec2 in_uv;
+out vec4 v_color;
+out vec2 v_uv;
+
+void main() {
+    gl_Position = u_proj * (u_view * vec4(in_pos, 1.0));
+    v_color = in_color;
+    v_uv = in_uv;
+}
+"""
+
+OVERLAY_FS = VERSION + """
+uniform bool u_has_tex;
+uniform sampler2D u_tex;
+in vec4 v_color;
+in vec2 v_uv;
+layout(location = 0) out vec4 o_color;
+
+vec3 srgb_encode(vec3 c) {
+    c = clamp(c, 0.0, 1.0);
+    return mix(12.92 * c, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, step(vec3(0.0031308), c));
+}
+
+void main() {
+    vec4 c = u_has_tex ? v_color * texture(u_tex, v_uv) : v_color;
+    if (c.a <= 0.0) discard;
+    // Blending happens on encoded values: overlays are annotations, not light.
+    o_color = vec4(srgb_encode(c.rgb), c.a);
+}
+"""
