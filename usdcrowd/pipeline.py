@@ -26,6 +26,7 @@ class ShotResult:
     shot: str
     crowd: str
     cameras: str
+    camera: str
     plot: str
     n_agents: int
     n_frames: int
@@ -80,6 +81,7 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     from .scenario import load_scenario, open_stage, stage_frame
     from .plots import trajectory_map
     from .usd import CROWD, CrowdLayerWriter, write_cameras, write_shot
+    from .usd.shot import CROWD_CAMERA
 
     scenario_path = os.fspath(scenario_path)
     out_dir = Path(out_dir)
@@ -124,7 +126,8 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     plot = trajectory_map(_subset(scenario, plotted), np.concatenate(tracks), out_dir / "trajectories.png",
                           title=f"{Path(scenario_path).name}: {len(scenario.agents)} agents, "
                                 f"{scenario.time.n_frames} frames, seed {scenario.seed}")
-    return ShotResult(shot, crowd, cameras, plot, len(scenario.agents), scenario.time.n_frames, scenario.seed)
+    camera = f"/{default_prim}/{CROWD_CAMERA}" if default_prim else f"/{CROWD_CAMERA}"
+    return ShotResult(shot, crowd, cameras, camera, plot, len(scenario.agents), scenario.time.n_frames, scenario.seed)
 
 
 def _subset(scenario: model.Scenario, rows: np.ndarray) -> model.Scenario:

@@ -44,6 +44,7 @@ def run(args) -> int:
     if errors:
         return 1
     print("[4] validate  shot: 0 errors")
+    preview = _preview(r, out, args.progress)
     print()
     print(format_summary(summarize(r.shot)))
     print()
@@ -53,4 +54,24 @@ def run(args) -> int:
     print(f"  crowd     {r.crowd}")
     print(f"  cameras   {r.cameras}")
     print(f"  picture   {r.plot}   (every trajectory, seen from above)")
+    for name, path in preview.items():
+        print(f"  {name:<9} {path}")
     return 0
+
+
+def _preview(r, out: Path, progress: bool) -> dict:
+    """The OpenGL preview of the shot, from the crowd camera, every other frame."""
+    import numpy as np
+
+    from ..errors import UsdcrowdError
+
+    try:
+        from ..render.preview import demo_outputs
+
+        frames = np.arange(1, r.n_frames + 1, 2, dtype=np.float64)
+        paths = demo_outputs(r.shot, out / "preview", camera=r.camera, frames=frames, progress=progress)
+    except UsdcrowdError as exc:          # no OpenGL here: say so, the rest of the demo stands
+        print(f"[5] preview   skipped: {exc}")
+        return {}
+    print(f"[5] preview   {paths['mp4']} ({len(frames)} frames from {r.camera})")
+    return {"preview": paths["mp4"], "sheet": paths["contact_sheet"]}

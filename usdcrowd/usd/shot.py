@@ -25,6 +25,7 @@ from ..scenario.stageio import StageFrame
 SHOT = "shot.usda"
 CROWD = "crowd.usdc"
 CAMERAS = "cameras.usda"
+CROWD_CAMERA = "Cameras/CrowdCam"      # under the default prim
 # Lens of the generated overview camera: a 35 mm full-frame 16:9 crop.
 FOCAL_LENGTH = 28.0
 H_APERTURE = 36.0
@@ -138,7 +139,8 @@ def write_cameras(out_dir: str | os.PathLike, centre: np.ndarray, spread: np.nda
     """
     from pxr import Gf, Sdf, Vt
 
-    spread = np.asarray(spread, dtype=np.float64) + 2.0
+    # Half a metre around the outermost agent, and at least a 3 m wide view.
+    spread = np.maximum(np.asarray(spread, dtype=np.float64) + 0.5, 1.5)
     # Smooth the framing so the camera does not jitter with individual agents.
     k = max(1, int(time.fps))
     kernel = np.ones(k) / k
@@ -146,7 +148,7 @@ def write_cameras(out_dir: str | os.PathLike, centre: np.ndarray, spread: np.nda
     centre = np.stack([np.convolve(pad(centre[:, j]), kernel, mode="valid") for j in range(3)], 1)
     spread = np.convolve(pad(spread), kernel, mode="valid")
     half_fov = np.arctan(0.5 * V_APERTURE / FOCAL_LENGTH)
-    distance = spread / np.tan(half_fov) + 2.0
+    distance = spread / np.tan(half_fov)
     bearing = np.array([0.0, -np.cos(np.radians(35)), np.sin(np.radians(35))])
     target = centre + np.array([0.0, 0.0, 1.0])
     eye = target + distance[:, None] * bearing
@@ -164,7 +166,7 @@ def write_cameras(out_dir: str | os.PathLike, centre: np.ndarray, spread: np.nda
     T = Sdf.ValueTypeNames
     with Sdf.ChangeBlock():
         _define_scope(layer, f"{root}/Cameras")
-        cam = Sdf.CreatePrimInLayer(layer, f"{root}/Cameras/CrowdCam")
+        cam = Sdf.CreatePrimInLayer(layer, f"{root}/{CROWD_CAMERA}")
         cam.specifier, cam.typeName = Sdf.SpecifierDef, "Camera"
         _set(cam, "focalLength", T.Float, FOCAL_LENGTH)
         _set(cam, "horizontalAperture", T.Float, H_APERTURE)

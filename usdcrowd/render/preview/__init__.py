@@ -13,7 +13,8 @@ from .renderer import PreviewFrame, PreviewRenderer, boxes_from_ids
 __all__ = ["LodSettings", "PreviewFrame", "PreviewRenderer", "boxes_from_ids", "demo_outputs"]
 
 
-def demo_outputs(shot_path, out_dir, camera=None, resolution=(640, 360)) -> dict[str, str]:
+def demo_outputs(shot_path, out_dir, camera=None, resolution=(640, 360), frames=None,
+                 progress: bool = False) -> dict[str, str]:
     """Write a short preview MP4 and a contact sheet of a shot.
 
     Parameters
@@ -26,6 +27,10 @@ def demo_outputs(shot_path, out_dir, camera=None, resolution=(640, 360)) -> dict
         Camera prim path (default: the stage's first camera).
     resolution : (int, int)
         Width, height.
+    frames : array of time codes, optional
+        Default: the first 48 frames of the stage's range.
+    progress : bool
+        Show a progress bar.
 
     Returns
     -------
@@ -34,4 +39,5 @@ def demo_outputs(shot_path, out_dir, camera=None, resolution=(640, 360)) -> dict
     """
     from .output import render_shot
 
-    return render_shot(shot_path, out_dir, camera=camera, resolution=resolution, progress=False)
+    kw = {} if frames is None else {"frames": frames, "max_frames": len(frames)}
+    return render_shot(shot_path, out_dir, camera=camera, resolution=resolution, progress=progress, **kw)
