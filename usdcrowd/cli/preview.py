@@ -44,11 +44,8 @@ def parse_overlays(spec: str) -> tuple[str, ...]:
 def run(args) -> int:
     from pathlib import Path
 
-    import numpy as np
-    from tqdm import tqdm
-
     from ..render.preview import LodSettings, PreviewRenderer
-    from ..render.preview.output import Mp4Writer, contact_sheet, sheet_frames, write_aovs, write_png
+    from ..render.preview.output import write_sequence
     from ..render.scene import ShotScene
 
     overlay_names = parse_overlays(args.overlays)
@@ -73,34 +70,14 @@ def run(args) -> int:
 
     out = Path(args.output)
     to_video = out.suffix.lower() in (".mp4", ".m4v", ".mov")
-    if not to_video:
-        out.mkdir(parents=True, exist_ok=True)
     sheet_path = Path(args.sheet) if args.sheet else (
         out.with_name(out.stem + "_sheet.png") if to_video else out / "contact_sheet.png")
-    on_sheet = set(float(t) for t in sheet_frames(times))
     r = PreviewRenderer(scene, width, height, lod_settings=lod_settings, overlays=overlays, exposure=args.exposure)
-    thumbs, labels = [], []
-    writer = Mp4Writer(out, scene.fps) if to_video else None
-    ok = False
     try:
-        for t in tqdm(times, desc="preview", unit="frame", disable=not args.progress, leave=False):
-            f = r.render(float(t), camera)
-            if writer is not None:
-                writer.append(f.color)
-            else:
-                stem = out / f"frame.{int(round(t)):04d}" if float(t).is_integer() else out / f"frame.{t:09.3f}"
-                write_png(f.color, f"{stem}.png")
-                if args.aovs:
-                    write_aovs(f.ids, f.depth, f"{stem}.npz")
-            if float(t) in on_sheet:
-                thumbs.append(f.color)
-                labels.append(f"{t:g}")
-        ok = True
+        write_sequence(r, times, camera, video=out if to_video else None, frames_dir=None if to_video else out,
+                       aovs=args.aovs, sheet=sheet_path, progress=args.progress)
     finally:
-        if writer is not None:
-            writer.close(ok)
         r.release()
-    write_png(contact_sheet(thumbs, labels), sheet_path)
     what = f"{out}" if to_video else f"{len(times)} frames in {out}/"
     print(f"wrote {what} ({width}x{height}, {len(times)} frames, camera {camera or scene.camera_paths[0]})")
     print(f"  contact sheet {sheet_path}")

@@ -130,6 +130,62 @@ def sheet_frames(times: np.ndarray, n: int = 12) -> np.ndarray:
     return times[np.unique(np.round(np.linspace(0, len(times) - 1, n)).astype(int))]
 
 
+def write_sequence(renderer, times: np.ndarray, camera: str | None, *, video=None, frames_dir=None,
+                   aovs: bool = False, sheet=None, progress: bool = True) -> dict[str, str]:
+    """Render ``times`` with ``renderer`` into a video and/or PNG frames, plus a contact sheet.
+
+    Parameters
+    ----------
+    renderer : PreviewRenderer
+    times : (t,) float
+        Time codes.
+    camera : str or None
+        Camera prim path (None: the stage's first camera).
+    video : path-like, optional
+        MP4 to write (through a temporary name).
+    frames_dir : path-like, optional
+        Folder for ``frame.NNNN.png`` (and ``.npz`` ids/depth when ``aovs``).
+    sheet : path-like, optional
+        Contact sheet of up to 12 frames.
+
+    Returns
+    -------
+    dict
+        Paths written: ``mp4``, ``frames``, ``contact_sheet`` as applicable.
+    """
+    from tqdm import tqdm
+
+    on_sheet = set(float(t) for t in sheet_frames(times))
+    thumbs, labels, paths = [], [], {}
+    if frames_dir is not None:
+        Path(frames_dir).mkdir(parents=True, exist_ok=True)
+        paths["frames"] = str(frames_dir)
+    writer = Mp4Writer(video, renderer.scene.fps) if video is not None else None
+    ok = False
+    try:
+        for t in tqdm(times, desc="preview", unit="frame", disable=not progress, leave=False):
+            f = renderer.render(float(t), camera)
+            if writer is not None:
+                writer.append(f.color)
+            if frames_dir is not None:
+                stem = Path(frames_dir) / (f"frame.{int(round(t)):04d}" if float(t).is_integer() else f"frame.{t:09.3f}")
+                write_png(f.color, f"{stem}.png")
+                if aovs:
+                    write_aovs(f.ids, f.depth, f"{stem}.npz")
+            if float(t) in on_sheet:
+                thumbs.append(f.color)
+                labels.append(f"{t:g}")
+        ok = True
+    finally:
+        if writer is not None:
+            closed = writer.close(ok)
+            if ok:
+                paths["mp4"] = closed
+    if sheet is not None:
+        paths["contact_sheet"] = write_png(contact_sheet(thumbs, labels), sheet)
+    return paths
+
+
 def render_shot(shot_path, out_dir, *, camera=None, resolution=(640, 360), frames=None, progress: bool = True,
                 mp4: bool = True, max_frames: int = 48) -> dict[str, str]:
     """Render a preview MP4 and a contact sheet of a shot into ``out_dir``.
@@ -150,8 +206,6 @@ def render_shot(shot_path, out_dir, *, camera=None, resolution=(640, 360), frame
     dict
         ``{"mp4": ..., "contact_sheet": ...}``.
     """
-    from tqdm import tqdm
-
     from .renderer import PreviewRenderer
 
     out = Path(out_dir)
@@ -159,24 +213,7 @@ def render_shot(shot_path, out_dir, *, camera=None, resolution=(640, 360), frame
     r = PreviewRenderer(shot_path, *resolution)
     try:
         times = np.asarray(frames) if frames is not None else r.scene.time_codes[:max_frames]
-        on_sheet = set(float(t) for t in sheet_frames(times))
-        thumbs, labels = [], []
-        paths = {}
-        writer = Mp4Writer(out / "preview.mp4", r.scene.fps) if mp4 else None
-        ok = False
-        try:
-            for t in tqdm(times, desc="preview", unit="frame", disable=not progress, leave=False):
-                f = r.render(float(t), camera)
-                if writer is not None:
-                    writer.append(f.color)
-                if float(t) in on_sheet:
-                    thumbs.append(f.color)
-                    labels.append(f"{t:g}")
-            ok = True
-        finally:
-            if writer is not None:
-                paths["mp4"] = writer.close(ok)
-        paths["contact_sheet"] = write_png(contact_sheet(thumbs, labels), out / "preview_sheet.png")
-        return paths
+        return write_sequence(r, times, camera, video=out / "preview.mp4" if mp4 else None,
+                              sheet=out / "preview_sheet.png", progress=progress)
     finally:
         r.release()
