@@ -292,7 +292,8 @@ def test_cli_writes_frames_aovs_video_and_sheet(tiny_shot, tmp_path, capsys):
                                                                   "frame.0003.png"]
     aov = np.load(frames / "frame.0002.npz")
     assert aov["ids"].dtype == np.uint32 and aov["ids"].shape == (90, 160)
-    assert Image.open(frames / "contact_sheet.png").size[0] > 160
+    with Image.open(frames / "contact_sheet.png") as sheet:
+        assert sheet.size[0] > 160
     video = tmp_path / "p.mp4"
     assert main(["preview", str(tiny_shot), "-o", str(video), "--resolution", "160x90", "--no-progress",
                  "--overlays", "all"]) == 0

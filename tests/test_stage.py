@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel
@@ -173,7 +175,7 @@ def test_same_seed_gives_the_same_bytes(tmp_path, agents):
     for name in files:
         assert (tmp_path / "run0" / name).read_bytes() == (tmp_path / "run1" / name).read_bytes(), name
     other = simulate_shot(scenario, tmp_path / "other", seed=6, frames=(1, 6), progress=False)
-    assert open(other.crowd, "rb").read() != open(runs[0].crowd, "rb").read()
+    assert Path(other.crowd).read_bytes() != Path(runs[0].crowd).read_bytes()
 
 
 PLACED = '''

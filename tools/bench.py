@@ -4,6 +4,8 @@
     python tools/bench.py author          # authoring 10,000 agents x 300 frames
     python tools/bench.py author --agents 2000 --frames 300
     python tools/bench.py sim             # crowd simulation steps/s (and JuPedSim)
+    python tools/bench.py preview         # OpenGL preview fps, 1,000 and 10,000 characters
+    python tools/bench.py render          # Mitsuba s/frame and ground-truth overhead
 
 Each measured run happens in a child process so that its peak memory is its own.
 Targets (2-core machine): author 10,000 x 300 in <= 20 s and <= 4 GiB.
@@ -88,18 +90,22 @@ def bench_author(agents: int, frames: int) -> None:
               f"<= {AUTHOR_TARGET_GIB:.0f} GiB: {r['peak_mib'] / 1024 / AUTHOR_TARGET_GIB:.2f}x of budget")
 
 
-def bench_sim(sizes) -> None:
+def bench_section(name: str, **kw) -> None:
+    """Run tools/bench_<name>.py's run(); each prints its own table."""
+    import importlib
+
     try:
-        import bench_sim
-    except ImportError:
-        print("== sim: tools/bench_sim.py not available")
+        module = importlib.import_module(f"bench_{name}")
+    except ImportError as exc:
+        print(f"== {name}: not available ({exc})")
         return
-    bench_sim.run(sizes=sizes)
+    print(f"== {name}")
+    module.run(**kw)
 
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("section", nargs="?", default="all", choices=["all", "author", "sim"])
+    p.add_argument("section", nargs="?", default="all", choices=["all", "author", "sim", "preview", "render"])
     p.add_argument("--agents", type=int, default=10_000)
     p.add_argument("--frames", type=int, default=300)
     p.add_argument("--sizes", default="1000,10000,100000", help="agent counts of the sim section")
@@ -108,7 +114,10 @@ def main(argv=None) -> int:
     if args.section in ("all", "author"):
         bench_author(args.agents, args.frames)
     if args.section in ("all", "sim"):
-        bench_sim(tuple(int(s) for s in args.sizes.split(",")))
+        bench_section("sim", sizes=tuple(int(s) for s in args.sizes.split(",")))
+    for name in ("preview", "render"):
+        if args.section in ("all", name):
+            bench_section(name)
     return 0
 
 

@@ -336,7 +336,8 @@ class PreviewRenderer:
             return None
         from PIL import Image
 
-        img = Image.open(path).convert("RGBA").transpose(Image.FLIP_TOP_BOTTOM)   # GL's v runs up
+        with Image.open(path) as im:
+            img = im.convert("RGBA").transpose(Image.FLIP_TOP_BOTTOM)   # GL's v runs up
         tex = self.ctx.texture(img.size, 4, img.tobytes(), internal_format=0x8C43)  # GL_SRGB8_ALPHA8
         tex.build_mipmaps()
         return tex

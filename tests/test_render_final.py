@@ -1,0 +1,426 @@
+"""Final frames with Mitsuba: the analytic box, exact ids, EXR, baselines, resume, executors."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("mitsuba")
+pytest.importorskip("OpenEXR")
+
+from usdcrowd.render.final.exr import ID_TABLE, read_frame_exr  # noqa: E402
+from usdcrowd.render.final.frame import FrameRenderer  # noqa: E402
+from usdcrowd.render.scene import SCENERY_ID_BASE, ShotScene  # noqa: E402
+from usdcrowd.render.sequence import (frame_files, render_sequence, settings_from_preset,  # noqa: E402
+                                      verify_frame, Manifest)
+
+BASELINES = Path(__file__).parent / "baselines"
+FAILURES = Path(__file__).parent / "_failures"
+
+# A 2 m cube whose front face is 9 m in front of a camera looking along +Y, lit by a uniform sky.
+BOX_STAGE = '''
+def Xform "World"
+{
+    def Cube "Box"
+    {
+        double size = 2
+        color3f[] primvars:displayColor = [(0.5, 0.5, 0.5)]
+        double3 xformOp:translate = (0, 10, 0)
+        uniform token[] xformOpOrder = ["xformOp:translate"]
+    }
+    def DomeLight "Sky"
+    {
+        float inputs:intensity = 1
+    }
+    def Camera "Cam"
+    {
+        float focalLength = 24
+        float horizontalAperture = 36
+        float verticalAperture = 27
+        float2 clippingRange = (0.1, 100)
+        float3 xformOp:rotateXYZ = (90, 0, 0)
+        uniform token[] xformOpOrder = ["xformOp:rotateXYZ"]
+    }
+}
+'''
+W, H = 64, 48
+
+
+@pytest.fixture(scope="module")
+def museum_shot(tmp_path_factory):
+    """The museum shot with straight-walking agents (12 frames)."""
+    from frames_factory import straight_walk
+
+    import usdcrowd.resources as res
+    from usdcrowd.pipeline import author_shot
+
+    out = tmp_path_factory.mktemp("shot")
+    r = author_shot(res.data_dir("stages") / "museum.usda", out, lambda sc: [straight_walk(sc.agents, sc.time)],
+                    frames=(1, 12), progress=False)
+    return r.shot
+
+
+@pytest.fixture(scope="module")
+def box_frame(tmp_path_factory):
+    from conftest import HEADER
+
+    path = tmp_path_factory.mktemp("box") / "box.usda"
+    path.write_text(HEADER.format(up="Z", mpu=1, end=1) + BOX_STAGE)
+    renderer = FrameRenderer(path, "/World/Cam", (W, H), spp=16, max_depth=2)
+    return renderer, renderer.render(1)
+
+
+def test_box_depth_and_projection_are_exact_to_the_pixel(box_frame):
+    renderer, r = box_frame
+    cam = r.camera
+    # The front face's corners, projected with the camera model every exporter uses.
+    corners = np.array([[x, 9.0, z] for x in (-1, 1) for z in (-1, 1)])
+    uv, z = cam.project(corners, W, H)
+    assert np.allclose(z, 9.0)
+    u0, v0 = uv.min(0)
+    u1, v1 = uv.max(0)
+    cols = (np.arange(W) + 0.5 > u0) & (np.arange(W) + 0.5 < u1)
+    rows = (np.arange(H) + 0.5 > v0) & (np.arange(H) + 0.5 < v1)
+    expected = rows[:, None] & cols[None, :]
+    box_id = next(s.shape_id for s in renderer.shot.scenery if s.path == "/World/Box")
+    assert np.array_equal(r.gt.ids == box_id, expected)
+    assert set(np.unique(r.gt.ids)) == {0, box_id}
+    # z-depth is the plane's distance, exactly; distance grows off axis as 1 / cos.
+    assert np.allclose(r.gt.depth_z[expected], 9.0, atol=1e-4)
+    k = cam.intrinsics(W, H)
+    yy, xx = np.nonzero(expected)
+    ray_len = np.sqrt(1 + ((xx + 0.5 - k[0, 2]) / k[0, 0]) ** 2 + ((yy + 0.5 - k[1, 2]) / k[1, 1]) ** 2)
+    assert np.allclose(r.gt.depth_distance[expected], 9.0 * ray_len, atol=1e-4)
+    assert np.isinf(r.gt.depth_z[~expected]).all()
+    # Normals face the camera (-Y), positions lie on the face, albedo is the display colour.
+    assert np.allclose(r.gt.normal[expected], (0, -1, 0), atol=1e-5)
+    assert np.allclose(r.gt.position[expected][:, 1], 9.0, atol=1e-4)
+    assert np.allclose(r.gt.albedo[expected], 0.5, atol=1e-5)
+
+
+def test_beauty_sees_the_box_where_the_camera_model_puts_it(box_frame):
+    """The Mitsuba sensor and CameraView.project agree: the box is dark exactly where the ids say."""
+    _, r = box_frame
+    lum = r.beauty.mean(-1)
+    inside = r.gt.ids > 0
+    # Away from the silhouette: inside ~ albedo * sky, outside = sky.
+    from scipy.ndimage import binary_erosion
+
+    # Mitsuba's Gaussian filter reaches 2 pixels: look 3 pixels away from the edge.
+    core, outside = binary_erosion(inside, iterations=3), binary_erosion(~inside, iterations=3)
+    assert np.allclose(lum[outside], 1.0, atol=1e-3)
+    assert lum[core].mean() == pytest.approx(0.5 * 0.96, abs=0.05)    # the lit side of a principled grey
+    assert lum[core].max() < 0.8
+
+
+def test_animated_scenery_moves_between_frames_without_a_rebuild(tmp_path):
+    from conftest import HEADER
+
+    stage = BOX_STAGE.replace("double3 xformOp:translate = (0, 10, 0)",
+                              "double3 xformOp:translate.timeSamples = {1: (0, 10, 0), 2: (2, 10, 0)}")
+    path = tmp_path / "moving.usda"
+    path.write_text(HEADER.format(up="Z", mpu=1, end=2) + stage)
+    renderer = FrameRenderer(path, "/World/Cam", (W, H), spp=1, max_depth=2)
+    scene = renderer.built.scene
+    a, b = renderer.render(1), renderer.render(2)
+    assert renderer.built.scene is scene and len(renderer.built.animated) == 1
+    cols_a = np.nonzero((a.gt.ids > 0).any(0))[0]
+    cols_b = np.nonzero((b.gt.ids > 0).any(0))[0]
+    # 2 m to the right at 9 m: f * 2 / 9 pixels.
+    shift = a.camera.intrinsics(W, H)[0, 0] * 2 / 9
+    assert cols_b.mean() - cols_a.mean() == pytest.approx(shift, abs=1.0)
+
+
+TEXTURED_QUAD = '''
+def Xform "World"
+{
+    def Mesh "Quad" (prepend apiSchemas = ["MaterialBindingAPI"])
+    {
+        int[] faceVertexCounts = [4]
+        int[] faceVertexIndices = [0, 1, 2, 3]
+        point3f[] points = [(-1, 9, -1), (1, 9, -1), (1, 9, 1), (-1, 9, 1)]
+        texCoord2f[] primvars:st = [(0, 0), (1, 0), (1, 1), (0, 1)] (interpolation = "vertex")
+        rel material:binding = </World/Mat>
+    }
+    def Material "Mat"
+    {
+        token outputs:surface.connect = </World/Mat/PBR.outputs:surface>
+        def Shader "PBR"
+        {
+            uniform token info:id = "UsdPreviewSurface"
+            color3f inputs:diffuseColor.connect = </World/Mat/Tex.outputs:rgb>
+            token outputs:surface
+        }
+        def Shader "Tex"
+        {
+            uniform token info:id = "UsdUVTexture"
+            asset inputs:file = @./tex.png@
+            float3 outputs:rgb
+        }
+    }
+    def DomeLight "Sky"
+    {
+        float inputs:intensity = 1
+    }
+    def Camera "Cam"
+    {
+        float focalLength = 24
+        float horizontalAperture = 36
+        float verticalAperture = 27
+        float3 xformOp:rotateXYZ = (90, 0, 0)
+        uniform token[] xformOpOrder = ["xformOp:rotateXYZ"]
+    }
+}
+'''
+
+
+def test_textures_keep_their_orientation(tmp_path):
+    """USD st has its origin at the image's bottom left: the top of the texture is the top of the quad."""
+    from PIL import Image
+
+    from conftest import HEADER
+
+    img = np.zeros((8, 8, 3), np.uint8)
+    img[:4] = (255, 0, 0)
+    img[4:] = (0, 0, 255)
+    Image.fromarray(img).save(tmp_path / "tex.png")
+    (tmp_path / "quad.usda").write_text(HEADER.format(up="Z", mpu=1, end=1) + TEXTURED_QUAD)
+    r = FrameRenderer(tmp_path / "quad.usda", "/World/Cam", (W, H), spp=1, max_depth=2).render(1)
+    ys, xs = np.nonzero(r.gt.ids > 0)
+    x = int(xs.mean())
+    assert np.allclose(r.gt.albedo[ys.min() + 1, x], (1, 0, 0), atol=1e-3)
+    assert np.allclose(r.gt.albedo[ys.max() - 1, x], (0, 0, 1), atol=1e-3)
+
+
+@pytest.mark.parametrize("up", ["Y", "Z"])
+def test_textured_dome_keeps_the_sky_up(tmp_path, up):
+    """A lat-long sky (blue top half, brown bottom half) seen by a level camera, in a Y-up and a Z-up stage."""
+    from PIL import Image
+
+    from conftest import HEADER
+
+    sky = np.zeros((32, 64, 3), np.uint8)
+    sky[:16], sky[16:] = (120, 160, 255), (60, 50, 40)
+    Image.fromarray(sky).save(tmp_path / "sky.png")
+    level = "" if up == "Y" else "float3 xformOp:rotateXYZ = (90, 0, 0)\n        uniform token[] xformOpOrder = [\"xformOp:rotateXYZ\"]"
+    (tmp_path / "sky.usda").write_text(HEADER.format(up=up, mpu=1, end=1) + f'''
+def Xform "World"
+{{
+    def DomeLight "Sky"
+    {{
+        asset inputs:texture:file = @./sky.png@
+    }}
+    def Camera "Cam"
+    {{
+        float focalLength = 24
+        float horizontalAperture = 36
+        {level}
+    }}
+}}
+''')
+    r = FrameRenderer(tmp_path / "sky.usda", "/World/Cam", (W, H), spp=4, max_depth=2).render(1)
+    top, bottom = r.beauty[: H // 4].mean((0, 1)), r.beauty[-H // 4:].mean((0, 1))
+    assert top[2] > top[0] and bottom[0] > bottom[2]
+
+
+def test_scalar_fallback_gives_the_same_ground_truth(box_frame, tmp_path):
+    """scalar_rgb (no JIT) casts one ray at a time through the same code path: same ids, same depth."""
+    renderer, r = box_frame
+    scalar = FrameRenderer(renderer.shot, "/World/Cam", (W, H), spp=4, max_depth=2, variant="scalar_rgb").render(1)
+    assert np.array_equal(scalar.gt.ids, r.gt.ids)
+    assert np.allclose(scalar.gt.depth_z, r.gt.depth_z, atol=1e-4)
+    assert scalar.beauty.shape == (H, W, 3)
+    renderer.render(1)                                                   # switching back works
+
+
+def test_id_pass_is_identical_across_two_runs(museum_shot, tmp_path):
+    """A second process (another shape order inside Mitsuba) gives the same ids, bit for bit."""
+    script = tmp_path / "ids.py"
+    script.write_text(
+        "import sys, numpy as np\nimport usdcrowd\nfrom usdcrowd.render.final.frame import FrameRenderer\n"
+        "r = FrameRenderer(sys.argv[1], None, (96, 54), spp=1, max_depth=2).render(6)\n"
+        "np.save(sys.argv[2], r.gt.ids)\n")
+    subprocess.run([sys.executable, str(script), museum_shot, str(tmp_path / "ids.npy")], check=True)
+    here = FrameRenderer(museum_shot, None, (96, 54), spp=1, max_depth=2).render(6)
+    other = np.load(tmp_path / "ids.npy")
+    assert np.array_equal(here.gt.ids, other)
+    agents = set(np.unique(here.gt.ids)) & set(range(1, SCENERY_ID_BASE))
+    assert agents and agents <= set(ShotScene(museum_shot).agents(6).agent_ids.tolist())
+    assert all(i >= SCENERY_ID_BASE for i in np.unique(here.gt.ids) if i not in agents and i != 0)
+
+
+@pytest.fixture(scope="module")
+def small_sequence(museum_shot, tmp_path_factory):
+    out = tmp_path_factory.mktemp("seq")
+    settings = settings_from_preset("groundtruth", resolution=(96, 54), spp=4)
+    r = render_sequence(museum_shot, out, frames=np.array([1.0, 2.0, 3.0, 4.0]), settings=settings,
+                        executor="inline", progress=False)
+    return r, settings
+
+
+def test_exr_has_named_channels_ids_and_the_id_table(small_sequence):
+    r, _ = small_sequence
+    header, ch = read_frame_exr(Path(r.out_dir) / frame_files(1, True)["exr"])
+    assert {"R", "G", "B", "depth.z", "depth.distance", "normal.X", "position.Z", "albedo.G", "id"} <= set(ch)
+    assert ch["id"].dtype == np.uint32 and ch["depth.z"].dtype == np.float32
+    table = header[ID_TABLE]
+    assert set(np.unique(ch["id"])) - {0} <= set(table)
+    assert table[100] == "/World/Crowd/Visitors/Students/Teacher"
+    finite = np.isfinite(ch["depth.z"])
+    assert (ch["depth.distance"][finite] >= ch["depth.z"][finite] - 1e-4).all()
+
+
+def test_a_killed_render_resumes_and_only_redoes_what_is_missing(museum_shot, small_sequence):
+    r, settings = small_sequence
+    out = Path(r.out_dir)
+    (out / frame_files(2, True)["exr"]).unlink()                              # lost
+    png = out / frame_files(3, True)["png"]
+    png.write_bytes(png.read_bytes()[:100])                                    # damaged
+    again = render_sequence(museum_shot, out, frames=np.array([1.0, 2.0, 3.0, 4.0]), settings=settings,
+                            executor="inline", progress=False)
+    assert again.rendered == [2.0, 3.0] and again.skipped == [1.0, 4.0]
+    manifest = Manifest(out, json.loads((out / "manifest.json").read_text())["header"])
+    assert all(verify_frame(out, t, manifest, settings) for t in (1, 2, 3, 4))
+
+
+def test_frames_written_but_not_in_the_manifest_are_adopted(small_sequence):
+    r, settings = small_sequence
+    out = Path(r.out_dir)
+    doc = json.loads((out / "manifest.json").read_text())
+    doc["frames"].pop("0004")
+    (out / "manifest.json").write_text(json.dumps(doc))
+    manifest = Manifest(out, doc["header"])
+    assert verify_frame(out, 4.0, manifest, settings)
+    assert manifest.frames["0004"]["adopted"]
+
+
+def _diff_report(name, got, ref):
+    FAILURES.mkdir(exist_ok=True)
+    from usdcrowd.render.colour import write_png
+
+    write_png(np.abs(got - ref) * 4.0, FAILURES / f"{name}.diff.png")
+    write_png(got, FAILURES / f"{name}.got.png")
+    write_png(ref, FAILURES / f"{name}.ref.png")
+    return FAILURES / f"{name}.diff.png"
+
+
+@pytest.mark.parametrize("name", ["museum_overview_f6"])
+def test_render_matches_the_stored_baseline(museum_shot, name):
+    """Statistical comparison: Monte Carlo noise differs between variants and versions, the picture must not."""
+    sys.path.insert(0, str(Path(__file__).parent.parent / "tools"))
+    import make_baselines
+
+    meta = json.loads((BASELINES / f"{name}.json").read_text())
+    _, ref = read_frame_exr(BASELINES / f"{name}.exr")
+    ref = np.stack([ref["R"], ref["G"], ref["B"]], -1)
+    got = make_baselines.render_baseline(museum_shot, meta).beauty
+    diff = np.abs(got - ref).mean(-1)
+    scale = max(float(ref.mean()), 1e-3)
+    mean_rel, p99_rel = diff.mean() / scale, np.percentile(diff, 99) / scale
+    if mean_rel > meta["max_mean_rel"] or p99_rel > meta["max_p99_rel"]:
+        where = _diff_report(name, got, ref)
+        pytest.fail(f"{name}: mean {mean_rel:.3f} (max {meta['max_mean_rel']}), p99 {p99_rel:.3f} "
+                    f"(max {meta['max_p99_rel']}); diff image {where}")
+
+
+def test_variant_is_chosen_and_reported():
+    from usdcrowd.render.final.variant import choose_variant, describe
+
+    v = choose_variant()
+    assert v in ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")
+    assert v in describe(v)
+    from usdcrowd.errors import UsdcrowdError
+
+    with pytest.raises(UsdcrowdError, match="not available"):
+        choose_variant("no_such_variant")
+
+
+def test_lights_follow_the_documented_radiometric_mapping():
+    from usdcrowd.render.final.lights import emitted
+    from usdcrowd.render.scene import Light
+
+    lamp = Light("/L", "sphere", np.array([1.0, 0.5, 0.25]), 8.0, np.eye(4), radius=0.5)
+    assert np.allclose(emitted(lamp), [8, 4, 2])
+    lamp.normalize = True
+    assert np.allclose(emitted(lamp), np.array([8, 4, 2]) / (4 * np.pi * 0.25))
+    sun = Light("/S", "distant", np.ones(3), 3.0, np.eye(4), angle=0.5, normalize=False)
+    assert np.allclose(emitted(sun), 3.0)
+
+
+def test_materials_map_preview_surface_inputs():
+    from usdcrowd.render.final.materials import bsdf_dict
+    from usdcrowd.render.scene import Material
+
+    d = bsdf_dict(Material(np.array([0.2, 0.3, 0.4]), roughness=0.3, metallic=1.0, opacity=0.5))
+    assert d["type"] == "mask" and d["opacity"]["value"] == [0.5] * 3
+    inner = d["bsdf"]
+    assert inner["type"] == "principled" and inner["roughness"] == 0.3 and inner["metallic"] == 1.0
+    assert inner["base_color"]["value"] == [0.2, 0.3, 0.4]
+    tex = bsdf_dict(Material(base_color_texture="/tmp/wood.png"))
+    assert tex["base_color"] == {"type": "bitmap", "filename": "/tmp/wood.png", "wrap_mode": "repeat"}
+
+
+def test_display_transform_is_colour_science_srgb():
+    import colour
+
+    from usdcrowd.render.colour import convert, to_display
+
+    grey = np.full((1, 1, 3), 0.18)
+    expected = np.round(colour.cctf_encoding(0.18, function="sRGB") * 255)
+    assert to_display(grey)[0, 0, 0] == expected
+    assert to_display(grey, exposure=1.0)[0, 0, 0] == np.round(colour.cctf_encoding(0.36, function="sRGB") * 255)
+    rgb = np.array([[[0.7, 0.2, 0.1]]])
+    back = convert(convert(rgb, "sRGB", "ACEScg"), "ACEScg", "sRGB")
+    assert np.allclose(back, rgb, atol=1e-4)                   # float32 storage
+    assert np.abs(to_display(convert(rgb, "sRGB", "ACEScg"), "ACEScg").astype(int)
+                  - to_display(rgb).astype(int)).max() <= 1
+
+
+def test_presets_are_read_and_overridden():
+    from usdcrowd.errors import UsdcrowdError
+
+    s = settings_from_preset("preview", spp=3)
+    assert s.spp == 3 and s.resolution == (320, 180) and not s.ground_truth
+    assert settings_from_preset("final").working_space == "ACEScg"
+    with pytest.raises(UsdcrowdError, match="unknown render preset"):
+        settings_from_preset("nope")
+
+
+def test_cli_render_writes_frames_and_reports_user_errors(museum_shot, tmp_path, capsys):
+    from usdcrowd.cli import main
+
+    out = tmp_path / "r"
+    assert main(["render", museum_shot, "-o", str(out), "--frames", "2", "--resolution", "48x27", "--spp", "2",
+                 "--executor", "inline", "--no-progress"]) == 0
+    assert "rendered 1 frame(s)" in capsys.readouterr().out
+    assert (out / "exr/frame.0002.exr").exists() and (out / "coco.json").exists()
+    assert main(["render", museum_shot, "-o", str(out), "--camera", "/World/Nope", "--frames", "2"]) == 2
+    assert "not a camera" in capsys.readouterr().err
+    assert main(["render", museum_shot, "-o", str(out), "--preset", "nope", "--frames", "2"]) == 2
+
+
+def test_local_worker_processes_render_frames(museum_shot, tmp_path):
+    settings = settings_from_preset("groundtruth", resolution=(64, 36), spp=2)
+    r = render_sequence(museum_shot, tmp_path, frames=np.array([1.0, 2.0, 3.0]), settings=settings,
+                        executor="local", workers=2, progress=False)
+    assert r.rendered == [1.0, 2.0, 3.0]
+    inline = FrameRenderer(museum_shot, None, (64, 36), spp=2).render(2)
+    _, ch = read_frame_exr(tmp_path / frame_files(2, True)["exr"])
+    assert np.array_equal(ch["id"], inline.gt.ids)
+
+
+@pytest.mark.slow
+def test_ray_executor_on_a_local_cluster(museum_shot, tmp_path):
+    pytest.importorskip("ray")
+    settings = settings_from_preset("groundtruth", resolution=(64, 36), spp=2)
+    r = render_sequence(museum_shot, tmp_path, frames=np.array([1.0, 2.0, 3.0, 4.0]), settings=settings,
+                        executor="ray", workers=2, progress=False)
+    assert r.rendered == [1.0, 2.0, 3.0, 4.0]
+    manifest = Manifest(tmp_path, json.loads((tmp_path / "manifest.json").read_text())["header"])
+    assert all(verify_frame(tmp_path, t, manifest, settings) for t in r.times)

@@ -1,0 +1,78 @@
+"""Write the reference renders of tests/test_render_final.py into tests/baselines/.
+
+Run after a deliberate change to how frames look::
+
+    .venv/bin/python tools/make_baselines.py
+
+Each baseline is a small beauty EXR plus a JSON of how it was made (shot
+recipe, camera, frame, size, spp, seed) and the tolerances the test applies:
+the mean and the 99th percentile of the per-pixel absolute difference,
+relative to the image mean. The tolerances are set from two renders that
+differ only by their sampler seed (pure Monte Carlo noise), times a margin.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+BASELINES = ROOT / "tests" / "baselines"
+
+# name -> how the reference is made (the shot is the museum with straight-walking agents, frames 1..12)
+CASES = {"museum_overview_f6": {"camera": "/World/Cameras/Overview", "time": 6.0, "resolution": [96, 54],
+                                "spp": 64, "max_depth": 4, "seed": 7}}
+MARGIN = 3.0
+
+
+def museum_test_shot(out_dir) -> str:
+    """The shot the tests render: museum.usda with every agent walking straight (tests/frames_factory)."""
+    sys.path.insert(0, str(ROOT / "tests"))
+    from frames_factory import straight_walk
+
+    import usdcrowd.resources as res
+    from usdcrowd.pipeline import author_shot
+
+    r = author_shot(res.data_dir("stages") / "museum.usda", out_dir,
+                    lambda sc: [straight_walk(sc.agents, sc.time)], frames=(1, 12), progress=False)
+    return r.shot
+
+
+def render_baseline(shot, meta: dict, seed: int | None = None):
+    """Render one baseline case; returns the FrameResult."""
+    from usdcrowd.render.final.frame import FrameRenderer
+
+    r = FrameRenderer(shot, meta["camera"], tuple(meta["resolution"]), spp=meta["spp"], max_depth=meta["max_depth"],
+                      seed=meta["seed"] if seed is None else seed, ground_truth=False)
+    return r.render(meta["time"])
+
+
+def main() -> int:
+    from usdcrowd.render.final.exr import channels_of, write_frame_exr
+    from usdcrowd.render.final.variant import choose_variant
+
+    BASELINES.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        shot = museum_test_shot(tmp)
+        for name, meta in CASES.items():
+            ref = render_baseline(shot, meta).beauty
+            other = render_baseline(shot, meta, seed=meta["seed"] + 1000).beauty
+            diff = np.abs(other - ref).mean(-1)
+            scale = float(ref.mean())
+            meta = dict(meta, variant=choose_variant(), noise_mean_rel=float(diff.mean() / scale),
+                        noise_p99_rel=float(np.percentile(diff, 99) / scale))
+            meta["max_mean_rel"] = round(MARGIN * meta["noise_mean_rel"], 4)
+            meta["max_p99_rel"] = round(MARGIN * meta["noise_p99_rel"], 4)
+            write_frame_exr(BASELINES / f"{name}.exr", channels_of(ref))
+            (BASELINES / f"{name}.json").write_text(json.dumps(meta, indent=2) + "\n")
+            print(f"{name}: noise mean {meta['noise_mean_rel']:.4f}, p99 {meta['noise_p99_rel']:.4f} "
+                  f"-> tolerances {meta['max_mean_rel']}, {meta['max_p99_rel']}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

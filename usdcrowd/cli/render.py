@@ -1,0 +1,69 @@
+"""usdcrowd render SHOT -o OUT/ [--camera CAM] [--frames 1:240x2] [--preset groundtruth] [--spp N] ..."""
+
+from __future__ import annotations
+
+from .args import add_camera, add_frames, add_progress, add_resolution
+
+
+def add_parser(sub):
+    p = sub.add_parser("render", help="render final frames with Mitsuba, with exact ground truth (EXR, MOT, COCO)",
+                       description="Path-trace a shot through one camera: per frame a multi-channel EXR (beauty, "
+                                   "depth, normals, position, albedo, uint32 ids), an sRGB PNG and a JSON of "
+                                   "annotations; then MOTChallenge, COCO and a contact sheet for the sequence. "
+                                   "A re-run renders only frames whose outputs are missing or damaged.")
+    p.add_argument("shot", help="the shot stage (shot.usda from `usdcrowd simulate`)")
+    p.add_argument("-o", "--output", required=True, help="output folder")
+    add_camera(p)
+    add_frames(p)
+    add_resolution(p)
+    p.add_argument("--preset", default="groundtruth", help="preset in render/presets.toml: preview, groundtruth "
+                                                            "(default), final")
+    p.add_argument("--spp", type=_positive, help="beauty samples per pixel (overrides the preset)")
+    p.add_argument("--max-depth", type=_positive, help="longest light path (overrides the preset)")
+    p.add_argument("--no-ground-truth", dest="ground_truth", action="store_const", const=False, default=None,
+                   help="beauty only: no ground-truth passes or annotations")
+    p.add_argument("--exposure", type=float, help="display exposure in stops (PNG, sheet, MP4)")
+    p.add_argument("--working-space", choices=("sRGB", "ACEScg"), help="linear RGB space of the EXR beauty")
+    p.add_argument("--variant", default="auto", help="Mitsuba variant (default: auto: cuda_ad_rgb, llvm_ad_rgb, "
+                                                     "scalar_rgb, the first that works)")
+    p.add_argument("--executor", choices=("local", "inline", "ray"), default="local",
+                   help="local worker processes (default), inline (this process) or a Ray cluster")
+    p.add_argument("--workers", type=int, default=1, help="worker processes or Ray actors (default 1: Mitsuba "
+                                                          "already uses every core)")
+    p.add_argument("--address", help="Ray cluster address (default: start a local Ray instance)")
+    p.add_argument("--mp4", action="store_true", help="also write render.mp4 (needs imageio-ffmpeg)")
+    p.add_argument("--seed", type=int, default=0, help="sampler seed of the beauty pass")
+    add_progress(p)
+    p.set_defaults(run=run)
+
+
+def _positive(text: str) -> int:
+    import argparse
+
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return value
+
+
+def run(args) -> int:
+    from ..render.final.variant import choose_variant, describe
+    from ..render.sequence import render_sequence, settings_from_preset
+
+    settings = settings_from_preset(args.preset, resolution=args.resolution, spp=args.spp,
+                                    max_depth=args.max_depth, ground_truth=args.ground_truth,
+                                    exposure=args.exposure, working_space=args.working_space, seed=args.seed)
+    settings.variant = choose_variant(args.variant)
+    print(describe(settings.variant))
+    r = render_sequence(args.shot, args.output, camera=args.camera, frames=args.frames, settings=settings,
+                        executor=args.executor, workers=args.workers, address=args.address,
+                        progress=args.progress, mp4=args.mp4)
+    rate = f", {r.seconds_per_frame:.2f} s/frame" if r.seconds_per_frame else ""
+    print(f"rendered {len(r.rendered)} frame(s), {len(r.skipped)} already done{rate} "
+          f"({settings.resolution[0]}x{settings.resolution[1]}, {settings.spp} spp, camera {r.camera})")
+    for kind, path in r.outputs.items():
+        print(f"  {kind:<14}{path}")
+    return 0

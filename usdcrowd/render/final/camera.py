@@ -1,0 +1,113 @@
+"""UsdGeom.Camera as a Mitsuba sensor, and the exact per-pixel rays of the ground-truth passes.
+
+Both follow :meth:`CameraView.intrinsics`: the horizontal aperture fills the
+image width, pixels are square, the principal point is the image centre and
+pixel centres sit at +0.5. A point that ``CameraView.project`` puts at pixel
+(u, v) is where the beauty image shows it, and where the ground-truth ray of
+pixel (floor(u), floor(v)) looks when u, v are pixel centres.
+
+Axes: USD cameras look down local -Z with +Y up and +X right; Mitsuba's
+perspective sensor looks down local +Z with +Y up, so its +X points left.
+The two frames differ by a half turn about Y: ``diag(-1, 1, -1)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..scene import CameraView
+
+# Mitsuba camera space -> USD camera space (row vectors): x and z flip.
+_MITSUBA_TO_USD = np.diag([-1.0, 1.0, -1.0, 1.0])
+
+
+def sensor_to_world(cam: CameraView) -> np.ndarray:
+    """(4, 4) float64 Mitsuba sensor-to-world matrix, *column-vector* convention (``mi.Transform4f``)."""
+    return (_MITSUBA_TO_USD @ cam.cam_to_world).T
+
+
+def sensor_dict(cam: CameraView, width: int, height: int, spp: int, rfilter: str = "gaussian") -> dict:
+    """Mitsuba ``perspective`` sensor for ``cam`` on a ``width`` x ``height`` linear RGB film.
+
+    Parameters
+    ----------
+    cam : CameraView
+    width, height : int
+        Image size in pixels.
+    spp : int
+        Samples per pixel of the beauty pass.
+    rfilter : str
+        Reconstruction filter of the beauty film ("gaussian", "box", ...).
+    """
+    import mitsuba as mi
+
+    return {
+        "type": "perspective",
+        "fov": cam.fov_x(),
+        "fov_axis": "x",
+        "near_clip": max(cam.near, 1e-4),
+        "far_clip": cam.far,
+        "to_world": mi.ScalarTransform4f(sensor_to_world(cam).tolist()),
+        "sampler": {"type": "independent", "sample_count": int(spp)},
+        "film": {"type": "hdrfilm", "width": int(width), "height": int(height), "pixel_format": "rgb",
+                 "rfilter": {"type": rfilter}},
+    }
+
+
+def pixel_rays(cam: CameraView, width: int, height: int):
+    """One ray per pixel centre, clipped like the sensor (near/far are planes, not spheres).
+
+    Returns
+    -------
+    origin : (h*w, 3) float64
+        Where each ray crosses the near plane, world metres.
+    direction : (h*w, 3) float64
+        Unit directions, row-major pixel order (row 0 at the top).
+    length : (h*w,) float64
+        Distance from the near plane to the far plane along each ray.
+    start : (h*w,) float64
+        Distance from the camera centre to ``origin``.
+    cos_axis : (h*w,) float64
+        Cosine between each ray and the view axis: ``z = distance * cos_axis``.
+    """
+    k = cam.intrinsics(width, height)
+    u = np.arange(width, dtype=np.float64) + 0.5
+    v = np.arange(height, dtype=np.float64) + 0.5
+    uu, vv = np.meshgrid(u, v)
+    # USD camera space: x right, y up, looking down -z (z = -1 on the unit plane).
+    d_cam = np.stack([(uu - k[0, 2]) / k[0, 0], -(vv - k[1, 2]) / k[1, 1], -np.ones_like(uu)], -1).reshape(-1, 3)
+    scale = np.linalg.norm(d_cam, axis=1)
+    d_world = d_cam @ cam.cam_to_world[:3, :3]
+    direction = d_world / np.linalg.norm(d_world, axis=1, keepdims=True)
+    near = max(cam.near, 1e-4)
+    origin = cam.position + direction * (near * scale)[:, None]
+    return origin, direction, (cam.far - near) * scale, near * scale, 1.0 / scale
+
+
+def camera_record(cam: CameraView, width: int, height: int) -> dict:
+    """Intrinsics and extrinsics of one frame, for annotation files.
+
+    Returns
+    -------
+    dict
+        ``K`` (3x3, pixels, centres at +0.5), ``world_to_camera_opencv``
+        (4x4 column-vector matrix to OpenCV camera axes: x right, y down,
+        z forward), ``camera_to_world_usd`` (4x4 row-vector, USD axes),
+        position, lens values and clipping range.
+    """
+    flip = np.diag([1.0, -1.0, -1.0])                    # USD camera axes -> OpenCV axes
+    w2c = cam.world_to_cam                               # row vectors: p_cam = p @ R + t
+    r = (w2c[:3, :3] @ flip).T
+    t = w2c[3, :3] @ flip
+    ext = np.eye(4)
+    ext[:3, :3], ext[:3, 3] = r, t
+    return {
+        "camera": cam.path, "time": cam.time, "width": int(width), "height": int(height),
+        "K": cam.intrinsics(width, height).tolist(),
+        "world_to_camera_opencv": ext.tolist(),
+        "camera_to_world_usd": cam.cam_to_world.tolist(),
+        "position": cam.position.tolist(),
+        "focal_length": cam.focal_length, "horizontal_aperture": cam.horizontal_aperture,
+        "vertical_aperture": cam.vertical_aperture, "fov_x_deg": cam.fov_x(),
+        "clipping_range": [cam.near, cam.far],
+    }

@@ -1,0 +1,315 @@
+"""One frame: update what moved, render the beauty, cast the ground-truth rays.
+
+Beauty is Mitsuba's path tracer through the sensor (random sub-pixel
+positions, Gaussian reconstruction filter, ``spp`` samples).
+
+Ground truth is *not* filtered: one ray per pixel, through the pixel centre
+(a 1-sample box-filtered pass), cast with ``scene.ray_intersect``. At the
+first hit we read the distance, position, shading normal, diffuse albedo
+and the ``face_gtid`` attribute (:mod:`.meshes`), so every channel of a
+pixel describes the same surface point and ids are exact integers that do
+not depend on the order of ``scene.shapes()``.
+
+The "alone" coverage of each agent (the pixels it would cover if nothing
+hid it, used for the visibility fraction) comes from peeling: the rays of
+pixels inside any agent's projected box are continued through every surface
+until they leave the scene, and each agent hit on the way is counted.
+Same rays, same pixel centres, so visible pixels are a subset of alone
+pixels exactly.
+"""
+
+from __future__ import annotations
+
+import os
+import time as _time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..scene import SCENERY_ID_BASE, AgentPoses, CameraView, ShotScene
+from . import variant as _variant
+from .build import AGENTS_KEY, SENSOR_KEY, BuiltScene, agent_vertices, build_scene, posed_scenery
+from .camera import pixel_rays, sensor_to_world
+from .meshes import GTID_ATTRIBUTE, decode_ids, float_buffer
+
+# Peeling stops after this many surfaces along a ray (a body is two).
+MAX_PEEL_LAYERS = 64
+
+
+@dataclass
+class GroundTruth:
+    """Per-pixel ground truth of one frame, sampled at pixel centres.
+
+    Attributes
+    ----------
+    ids : (h, w) uint32
+        Agent track id, scenery id (>= SCENERY_ID_BASE) or 0 (background, lights).
+    depth_z : (h, w) float32
+        Distance along the camera's view axis, metres; +inf where nothing is hit.
+    depth_distance : (h, w) float32
+        Euclidean distance to the camera centre, metres; +inf where nothing is hit.
+    position : (h, w, 3) float32
+        World position (canonical Z-up metres); 0 where nothing is hit.
+    normal : (h, w, 3) float32
+        World shading normal turned toward the camera; 0 where nothing is hit.
+    albedo : (h, w, 3) float32
+        Diffuse reflectance, linear RGB; 0 where nothing is hit.
+    alone_pixels : dict[int, int]
+        Agent track id -> pixels it covers with every other surface removed.
+    """
+
+    ids: np.ndarray
+    depth_z: np.ndarray
+    depth_distance: np.ndarray
+    position: np.ndarray
+    normal: np.ndarray
+    albedo: np.ndarray
+    alone_pixels: dict[int, int] = field(default_factory=dict)
+
+
+@dataclass
+class FrameResult:
+    """Everything rendered for one time code.
+
+    Attributes
+    ----------
+    time : float
+    beauty : (h, w, 3) float32
+        Linear RGB (Rec.709 primaries), scene-referred.
+    gt : GroundTruth or None
+    camera : CameraView
+    poses : AgentPoses
+    vertices : (n, v, 3) float32
+        Skinned body vertices of every agent (hidden ones included).
+    id_paths : dict[int, str]
+        Ground-truth id -> prim path.
+    seconds : dict[str, float]
+        Wall time of "update", "beauty" and "ground_truth".
+    """
+
+    time: float
+    beauty: np.ndarray
+    gt: GroundTruth | None
+    camera: CameraView
+    poses: AgentPoses
+    vertices: np.ndarray
+    id_paths: dict[int, str]
+    seconds: dict[str, float]
+
+
+class FrameRenderer:
+    """Renders frames of one shot through one camera; the Mitsuba scene is built once.
+
+    Parameters
+    ----------
+    shot : ShotScene or path-like
+    camera : str, optional
+        Camera prim path (default: the first camera).
+    resolution : (int, int)
+        Width, height in pixels.
+    spp : int
+        Beauty samples per pixel.
+    max_depth : int
+        Longest light path.
+    variant : str, optional
+        Mitsuba variant, or None/"auto" for :func:`variant.choose_variant`.
+    ground_truth : bool
+        Also compute the per-pixel ground truth.
+    seed : int
+        Base seed of the beauty sampler; frame ``t`` uses ``seed + round(t * 1000)``.
+    threads : int, optional
+        Dr.Jit worker threads (LLVM), e.g. cores / workers.
+    """
+
+    def __init__(self, shot, camera: str | None = None, resolution=(640, 360), spp: int = 64,
+                 max_depth: int = 6, variant: str | None = None, ground_truth: bool = True, seed: int = 0,
+                 threads: int | None = None):
+        self.shot = shot if isinstance(shot, ShotScene) else ShotScene(os.fspath(shot))
+        self.variant = _variant.choose_variant(variant)
+        mi = _variant.activate(self.variant)
+        if threads and self.variant.startswith("llvm"):
+            import drjit as dr
+
+            dr.set_thread_count(int(threads))
+        self.camera_path = camera
+        self.width, self.height = int(resolution[0]), int(resolution[1])
+        self.spp, self.max_depth, self.ground_truth, self.seed = int(spp), int(max_depth), ground_truth, int(seed)
+        t0 = float(self.shot.time_codes[0]) if len(self.shot.time_codes) else 0.0
+        cam = self.shot.camera(camera, t0)
+        self.camera_path = cam.path
+        start = _time.perf_counter()
+        self.built: BuiltScene = build_scene(self.shot, cam, self.width, self.height, self.spp, self.max_depth, t0)
+        self.build_seconds = _time.perf_counter() - start
+        self._mi = mi
+
+    # ----------------------------------------------------------------- update
+    def _update(self, t: float) -> tuple[CameraView, AgentPoses, np.ndarray]:
+        mi = self._mi
+        params = self.built.params
+        cam = self.shot.camera(self.camera_path, t)
+        poses = self.shot.agents(t)
+        vertices = self.shot.skinned_vertices(poses) if len(poses) else np.zeros((0, 0, 3), np.float32)
+        if len(poses):
+            params[f"{AGENTS_KEY}.vertex_positions"] = float_buffer(agent_vertices(self.shot, poses))
+        for a in self.built.animated:
+            verts, _ = posed_scenery(a.item, t)
+            params[f"{a.key}.vertex_positions"] = float_buffer(verts)
+        params[f"{SENSOR_KEY}.to_world"] = mi.ScalarTransform4f(sensor_to_world(cam).tolist())
+        params[f"{SENSOR_KEY}.x_fov"] = cam.fov_x()
+        params.update()
+        return cam, poses, vertices
+
+    # ----------------------------------------------------------------- render
+    def render(self, t: float) -> FrameResult:
+        """Render time code ``t``: beauty, and ground truth if enabled."""
+        mi = _variant.activate(self.variant)        # another renderer in this process may have switched it
+        s0 = _time.perf_counter()
+        cam, poses, vertices = self._update(float(t))
+        s1 = _time.perf_counter()
+        img = mi.render(self.built.scene, spp=self.spp, seed=self.seed + int(round(float(t) * 1000)))
+        beauty = np.array(img, dtype=np.float32)[..., :3]
+        s2 = _time.perf_counter()
+        gt = self.cast_ground_truth(cam, vertices, poses) if self.ground_truth else None
+        s3 = _time.perf_counter()
+        return FrameResult(float(t), beauty, gt, cam, poses, vertices, dict(self.built.id_paths),
+                           {"update": s1 - s0, "beauty": s2 - s1, "ground_truth": s3 - s2})
+
+    # ----------------------------------------------------------- ground truth
+    def cast_ground_truth(self, cam: CameraView, vertices: np.ndarray, poses: AgentPoses) -> GroundTruth:
+        """Per-pixel ground truth at pixel centres (see the module's notes)."""
+        w, h = self.width, self.height
+        origin, direction, length, start, cos_axis = pixel_rays(cam, w, h)
+        hit = self._cast(origin, direction, length, full=True)
+        valid = hit["valid"]
+        distance = np.where(valid, start + hit["t"], np.inf)
+        normal = hit["normal"]
+        facing = np.einsum("ij,ij->i", normal, direction) > 0
+        normal[facing] *= -1.0
+        zero3 = ~valid[:, None]
+        gt = GroundTruth(
+            ids=np.where(valid, hit["ids"], 0).astype(np.uint32).reshape(h, w),
+            depth_z=(distance * cos_axis).astype(np.float32).reshape(h, w),
+            depth_distance=distance.astype(np.float32).reshape(h, w),
+            position=np.where(zero3, 0.0, hit["position"]).astype(np.float32).reshape(h, w, 3),
+            normal=np.where(zero3, 0.0, normal).astype(np.float32).reshape(h, w, 3),
+            albedo=np.where(zero3, 0.0, hit["albedo"]).astype(np.float32).reshape(h, w, 3))
+        gt.alone_pixels = self._alone_pixels(cam, vertices, poses, origin, direction, length, hit)
+        return gt
+
+    def _alone_pixels(self, cam, vertices, poses, origin, direction, length, first_hit=None) -> dict[int, int]:
+        """Agent id -> pixel centres its body covers, found by peeling through every surface.
+
+        ``first_hit`` (the full-image cast of these rays, if already made)
+        stands in for the first layer.
+        """
+        w, h = self.width, self.height
+        if len(poses) == 0:
+            return {}
+        region = np.zeros((h, w), dtype=bool)
+        for i in np.flatnonzero(poses.visible):
+            uv, z = cam.project(vertices[i], w, h)
+            front = z > cam.near
+            if not front.any():
+                continue
+            if not front.all():
+                # Part of the body is behind the camera: its projection is unbounded.
+                region[:] = True
+                break
+            x0, y0 = np.floor(uv.min(0) - 0.5).astype(int)
+            x1, y1 = np.ceil(uv.max(0) + 0.5).astype(int)
+            region[max(y0, 0):min(y1, h), max(x0, 0):min(x1, w)] = True
+        pixels = np.flatnonzero(region.ravel())
+        o, d, remaining = origin[pixels], direction[pixels], length[pixels].copy()
+        found_pixels, found_ids = [], []
+        for layer in range(MAX_PEEL_LAYERS):
+            if len(pixels) == 0:
+                break
+            if layer == 0 and first_hit is not None:
+                hit = {k: first_hit[k][pixels] for k in ("valid", "t", "ids")}
+            else:
+                hit = self._cast(o, d, remaining, full=False)
+            keep = hit["valid"]
+            ids = hit["ids"]
+            agent = keep & (ids > 0) & (ids < SCENERY_ID_BASE)
+            found_pixels.append(pixels[agent])
+            found_ids.append(ids[agent])
+            t = hit["t"][keep]
+            p = o[keep] + d[keep] * t[:, None]
+            eps = 1e-4 * np.maximum(1.0, np.abs(p).max(1))                  # step past the surface just hit
+            pixels, d = pixels[keep], d[keep]
+            o = p + d * eps[:, None]
+            remaining = remaining[keep] - t - eps
+            ok = remaining > 0
+            pixels, o, d, remaining = pixels[ok], o[ok], d[ok], remaining[ok]
+        if not found_ids:
+            return {}
+        key = np.unique(np.concatenate(found_pixels).astype(np.int64) * SCENERY_ID_BASE
+                        + np.concatenate(found_ids).astype(np.int64))
+        ids, counts = np.unique(key % SCENERY_ID_BASE, return_counts=True)
+        return {int(i): int(c) for i, c in zip(ids, counts)}
+
+    def _cast(self, origin: np.ndarray, direction: np.ndarray, maxt: np.ndarray, full: bool) -> dict:
+        """Intersect rays with the scene.
+
+        Parameters
+        ----------
+        origin, direction : (r, 3) float
+        maxt : (r,) float
+        full : bool
+            Also read position, normal and albedo (else only t, valid, ids).
+
+        Returns
+        -------
+        dict of numpy arrays
+            ``valid`` (r,) bool, ``t`` (r,), ``ids`` (r,) uint32 and, if
+            ``full``, ``position``, ``normal``, ``albedo`` (r, 3).
+        """
+        if not _variant.is_jit(self.variant):
+            return self._cast_scalar(origin, direction, maxt, full)
+        mi = self._mi
+        import drjit as dr
+
+        if len(origin) == 0:
+            z = np.zeros((0, 3))
+            return {"valid": np.zeros(0, bool), "t": np.zeros(0), "ids": np.zeros(0, np.uint32),
+                    "position": z, "normal": z, "albedo": z}
+        o = origin.astype(np.float32).T
+        d = direction.astype(np.float32).T
+        ray = mi.Ray3f(mi.Point3f(*[mi.Float(c) for c in o]), mi.Vector3f(*[mi.Float(c) for c in d]))
+        ray.maxt = mi.Float(maxt.astype(np.float32))
+        si = self.built.scene.ray_intersect(ray)
+        valid = si.is_valid()
+        halves = si.shape.eval_attribute_3(GTID_ATTRIBUTE, si, valid)
+        out = {"valid": si.is_valid(), "t": si.t, "halves": halves}
+        if full:
+            out.update(position=si.p, normal=si.sh_frame.n,
+                       albedo=si.bsdf().eval_diffuse_reflectance(si, valid))
+        dr.eval(*out.values())
+        res = {"valid": np.array(out["valid"], dtype=bool), "t": np.array(out["t"], dtype=np.float64)}
+        res["ids"] = np.where(res["valid"], decode_ids(np.array(out["halves"]).reshape(3, -1).T), 0).astype(np.uint32)
+        if full:
+            for k in ("position", "normal", "albedo"):
+                res[k] = np.array(out[k], dtype=np.float64).reshape(3, -1).T
+        return res
+
+    def _cast_scalar(self, origin, direction, maxt, full) -> dict:
+        """The same as :meth:`_cast`, one ray at a time (scalar_rgb fallback; slow but exact)."""
+        mi = self._mi
+        r = len(origin)
+        res = {"valid": np.zeros(r, bool), "t": np.full(r, np.inf), "ids": np.zeros(r, np.uint32),
+               "position": np.zeros((r, 3)), "normal": np.zeros((r, 3)), "albedo": np.zeros((r, 3))}
+        scene = self.built.scene
+        for k in range(r):
+            ray = mi.Ray3f(mi.Point3f(*origin[k]), mi.Vector3f(*direction[k]))
+            ray.maxt = float(maxt[k])
+            si = scene.ray_intersect(ray)
+            if not si.is_valid():
+                continue
+            res["valid"][k] = True
+            res["t"][k] = si.t
+            res["ids"][k] = decode_ids(np.array(si.shape.eval_attribute_3(GTID_ATTRIBUTE, si)))
+            if full:
+                res["position"][k] = np.array(si.p)
+                res["normal"][k] = np.array(si.sh_frame.n)
+                res["albedo"][k] = np.array(si.bsdf().eval_diffuse_reflectance(si))
+        return res

@@ -1,0 +1,114 @@
+"""UsdLux lights -> Mitsuba emitters, with one documented radiometric mapping.
+
+Mitsuba is unit-less; we read UsdLux values as radiometric quantities in the
+same arbitrary unit, the way Hydra's path tracers do. With
+``I = inputs:intensity * 2 ** inputs:exposure`` and ``c`` the linear colour
+times the colour-temperature tint (both from :class:`ShotScene.Light`):
+
+- SphereLight, RectLight, DiskLight, CylinderLight: emitted radiance
+  ``L = I * c`` on the light's surface (``area`` emitter on a mesh); with
+  ``inputs:normalize`` the radiance is divided by the surface area, so the
+  power no longer depends on the size (UsdLux's definition).
+- DistantLight: irradiance on a surface facing the light ``E = I * c``
+  (``directional`` emitter). Its angular size only softens shadows, which
+  Mitsuba's directional light does not model; E stays the same.
+- DomeLight: radiance ``L = I * c`` from every direction (``constant``), or
+  the latitude-longitude texture times ``I * c`` (``envmap``), its pole on
+  the stage's up axis (UsdLux ``poleAxis = "scene"``, the default). The
+  azimuth of the texture is Mitsuba's (not checked against other renderers).
+
+Light shapes are visible to the camera; in the id pass they are background (0).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..scene import Light
+from .meshes import make_mesh
+
+# Mitsuba's envmap has its pole on local +Y; a Z-up stage's dome has it on local +Z.
+_Y_UP_TO_Z_UP = np.array([[1, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]], dtype=np.float64)
+
+
+def _area(light: Light) -> float:
+    return {"sphere": 4 * np.pi * light.radius ** 2, "rect": light.width * light.height,
+            "disk": np.pi * light.radius ** 2, "cylinder": 2 * np.pi * light.radius * light.length}.get(light.kind, 1.0)
+
+
+def emitted(light: Light) -> np.ndarray:
+    """(3,) linear RGB radiance (area and dome lights) or irradiance (distant light)."""
+    value = np.asarray(light.rgb, dtype=np.float64) * light.intensity
+    if light.normalize and light.kind in ("sphere", "rect", "disk", "cylinder"):
+        value = value / max(_area(light), 1e-12)
+    return np.clip(value, 0.0, None)
+
+
+def _light_geometry(light: Light):
+    """(vertices (v, 3), faces (f, 3), normals (v, 3) or None) in the light's local space; emits toward -Z."""
+    import trimesh
+
+    if light.kind == "sphere":
+        t = trimesh.creation.icosphere(subdivisions=3, radius=max(light.radius, 1e-3))
+        return np.asarray(t.vertices), np.asarray(t.faces), np.asarray(t.vertex_normals)
+    if light.kind == "cylinder":
+        t = trimesh.creation.cylinder(radius=max(light.radius, 1e-3), height=max(light.length, 1e-3), sections=24)
+        t.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, (0, 1, 0)))   # UsdLux: along X
+        return np.asarray(t.vertices), np.asarray(t.faces), None
+    if light.kind == "rect":
+        w, h = light.width / 2, light.height / 2
+        v = np.array([[-w, -h, 0], [w, -h, 0], [w, h, 0], [-w, h, 0]], dtype=np.float64)
+        return v, np.array([[0, 2, 1], [0, 3, 2]]), None              # wound to face -Z
+    if light.kind == "disk":
+        a = np.linspace(0, 2 * np.pi, 33)[:-1]
+        v = np.vstack([[0, 0, 0], np.stack([np.cos(a), np.sin(a), np.zeros_like(a)], -1) * light.radius])
+        k = np.arange(1, 33)
+        return v, np.stack([np.zeros_like(k), np.roll(k, -1), k], -1), None           # faces -Z
+    raise ValueError(light.kind)
+
+
+def emitters(lights: list[Light], up_axis: str = "Z") -> dict:
+    """Scene-dict entries (name -> Mitsuba dict or object) for every light.
+
+    Parameters
+    ----------
+    lights : list of Light
+    up_axis : str
+        The stage's up axis ("Y" or "Z"): a dome's pole in its local space.
+
+    Returns
+    -------
+    dict
+        Emitters for distant and dome lights; meshes with ``area`` emitters
+        for the others. Keys are ``light_<k>``.
+    """
+    import mitsuba as mi
+
+    out = {}
+    for k, light in enumerate(lights):
+        value = emitted(light).tolist()
+        key = f"light_{k}"
+        if light.kind == "distant":
+            direction = -light.to_world[2, :3]          # lights shine along their local -Z
+            out[key] = {"type": "directional", "direction": direction.tolist(),
+                        "irradiance": {"type": "rgb", "value": value}}
+        elif light.kind == "dome":
+            if light.texture:
+                bmp = np.array(mi.Bitmap(light.texture).convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.Float32,
+                                                                srgb_gamma=False))
+                local = _Y_UP_TO_Z_UP if up_axis == "Z" else np.eye(4)
+                m = (local @ light.to_world).T
+                out[key] = {"type": "envmap", "bitmap": mi.Bitmap((bmp * np.asarray(value, np.float32))
+                                                                  .astype(np.float32)),
+                            "to_world": mi.ScalarTransform4f(m.tolist())}
+            else:
+                out[key] = {"type": "constant", "radiance": {"type": "rgb", "value": value}}
+        else:
+            v, f, n = _light_geometry(light)
+            world = v @ light.to_world[:3, :3] + light.to_world[3, :3]
+            if n is not None:
+                n = n @ light.to_world[:3, :3]
+            emitter = mi.load_dict({"type": "area", "radiance": {"type": "rgb", "value": value}})
+            black = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.0, 0.0, 0.0]}})
+            out[key] = make_mesh(key, world, f, 0, normals=n, bsdf=black, emitter=emitter)
+    return out

@@ -1,0 +1,455 @@
+"""Render a shot's frames to disk, resumable, locally or on a Ray cluster.
+
+Layout of an output folder (one camera)::
+
+    exr/frame.0001.exr     beauty + ground truth (see render.final.exr)
+    png/frame.0001.png     display frame (sRGB, colour-science)
+    json/frame.0001.json   annotations (groundtruth.annotate)
+    manifest.json          settings + per frame: files with size and sha256
+    mot/                   MOTChallenge: gt/gt.txt, seqinfo.ini, frames.csv, img1/
+    coco.json              COCO instances + keypoints
+    contact_sheet.png      frames with boxes and ids
+    render.mp4             with --mp4 (needs imageio-ffmpeg)
+
+Every file is written under a temporary name and renamed. A frame counts as
+done when its files exist and match the manifest (size and sha256), or,
+when the manifest missed it (killed between rename and manifest update),
+when its EXR opens with the expected channels and its JSON parses. A re-run
+renders only the frames that are not done, then rebuilds the sequence
+files from every frame's JSON. Changing settings that alter pixels
+(resolution, spp, camera...) invalidates every frame.
+
+Executors: ``inline`` (this process), ``local`` (``workers`` processes,
+spawn context; each builds the Mitsuba scene once and renders the frames
+it is handed) and ``ray`` (one actor per worker on a Ray cluster, output
+folder on a shared file system).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import time as _time
+import tomllib
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..atomic import atomic_path
+from ..errors import UsdcrowdError
+
+MANIFEST = "manifest.json"
+AOV_NAMES = ("depth", "normal", "position", "albedo", "id")
+
+
+# ------------------------------------------------------------------ settings
+@dataclass
+class RenderSettings:
+    """What a render does to every frame (a preset plus overrides)."""
+
+    resolution: tuple[int, int] = (640, 360)
+    spp: int = 64
+    max_depth: int = 6
+    ground_truth: bool = True
+    aovs: tuple[str, ...] = AOV_NAMES
+    working_space: str = "sRGB"
+    exposure: float = 0.0
+    seed: int = 0
+    variant: str | None = None
+
+    def fingerprint(self) -> dict:
+        """The settings that change output pixels (variant excluded: same picture, other noise)."""
+        d = asdict(self)
+        d.pop("variant")
+        d["resolution"] = list(self.resolution)
+        d["aovs"] = list(self.aovs)
+        return d
+
+
+def load_presets() -> dict[str, dict]:
+    """The presets of ``render/presets.toml`` (name -> values)."""
+    from ..resources import data_dir
+
+    with open(data_dir("render") / "presets.toml", "rb") as f:
+        return tomllib.load(f)
+
+
+def settings_from_preset(name: str = "groundtruth", **overrides) -> RenderSettings:
+    """A preset with ``overrides`` (None values are ignored).
+
+    Raises
+    ------
+    UsdcrowdError
+        On an unknown preset, AOV or working space.
+    """
+    presets = load_presets()
+    if name not in presets:
+        raise UsdcrowdError(f"unknown render preset {name!r} (presets: {', '.join(presets)})")
+    values = dict(presets[name])
+    values.update({k: v for k, v in overrides.items() if v is not None})
+    values["resolution"] = tuple(int(v) for v in values["resolution"])
+    values["aovs"] = tuple(values.get("aovs", ()))
+    bad = set(values["aovs"]) - set(AOV_NAMES)
+    if bad:
+        raise UsdcrowdError(f"unknown AOV(s) {sorted(bad)} in preset {name!r} (known: {', '.join(AOV_NAMES)})")
+    from .colour import WORKING_SPACES
+
+    if values.get("working_space", "sRGB") not in WORKING_SPACES:
+        raise UsdcrowdError(f"working space must be one of {', '.join(WORKING_SPACES)}")
+    known = set(RenderSettings.__dataclass_fields__)
+    return RenderSettings(**{k: v for k, v in values.items() if k in known})
+
+
+# --------------------------------------------------------------- frame files
+def frame_tag(t: float) -> str:
+    """File tag of a time code: ``0001`` for whole frames, ``0001.500`` for sub-frames."""
+    t = float(t)
+    return f"{int(round(t)):04d}" if abs(t - round(t)) < 1e-6 else f"{t:08.3f}"
+
+
+def frame_files(t: float, ground_truth: bool) -> dict[str, str]:
+    """Kind -> path relative to the output folder of one frame's files."""
+    tag = frame_tag(t)
+    files = {"exr": f"exr/frame.{tag}.exr", "png": f"png/frame.{tag}.png"}
+    if ground_truth:
+        files["json"] = f"json/frame.{tag}.json"
+    return files
+
+
+def _digest(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _file_record(out: Path, rel: str) -> dict:
+    p = out / rel
+    return {"size": p.stat().st_size, "sha256": _digest(p)}
+
+
+def expected_channels(settings: RenderSettings) -> list[str]:
+    from .final.exr import BEAUTY, GROUND_TRUTH
+
+    names = list(BEAUTY)
+    if settings.ground_truth:
+        names += [c for c in GROUND_TRUTH if c.split(".")[0] in settings.aovs]
+    return names
+
+
+def render_frame_to_disk(renderer, metadata, t: float, out_dir, settings: RenderSettings) -> dict:
+    """Render one frame and write its files (each atomically).
+
+    Returns
+    -------
+    dict
+        Manifest entry: time, files (relative path -> size, sha256), seconds.
+    """
+    from ..groundtruth import frame_json
+    from ..groundtruth.annotate import annotate_frame
+    from .colour import convert, write_png
+    from .final.exr import channels_of, write_frame_exr
+
+    out = Path(out_dir)
+    files = frame_files(t, settings.ground_truth)
+    result = renderer.render(t)
+    w0 = _time.perf_counter()
+    beauty = convert(result.beauty, "sRGB", settings.working_space)
+    channels = channels_of(beauty, result.gt)
+    keep = set(expected_channels(settings))
+    channels = {k: v for k, v in channels.items() if k in keep}
+    write_frame_exr(out / files["exr"], channels, result.id_paths,
+                    {"usdcrowd:camera": result.camera.path, "usdcrowd:time": result.time,
+                     "usdcrowd:workingSpace": settings.working_space,
+                     "usdcrowd:depthConvention": "depth.z: along the view axis; depth.distance: to the camera "
+                                                 "centre; metres; +inf where no surface"})
+    write_png(beauty, out / files["png"], settings.working_space, settings.exposure)
+    if settings.ground_truth:
+        record = annotate_frame(result, metadata)
+        record["files"] = {k: v for k, v in files.items() if k != "json"}
+        frame_json.write(record, out / files["json"])
+    seconds = dict(result.seconds, write=_time.perf_counter() - w0)
+    return {"time": float(t), "files": {rel: _file_record(out, rel) for rel in files.values()}, "seconds": seconds}
+
+
+# ------------------------------------------------------------------ manifest
+class Manifest:
+    """``manifest.json``: the settings and every finished frame's files, rewritten atomically."""
+
+    def __init__(self, out_dir, header: dict):
+        self.path = Path(out_dir) / MANIFEST
+        self.header = header
+        self.frames: dict[str, dict] = {}
+        if self.path.exists():
+            try:
+                old = json.loads(self.path.read_text())
+            except (OSError, ValueError):
+                old = {}
+            if old.get("header") == header:
+                self.frames = old.get("frames", {})
+
+    def save(self) -> None:
+        with atomic_path(self.path) as tmp:
+            tmp.write_text(json.dumps({"header": self.header, "frames": self.frames}, indent=1, sort_keys=True))
+
+    def add(self, entry: dict) -> None:
+        self.frames[frame_tag(entry["time"])] = entry
+        self.save()
+
+
+def verify_frame(out_dir, t: float, manifest: Manifest, settings: RenderSettings) -> bool:
+    """True if frame ``t``'s outputs exist and are whole (see the module's notes)."""
+    from ..groundtruth import frame_json
+    from .final.exr import channel_names, read_frame_exr
+
+    out = Path(out_dir)
+    files = frame_files(t, settings.ground_truth)
+    if not all((out / rel).is_file() for rel in files.values()):
+        return False
+    entry = manifest.frames.get(frame_tag(t))
+    if entry is not None:
+        recorded = entry.get("files", {})
+        return set(recorded) == set(files.values()) and all(
+            (out / rel).stat().st_size == rec["size"] and _digest(out / rel) == rec["sha256"]
+            for rel, rec in recorded.items())
+    # Written but not recorded (killed before the manifest was saved): adopt it if it reads back.
+    try:
+        header, _ = read_frame_exr(out / files["exr"], header_only=True)
+        if set(channel_names(header)) != set(expected_channels(settings)):
+            return False
+        if settings.ground_truth:
+            frame_json.read(out / files["json"])
+        from PIL import Image
+
+        with Image.open(out / files["png"]) as im:
+            im.verify()
+    except Exception:
+        return False
+    manifest.add({"time": float(t), "files": {rel: _file_record(out, rel) for rel in files.values()},
+                  "seconds": None, "adopted": True})
+    return True
+
+
+# ----------------------------------------------------------------- executors
+_WORKER: dict = {}
+
+
+def _worker_init(shot_path, camera, settings_dict, threads):
+    """Runs once in each worker process: build the Mitsuba scene."""
+    import usdcrowd  # noqa: F401  (registers the schemas)
+
+    from ..groundtruth.annotate import AgentMetadata
+    from .final.frame import FrameRenderer
+    from .scene import ShotScene
+
+    settings = RenderSettings(**settings_dict)
+    shot = ShotScene(shot_path)
+    _WORKER["renderer"] = FrameRenderer(shot, camera, settings.resolution, settings.spp, settings.max_depth,
+                                        settings.variant, settings.ground_truth, settings.seed, threads)
+    _WORKER["metadata"] = AgentMetadata.from_shot(shot) if settings.ground_truth else None
+    _WORKER["settings"] = settings
+
+
+def _worker_render(t, out_dir):
+    return render_frame_to_disk(_WORKER["renderer"], _WORKER["metadata"], t, out_dir, _WORKER["settings"])
+
+
+def _run_inline(shot_path, camera, settings, todo, out_dir, on_done):
+    _worker_init(shot_path, camera, asdict(settings), None)
+    for t in todo:
+        on_done(_worker_render(t, out_dir))
+
+
+def _run_local(shot_path, camera, settings, todo, out_dir, on_done, workers):
+    import multiprocessing
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+    threads = max(1, (os.cpu_count() or 1) // workers)
+    ctx = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(workers, mp_context=ctx, initializer=_worker_init,
+                             initargs=(shot_path, camera, asdict(settings), threads)) as pool:
+        pending = {pool.submit(_worker_render, float(t), os.fspath(out_dir)) for t in todo}
+        while pending:
+            done, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in done:
+                on_done(fut.result())
+
+
+def _run_ray(shot_path, camera, settings, todo, out_dir, on_done, workers, address):
+    try:
+        import ray
+    except ImportError:
+        raise UsdcrowdError("--executor ray needs Ray: pip install 'usdcrowd[distributed]'") from None
+    started = False
+    if not ray.is_initialized():
+        if address:
+            ray.init(address=address, log_to_driver=False)
+        else:
+            ray.init(num_cpus=max(workers, 1), log_to_driver=False, include_dashboard=False)
+        started = True
+    try:
+        actor_cls = ray.remote(num_cpus=1)(_RayRenderer)
+        threads = max(1, (os.cpu_count() or 1) // workers) if not address else None
+        actors = [actor_cls.remote(shot_path, camera, asdict(settings), threads) for _ in range(workers)]
+        queue = [float(t) for t in todo]
+        in_flight = {}
+        for a in actors:
+            if queue:
+                in_flight[a.render.remote(queue.pop(0), os.fspath(out_dir))] = a
+        while in_flight:
+            (ref,), _ = ray.wait(list(in_flight), num_returns=1)
+            actor = in_flight.pop(ref)
+            on_done(ray.get(ref))
+            if queue:
+                in_flight[actor.render.remote(queue.pop(0), os.fspath(out_dir))] = actor
+    finally:
+        if started:
+            ray.shutdown()
+
+
+class _RayRenderer:
+    """A Ray actor holding one FrameRenderer (the scene is built once per actor)."""
+
+    def __init__(self, shot_path, camera, settings_dict, threads):
+        _worker_init(shot_path, camera, settings_dict, threads)
+
+    def render(self, t, out_dir):
+        return _worker_render(t, out_dir)
+
+
+# ------------------------------------------------------------------ sequence
+@dataclass
+class SequenceResult:
+    """What :func:`render_sequence` did and where everything is."""
+
+    out_dir: str
+    camera: str
+    variant: str
+    times: list[float]
+    rendered: list[float]
+    skipped: list[float]
+    seconds_per_frame: float | None
+    outputs: dict[str, str] = field(default_factory=dict)
+
+
+def render_sequence(shot_path, out_dir, camera: str | None = None, frames=None,
+                    settings: RenderSettings | None = None, executor: str = "local", workers: int = 1,
+                    address: str | None = None, progress: bool = True, mp4: bool = False,
+                    sequence_files: bool = True) -> SequenceResult:
+    """Render ``frames`` of a shot through ``camera`` into ``out_dir``, resuming what is done.
+
+    Parameters
+    ----------
+    shot_path : path-like
+    out_dir : path-like
+    camera : str, optional
+        Camera prim path (default: the stage's first camera).
+    frames : (t,) float array, optional
+        Time codes (default: the stage's range).
+    settings : RenderSettings, optional
+        Default: the ``groundtruth`` preset.
+    executor : {"local", "inline", "ray"}
+    workers : int
+        Processes (local) or actors (ray).
+    address : str, optional
+        Ray cluster address (default: start a local instance).
+    progress : bool
+        Show a tqdm bar (frames done, rate).
+    mp4 : bool
+        Also encode the display frames as an MP4.
+    sequence_files : bool
+        Write MOT, COCO, the contact sheet (and MP4) after the frames.
+
+    Returns
+    -------
+    SequenceResult
+    """
+    from tqdm import tqdm
+
+    from .final import variant as _variant
+    from .scene import ShotScene
+
+    settings = settings or settings_from_preset("groundtruth")
+    out = Path(out_dir)
+    shot_path = os.fspath(Path(shot_path).resolve())
+    shot = ShotScene(shot_path)
+    times = np.asarray(frames if frames is not None else shot.time_codes, dtype=np.float64)
+    if times.size == 0:
+        raise UsdcrowdError("no frames to render")
+    cam_path = shot.camera(camera, float(times[0])).path            # raises StageError on a bad camera
+    if executor not in ("local", "inline", "ray"):
+        raise UsdcrowdError(f"unknown executor {executor!r} (local, inline, ray)")
+    settings.variant = _variant.choose_variant(settings.variant)
+    out.mkdir(parents=True, exist_ok=True)
+    header = {"shot": shot_path, "camera": cam_path, "settings": settings.fingerprint()}
+    manifest = Manifest(out, header)
+    done = [float(t) for t in times if verify_frame(out, t, manifest, settings)]
+    finished = set(done)
+    todo = [float(t) for t in times if float(t) not in finished]
+    workers = max(0, min(workers, len(todo)))
+    rendered: list[float] = []
+    spent: list[float] = []
+    bar = tqdm(total=len(times), initial=len(done), unit="frame", desc=f"render {Path(cam_path).name}",
+               disable=not progress, dynamic_ncols=True)
+    start = _time.perf_counter()
+
+    def on_done(entry):
+        manifest.add(entry)
+        rendered.append(entry["time"])
+        spent.append(sum(entry["seconds"].values()))
+        bar.update(1)
+
+    try:
+        if todo:
+            if executor == "inline" or (executor == "local" and workers <= 0):
+                _run_inline(shot_path, cam_path, settings, todo, out, on_done)
+            elif executor == "local":
+                _run_local(shot_path, cam_path, settings, todo, out, on_done, workers)
+            else:
+                _run_ray(shot_path, cam_path, settings, todo, out, on_done, max(workers, 1), address)
+    finally:
+        bar.close()
+    wall = _time.perf_counter() - start
+    result = SequenceResult(os.fspath(out), cam_path, settings.variant, [float(t) for t in times], sorted(rendered),
+                            done, wall / len(rendered) if rendered else None)
+    result.outputs["manifest"] = os.fspath(manifest.path)
+    if sequence_files:
+        result.outputs.update(write_sequence_files(out, times, settings, shot.fps, mp4=mp4))
+    return result
+
+
+def write_sequence_files(out_dir, times, settings: RenderSettings, fps: float = 24.0, mp4: bool = False) -> dict:
+    """MOT, COCO, contact sheet (and MP4) from the frames on disk; returns kind -> path."""
+    from ..groundtruth import frame_json
+    from ..groundtruth.contact_sheet import contact_sheet
+    from ..groundtruth.coco import write_coco
+    from ..groundtruth.mot import write_mot
+
+    out = Path(out_dir)
+    times = [float(t) for t in times]
+    pngs = [os.fspath(out / frame_files(t, False)["png"]) for t in times]
+    outputs = {}
+    if settings.ground_truth:
+        records = [frame_json.read(out / frame_files(t, True)["json"]) for t in times]
+    else:
+        records = [{"time": t, "agents": []} for t in times]
+    stride = float(np.median(np.diff(times))) if len(times) > 1 else 1.0
+    if settings.ground_truth:
+        outputs["mot"] = os.fspath(Path(write_mot(records, out / "mot", name=out.name or "usdcrowd",
+                                                  fps=fps / stride, images=pngs)).parent.parent)
+        outputs["coco"] = write_coco(records, out / "coco.json", [os.path.relpath(p, out) for p in pngs])
+    outputs["contact_sheet"] = contact_sheet(pngs, records, out / "contact_sheet.png")
+    if mp4:
+        from PIL import Image
+
+        from .colour import write_mp4
+
+        def rgb(path):
+            with Image.open(path) as im:
+                return np.asarray(im.convert("RGB"))
+
+        outputs["mp4"] = write_mp4([rgb(p) for p in pngs], out / "render.mp4", fps=fps / stride)
+    return outputs
