@@ -11,7 +11,8 @@ from .args import add_progress, add_seed
 def add_parser(sub):
     p = sub.add_parser("demo", help="run every part that exists on a small scene, end to end",
                        description="New scenario from the museum template, validate it, simulate it, "
-                                   "validate the shot, and print where everything is.")
+                                   "validate the shot, preview it with OpenGL, render frames with ground "
+                                   "truth with Mitsuba, and print where everything is.")
     p.add_argument("-o", "--output", default="out/demo", help="output folder (default: out/demo)")
     p.add_argument("--template", default="museum", help="example scene to use (default: museum)")
     p.add_argument("--agents", type=int, default=None, help="number of agents (default: the template's)")
@@ -45,6 +46,7 @@ def run(args) -> int:
         return 1
     print("[4] validate  shot: 0 errors")
     preview = _preview(r, out, args.progress)
+    final = _final(r, out)
     print()
     print(format_summary(summarize(r.shot)))
     print()
@@ -54,9 +56,28 @@ def run(args) -> int:
     print(f"  crowd     {r.crowd}")
     print(f"  cameras   {r.cameras}")
     print(f"  picture   {r.plot}   (every trajectory, seen from above)")
-    for name, path in preview.items():
+    for name, path in {**preview, **final}.items():
         print(f"  {name:<9} {path}")
     return 0
+
+
+def _final(r, out: Path) -> dict:
+    """Eight path-traced frames across the shot with their ground truth (EXR, MOT, COCO)."""
+    import numpy as np
+
+    from ..errors import UsdcrowdError
+
+    frames = np.unique(np.linspace(1, r.n_frames, 8).round())
+    try:
+        from ..render.final import demo_outputs
+
+        paths = demo_outputs(r.shot, out / "render", camera=r.camera, frames=frames, resolution=(480, 270), spp=32)
+    except UsdcrowdError as exc:          # no Mitsuba here: say so, the rest of the demo stands
+        print(f"[6] render    skipped: {exc}")
+        return {}
+    print(f"[6] render    {len(frames)} frames with ground truth, Mitsuba {paths['variant']}")
+    return {"frame": paths["frame_png"], "exr": paths["exr"], "render sheet": paths["contact_sheet"],
+            "mot": paths["mot"], "coco": paths["coco"]}
 
 
 def _preview(r, out: Path, progress: bool) -> dict:
