@@ -101,7 +101,7 @@ def _sample_poses():
 
 
 def test_skinning_matches_usdskel():
-    from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
+    from pxr import Gf, Usd, UsdGeom, UsdSkel, Vt
     body = build_body()
     rot, tr = _sample_poses()
     geom_bind = np.eye(4)

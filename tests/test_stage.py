@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel
+from pxr import Sdf, Usd, UsdGeom, UsdSkel
 
 from frames_factory import straight_walk
 from usdcrowd.character import animation, body, rig

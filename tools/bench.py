@@ -50,7 +50,6 @@ def author_once(agents: int, frames: int) -> dict:
         scenario = Path(tmp) / "scenario.usda"
         new_scenario("museum", scenario, agents=agents, seed=1)
         chunk = 50
-        timings = {"animate_s": 0.0}
 
         def source(sc: model.Scenario):
             whole = straight_walk(sc.agents, sc.time)

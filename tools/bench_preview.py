@@ -20,7 +20,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
 
 SIZE = (1280, 720)
 COUNTS = (1_000, 10_000)

@@ -17,7 +17,7 @@ from . import model, schema
 
 def summarize(path: str | os.PathLike, stage=None) -> dict:
     """Collect the summary of a stage as plain JSON-able data."""
-    from pxr import Usd, UsdGeom, UsdLux
+    from pxr import UsdGeom, UsdLux
 
     from .scenario import load_scenario, open_stage, stage_frame
     from .scenario.read import stored_seed

@@ -217,8 +217,6 @@ class ShotScene:
     """
 
     def __init__(self, path: str | os.PathLike, stage=None):
-        from pxr import UsdGeom
-
         from ..scenario import open_stage, stage_frame
 
         self.path = os.fspath(path)
@@ -228,7 +226,6 @@ class ShotScene:
         self._xf_caches: dict[float, object] = {}
         self.time_codes = np.arange(self.stage.GetStartTimeCode(), self.stage.GetEndTimeCode() + 0.5)
         self.fps = self.stage.GetTimeCodesPerSecond()
-        self._UsdGeom = UsdGeom
         self._scan()
 
     # ------------------------------------------------------------- traversal
@@ -309,12 +306,14 @@ class ShotScene:
     @cached_property
     def scenery(self) -> list[SceneryItem]:
         """Every gprim that is not part of an agent, with its material."""
+        from pxr import UsdGeom
+
         items = []
         for k, prim in enumerate(self._scenery_prims):
             mesh = mesh_of(prim)
             if mesh is None or len(mesh.faces) == 0:
                 continue
-            xf = self._UsdGeom.Xformable(prim)
+            xf = UsdGeom.Xformable(prim)
             animated = bool(xf.TransformMightBeTimeVarying()) or _ancestors_animated(prim)
             items.append(SceneryItem(str(prim.GetPath()), SCENERY_ID_BASE + k, mesh, _material_of(prim),
                                      animated, prim, self))

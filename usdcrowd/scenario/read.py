@@ -77,10 +77,8 @@ class _Reader:
             value = attr.Get()
             if hasattr(value, "__len__") and not isinstance(value, str):
                 value = tuple(float(v) for v in value)
-            elif isinstance(value, (int, float)) and not isinstance(value, bool):
-                value = float(value) if isinstance(value, float) else value
-            else:
-                value = str(value)
+            elif not isinstance(value, (int, float)) or isinstance(value, bool):
+                value = str(value)          # tokens
             if name in _POINTS:
                 value = tuple(self.frame.points_to_canonical(np.array(value)))
             elif name in _LENGTHS:

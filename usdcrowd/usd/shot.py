@@ -14,7 +14,6 @@ shot.usda or a stronger layer of its own.
 from __future__ import annotations
 
 import os
-from pathlib import Path
 
 import numpy as np
 
