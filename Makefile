@@ -3,7 +3,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.usdcrowd-installed
 
-.PHONY: setup demo test test-all bench schemas clean
+.PHONY: setup demo test test-fast bench schemas clean
 
 $(STAMP): pyproject.toml tools/setup.sh
 	bash tools/setup.sh
@@ -15,12 +15,14 @@ setup: $(STAMP)
 demo: $(STAMP)
 	$(VENV)/bin/usdcrowd demo -o out/demo
 
-## The tests (fast ones; `make test-all` adds the slow ones).
+## The tests, all of them: the slow ones read our MOT files with motmetrics
+## (in its own small venv, it needs numpy < 2) and start a local Ray cluster.
 test: $(STAMP)
-	$(PY) -m pytest -q -m "not slow"
-
-test-all: $(STAMP)
 	$(PY) -m pytest -q
+
+## The tests without the slow ones, while developing.
+test-fast: $(STAMP)
+	$(PY) -m pytest -q -m "not slow"
 
 bench: $(STAMP)
 	$(PY) tools/bench.py

@@ -9,7 +9,7 @@ cd "$(dirname "$0")/.."
 
 APT_PACKAGES="libllvm19 libegl1 libegl-mesa0 libgl1-mesa-dri libgles2 xvfb"
 PYTHON="${PYTHON:-python3}"
-EXTRAS="${USDCROWD_EXTRAS:-dev,final,preview}"
+EXTRAS="${USDCROWD_EXTRAS:-dev,final,preview,distributed}"
 
 missing=""
 if command -v dpkg-query >/dev/null 2>&1; then
