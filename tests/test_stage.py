@@ -209,3 +209,19 @@ def test_agents_stand_where_simulated_whatever_their_authored_transforms(write_s
     # The feet point forward: facing -X puts them on the -X side of the body.
     feet = pts[pts[:, 2] < 0.08]
     assert feet[:, 0].mean() < pts[:, 0].mean() - 0.03
+
+
+def test_a_dead_part_writer_is_an_error_not_a_hang(museum_path, tmp_path):
+    from usdcrowd.scenario import StageFrame
+    from usdcrowd.usd.crowd_layer import CrowdLayerWriter
+
+    sc = load_scenario(museum_path)
+    writer = CrowdLayerWriter(tmp_path / "crowd.usdc", sc, StageFrame(), "World", workers=2)
+    writer._workers[0][0].kill()
+    frames = straight_walk(sc.agents, sc.time)
+    rot, trans = animation.animate(frames, 1 / 24, sc.agents.height)
+    with pytest.raises(RuntimeError, match="died"):
+        writer.write_chunk(frames, rot, trans)
+        writer.save()
+    assert not (tmp_path / "crowd.usdc").exists()
+    assert not list(tmp_path.glob("crowd.part*"))

@@ -104,10 +104,31 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     # The trajectory map draws at most this many agents at about 200 instants.
     plotted = np.sort(np.random.default_rng(0).permutation(len(scenario.agents))[:PLOT_MAX_AGENTS])
     stride = max(1, scenario.time.n_frames // 200)
-    done = 0
+    try:
+        crowd = _author_frames(writer, crowd_source(scenario), scenario, visible, plotted, stride, progress,
+                               centres, spreads, tracks)
+    except BaseException:
+        writer.abort()          # stop the part writers; nothing half-written is left behind
+        raise
+    cameras = write_cameras(out_dir, np.concatenate(centres), np.concatenate(spreads), scenario.time.codes,
+                            sframe, default_prim, scenario.time)
+    shot = write_shot(out_dir, scenario_path, scenario.time, sframe, default_prim, scenario.seed,
+                      add_lights=not has_lights)
+    plot = trajectory_map(_subset(scenario, plotted), np.concatenate(tracks), out_dir / "trajectories.png",
+                          title=f"{Path(scenario_path).name}: {len(scenario.agents)} agents, "
+                                f"{scenario.time.n_frames} frames, seed {scenario.seed}")
+    camera = f"/{default_prim}/{CROWD_CAMERA}" if default_prim else f"/{CROWD_CAMERA}"
+    return ShotResult(shot, crowd, cameras, camera, plot, len(scenario.agents), scenario.time.n_frames, scenario.seed)
+
+
+def _author_frames(writer, chunks, scenario, visible, plotted, stride, progress, centres, spreads, tracks) -> str:
+    """Animate and author every chunk; collect what the camera and the picture need. Returns the crowd layer."""
+    from .character.animation import animate
+
     dt = 1.0 / scenario.time.fps
+    done = 0
     with _progress(scenario.time.n_frames, "simulate", progress) as bar:
-        for chunk in crowd_source(scenario):
+        for chunk in chunks:
             rot, trans = animate(chunk, dt, scenario.agents.height)
             writer.write_chunk(chunk, rot, trans)
             pos = chunk.position[:, visible].astype(np.float64)
@@ -118,16 +139,7 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
             tracks.append(chunk.position[keep][:, plotted])
             done += len(chunk.times)
             bar.update(len(chunk.times))
-    crowd = writer.save()
-    cameras = write_cameras(out_dir, np.concatenate(centres), np.concatenate(spreads), scenario.time.codes,
-                            sframe, default_prim, scenario.time)
-    shot = write_shot(out_dir, scenario_path, scenario.time, sframe, default_prim, scenario.seed,
-                      add_lights=not has_lights)
-    plot = trajectory_map(_subset(scenario, plotted), np.concatenate(tracks), out_dir / "trajectories.png",
-                          title=f"{Path(scenario_path).name}: {len(scenario.agents)} agents, "
-                                f"{scenario.time.n_frames} frames, seed {scenario.seed}")
-    camera = f"/{default_prim}/{CROWD_CAMERA}" if default_prim else f"/{CROWD_CAMERA}"
-    return ShotResult(shot, crowd, cameras, camera, plot, len(scenario.agents), scenario.time.n_frames, scenario.seed)
+    return writer.save()
 
 
 def _subset(scenario: model.Scenario, rows: np.ndarray) -> model.Scenario:

@@ -349,10 +349,23 @@ class CrowdLayerWriter:
         self._collect()
         self.layer.subLayerPaths = [f"./{os.path.basename(p)}" for p in self.part_paths]
 
+    def _send(self, proc, conn, message) -> None:
+        try:
+            conn.send(message)
+        except (BrokenPipeError, ConnectionResetError, EOFError):
+            self.abort()
+            raise RuntimeError(f"crowd layer part writer {proc.pid} died (exit code {proc.exitcode})") from None
+        self._pending[proc.pid] += 1
+
     def _collect(self) -> None:
-        """Wait for every outstanding reply of every worker."""
+        """Wait for every outstanding reply of every worker; a worker that dies is an error, not a hang."""
         for proc, conn in self._workers:
             while self._pending[proc.pid]:
+                if not conn.poll(1.0):
+                    if not proc.is_alive():
+                        self.abort()
+                        raise RuntimeError(f"crowd layer part writer {proc.pid} died (exit code {proc.exitcode})")
+                    continue
                 status, detail = conn.recv()
                 self._pending[proc.pid] -= 1
                 if status == "error":
@@ -384,9 +397,9 @@ class CrowdLayerWriter:
         # No waiting here: the workers author this chunk while the caller
         # simulates and animates the next one.
         for (proc, conn), rows in zip(self._workers, self._splits):
-            conn.send(("samples", (frames.times, np.ascontiguousarray(rot_usd[:, rows]),
-                                   np.ascontiguousarray(trans[:, rows]), {k: v[:, rows] for k, v in tokens.items()})))
-            self._pending[proc.pid] += 1
+            self._send(proc, conn, ("samples", (frames.times, np.ascontiguousarray(rot_usd[:, rows]),
+                                                np.ascontiguousarray(trans[:, rows]),
+                                                {k: v[:, rows] for k, v in tokens.items()})))
 
     def save(self) -> str:
         """Write extents and per-agent summaries, then save every layer atomically. Returns the path."""
@@ -400,8 +413,7 @@ class CrowdLayerWriter:
             self._local.finish(lo, hi, pm)
         else:
             for (proc, conn), rows in zip(self._workers, self._splits):
-                conn.send(("finish", (lo[rows], hi[rows], None if pm is None else pm[rows])))
-                self._pending[proc.pid] += 1
+                self._send(proc, conn, ("finish", (lo[rows], hi[rows], None if pm is None else pm[rows])))
             self._collect()
             for proc, _ in self._workers:
                 proc.join()
