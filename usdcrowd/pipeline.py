@@ -77,9 +77,8 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     """
     from pxr import UsdLux
 
-    from .character.animation import animate
-    from .scenario import load_scenario, open_stage, stage_frame
     from .plots import trajectory_map
+    from .scenario import load_scenario, open_stage, stage_frame
     from .usd import CROWD, CrowdLayerWriter, write_cameras, write_shot
     from .usd.shot import CROWD_CAMERA
 
