@@ -469,13 +469,17 @@ def _material_of(prim) -> Material:
 
 
 def color_temperature_rgb(kelvin: float) -> np.ndarray:
-    """Linear sRGB tint of a black body at ``kelvin``, normalised to luminance 1 (colour-science)."""
+    """Linear sRGB tint of a black body at ``kelvin``, normalised to luminance 1.
+
+    Planck's law integrated against the CIE 1931 observer (colour-science),
+    valid at any temperature (a crater's 1,200 K glow as well as daylight),
+    as UsdLux's colorTemperature asks for a black body.
+    """
     import colour
 
-    xy = colour.temperature.CCT_to_xy(float(kelvin), method="Kang 2002" if kelvin >= 1667 else "CIE Illuminant D Series")
-    xyz = colour.xy_to_XYZ(xy)
-    rgb = colour.XYZ_to_RGB(xyz, "sRGB", apply_cctf_encoding=False)
-    rgb = np.clip(rgb, 0.0, None)
+    sd = colour.sd_blackbody(float(kelvin), colour.SpectralShape(360, 830, 5))
+    xyz = colour.sd_to_XYZ(sd, method="Integration")
+    rgb = np.clip(colour.XYZ_to_RGB(xyz / xyz[1], "sRGB", apply_cctf_encoding=False), 0.0, None)
     return rgb / (0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2])
 
 
