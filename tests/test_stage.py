@@ -54,12 +54,17 @@ def test_shot_sublayers_generated_layers_over_the_untouched_scenario(museum_shot
     assert UsdGeom.GetStageUpAxis(stage) == "Z" and stage.GetStartTimeCode() == 1 and stage.GetEndTimeCode() == 24
 
 
+def _world_pose(sc):
+    """What usdcrowd authors for the straight walk: frames and world joint rotations, translations, scales."""
+    frames = straight_walk(sc.agents, sc.time)
+    rot, trans = animation.animate(frames, 1 / 24, sc.agents.height)
+    return (frames, *apply_root_motion(rot, trans, frames.position, frames.heading, sc.agents.height))
+
+
 def test_characters_skin_in_usdskel_as_usdcrowd_computes_them(museum_shot):
     result, sc = museum_shot
     stage = Usd.Stage.Open(result.shot)
-    frames = straight_walk(sc.agents, sc.time)
-    rot, trans = animation.animate(frames, 1 / 24, sc.agents.height)
-    rot_w, trans_w, scale = apply_root_motion(rot, trans, frames.position, frames.heading, sc.agents.height)
+    frames, rot_w, trans_w, scale = _world_pose(sc)
     b = body.build_body()
     for i in (1, 6, 18):
         for t in (1, 12, 24):
@@ -79,9 +84,7 @@ def test_characters_skin_in_usdskel_as_usdcrowd_computes_them(museum_shot):
 def test_round_trip_time_samples_and_resolved_table(museum_shot):
     result, sc = museum_shot
     stage = Usd.Stage.Open(result.shot)
-    frames = straight_walk(sc.agents, sc.time)
-    rot, trans = animation.animate(frames, 1 / 24, sc.agents.height)
-    rot_w, trans_w, _ = apply_root_motion(rot, trans, frames.position, frames.heading, sc.agents.height)
+    _, rot_w, trans_w, _ = _world_pose(sc)
     for i in (0, 7):
         anim = UsdSkel.Animation(stage.GetPrimAtPath(f"{sc.agents.path[i]}/Anim"))
         for t in (1, 5, 24):
