@@ -13,6 +13,15 @@ import numpy as np
 from .rig import HEAD_TOP, quat_from_axis_angle, quat_multiply, quat_rotate
 
 
+def root_scale(height) -> np.ndarray:
+    """Uniform scale of the root joint for body heights in metres, (n,) float64.
+
+    UsdSkel stores joint scales as half floats: quantising here means every
+    position usdcrowd derives (ground truth included) is the stage's own.
+    """
+    return (np.asarray(height, dtype=np.float64) / HEAD_TOP).astype(np.float16).astype(np.float64)
+
+
 def apply_root_motion(rotations: np.ndarray, translations: np.ndarray, position: np.ndarray,
                       heading: np.ndarray, height: np.ndarray):
     """Put the canonical-skeleton pose into the world.
@@ -37,9 +46,7 @@ def apply_root_motion(rotations: np.ndarray, translations: np.ndarray, position:
     scale : (n,) float32
         Uniform scale of each agent's root joint.
     """
-    # UsdSkel stores joint scales as half floats: quantise here so that every
-    # position usdcrowd derives (ground truth included) is the stage's own.
-    scale = (np.asarray(height, dtype=np.float64) / HEAD_TOP).astype(np.float16).astype(np.float64)
+    scale = root_scale(height)
     q_heading = quat_from_axis_angle(np.array([0.0, 0.0, 1.0]), np.asarray(heading, dtype=np.float64))
     rot = np.array(rotations, dtype=np.float64, copy=True)
     trans = np.array(translations, dtype=np.float64, copy=True)

@@ -34,7 +34,7 @@ from .. import __version__, model
 from ..atomic import atomic_path
 from ..character import body as body_mod
 from ..character import rig
-from ..character.root import apply_root_motion
+from ..character.root import apply_root_motion, root_scale
 from ..scenario.stageio import StageFrame
 
 PROTOTYPES = "/CrowdPrototypes"
@@ -194,7 +194,7 @@ class _AgentPart:
         skel.referenceList.prependedItems = [Sdf.Reference(primPath=SKEL_PROTO)]
         anim = _prim(layer, f"{path}/Anim", "SkelAnimation", Sdf.SpecifierDef)
         _attr(anim, "joints", T.TokenArray, Vt.TokenArray(list(rig.JOINTS)), U)
-        s = float(np.float16(a.height[i] / rig.HEAD_TOP))
+        s = float(root_scale(a.height[i]))
         _attr(anim, "scales", T.Half3Array, Vt.Vec3hArray([Gf.Vec3h(s, s, s), Gf.Vec3h(1, 1, 1), Gf.Vec3h(1, 1, 1)]))
         _attr(anim, "rotations", T.QuatfArray)
         _attr(anim, "translations", T.Float3Array)
@@ -403,7 +403,7 @@ class CrowdLayerWriter:
 
     def save(self) -> str:
         """Write extents and per-agent summaries, then save every layer atomically. Returns the path."""
-        scale = (self.scenario.agents.height / rig.HEAD_TOP).astype(np.float16).astype(np.float64)
+        scale = root_scale(self.scenario.agents.height)
         # Extents are in the SkelRoot's space: canonical metres (the stage-frame
         # op, if any, sits above them).
         lo = self._lo - np.stack([_REACH * scale, _REACH * scale, 0 * scale], 1)
