@@ -185,11 +185,14 @@ def test_harbour_workers_cameras_and_boat():
     assert len(agents) >= 3
     modes = {str(p.GetAttribute("crowd:camera:mode").Get()) for p in agents}
     assert modes == {"scouting", "tracking"}
-    # The boat reaches the pier around frame 60 and is still there at 240.
+    # The boat reaches the pier around frame 60 and is still there at 480.
     boat = UsdGeom.Xformable(stage.GetPrimAtPath("/World/Scenery/Boat"))
-    at = {t: np.array(boat.ComputeLocalToWorldTransform(t))[3, :2] for t in (1, 60, 240, 360)}
-    assert np.linalg.norm(at[60] - [14.6, 16.0]) < 0.5 and np.allclose(at[60], at[240])
-    assert np.linalg.norm(at[1] - at[60]) > 20 and np.linalg.norm(at[360] - at[60]) > 20
+    at = {t: np.array(boat.ComputeLocalToWorldTransform(t))[3, :2] for t in (1, 60, 480, 900)}
+    assert np.linalg.norm(at[60] - [14.6, 16.0]) < 0.5 and np.allclose(at[60], at[480])
+    assert np.linalg.norm(at[1] - at[60]) > 20 and np.linalg.norm(at[900] - at[60]) > 20
+    # The workers go to the pier, then back to the godowns (a time-sampled goal).
+    times, points = sc.groups.waypoints[sc.groups.path.index("/World/Crowd/Workers")]
+    assert times.tolist() == [1.0, 330.0] and water.sample(points[:, :2]).tolist() == [0.0, 0.0]
 
 
 def test_dialogue_configuration():

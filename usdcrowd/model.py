@@ -75,6 +75,10 @@ class GroupTable:
         Seconds a timeLimited group spends before leaving.
     leader : (g,) int32
         Agent row of the group's leader, -1 if none.
+    waypoints : list of ((k,) float64, (k, 3) float64) or None
+        Per group, when its goal (own or inherited) is time-sampled: the time
+        codes and the points (metres); each point is the goal from its time
+        on. None for a static goal. An empty list: no group has waypoints.
     """
 
     path: list[str]
@@ -82,6 +86,7 @@ class GroupTable:
     goal: np.ndarray
     visit_budget: np.ndarray
     leader: np.ndarray
+    waypoints: list = field(default_factory=list)
 
     def __len__(self) -> int:
         return len(self.path)

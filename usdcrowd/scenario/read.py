@@ -92,6 +92,17 @@ class _Reader:
         if problem:
             self.fail(problem, prim, f"crowd:{name}")
 
+    def goal_waypoints(self, prim, start: float):
+        """(times, points, goal at ``start``) of a time-sampled crowd:goal, canonical metres; else None."""
+        attr = prim.GetAttribute("crowd:goal")
+        times = attr.GetTimeSamples() if attr else []
+        if not times:
+            return None
+        pts = self.frame.points_to_canonical(np.array([tuple(attr.Get(t)) for t in times], dtype=np.float64))
+        times = np.asarray(times, dtype=np.float64)
+        current = pts[max(int(np.searchsorted(times, start, side="right")) - 1, 0)]
+        return times, pts, tuple(current)
+
     def get(self, prim, name):
         """Value (authored or fallback) of crowd:name, range-checked."""
         value = prim.GetAttribute(f"crowd:{name}").Get()
@@ -160,6 +171,7 @@ def load_scenario(path: str | os.PathLike, seed: int | None = None, stage=None) 
     group_row: dict[str, int] = {}
     agents: list[AgentSpec] = []
     layers, points, scenery = [], [], []
+    waypoints: list = []            # per group: (times, points) of a time-sampled goal, or None
 
     it = iter(Usd.PrimRange(stage.GetPseudoRoot()))
     for prim in it:
@@ -173,7 +185,12 @@ def load_scenario(path: str | os.PathLike, seed: int | None = None, stage=None) 
             clones = int(r.get(prim, "clones"))
             subclones = int(r.get(prim, "subclones"))
             group_row[path] = len(groups)
-            groups.append(GroupSpec(path, parent, r.authored(prim, INHERITED), clones, subclones))
+            authored = r.authored(prim, INHERITED)
+            schedule = r.goal_waypoints(prim, _time_range(stage).start)
+            if schedule is not None:
+                authored["goal"] = schedule[2]
+            groups.append(GroupSpec(path, parent, authored, clones, subclones))
+            waypoints.append(schedule[:2] if schedule is not None else None)
         elif schema.is_agent(prim):
             agents.append(_agent_spec(r, prim, group_row))
             it.PruneChildren()        # an agent's skeleton and body are not scenery
@@ -190,6 +207,11 @@ def load_scenario(path: str | os.PathLike, seed: int | None = None, stage=None) 
         raise ScenarioError("no CrowdGroup and no agent: nothing to simulate", file=source)
 
     table, group_table = _resolve(r, seed, groups, agents)
+    if any(w is not None for w in waypoints):
+        for gi, g in enumerate(groups):          # subgroups follow their parent's waypoints
+            if waypoints[gi] is None and g.parent >= 0 and "goal" not in g.authored:
+                waypoints[gi] = waypoints[g.parent]
+        group_table.waypoints = waypoints
     obstacles, ground = _obstacles(r, scenery)
     fields = [_behavior_field(r, p) for p in layers]
     interest = _interest(r, points)

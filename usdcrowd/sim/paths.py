@@ -171,6 +171,24 @@ class BezierPaths:
         self.s = np.zeros(self.p0.shape[1], np.float32)
         self.ds = (0.5 * P.BEZIER_LOOKAHEAD / np.maximum(self.length, 1e-3)).astype(np.float32)
 
+    def retarget(self, rows: np.ndarray, start: np.ndarray, goal: np.ndarray) -> None:
+        """New curves for some agents (their goal changed): from where they stand to the new goal.
+
+        Parameters
+        ----------
+        rows : (m,) int
+            Indices into this object's agents.
+        start, goal : (2, m) float32
+        """
+        self.p0[:, rows] = start
+        self.p3[:, rows] = goal
+        d = self.p3[:, rows] - self.p0[:, rows]
+        self.length[rows] = np.sqrt(d[0] * d[0] + d[1] * d[1])
+        self.spread[rows] = np.minimum(P.BEZIER_SPREAD * self.length[rows], P.BEZIER_SPREAD_MAX)
+        self.ds[rows] = 0.5 * P.BEZIER_LOOKAHEAD / np.maximum(self.length[rows], 1e-3)
+        self.s[rows] = 0.0
+        self._draw(rows, 1.0)
+
     def _draw(self, rows, scale):
         d = self.p3[:, rows] - self.p0[:, rows]
         u, _ = unit(d)

@@ -194,7 +194,9 @@ class Simulation:
         self.bezier = BezierPaths(self.pos[:, self.bez_rows], goal[:, self.bez_rows], r_paths) \
             if self.bez_rows.size else None
         self.slope_nav = SlopeSteering(self.terrain, self.max_slope[self.grad_rows], r_slope)
+        self._goers = goers
         self._goal_fields(goal, goers)
+        self._waypoints = self._resolve_waypoints(scenario)
 
         self.interest = (InterestFields(scenario, self.dmaps, self.visitors, r_interest)
                          if self.visitors.size else None)
@@ -221,6 +223,43 @@ class Simulation:
             goal[miss] = goal[up[miss]]
             up = np.where(miss, parent[np.maximum(up, 0)], -1)
         return goal[np.asarray(scenario.agents.group, dtype=np.int64)].T.astype(np.float32)
+
+    def _resolve_waypoints(self, scenario: Scenario) -> list:
+        """[rows, times (s), points (k, 2), next index] per group whose goal is time-sampled."""
+        out = []
+        t0, fps = scenario.time.start, self.fps
+        for gi, w in enumerate(scenario.groups.waypoints):
+            rows = np.where(np.asarray(scenario.agents.group) == gi)[0]
+            if w is None or rows.size == 0:
+                continue
+            times, points = w
+            seconds = (np.asarray(times, dtype=np.float64) - t0) / fps
+            # Waypoints already in force at the start are the initial goal.
+            nxt = max(int(np.searchsorted(seconds, 0.0, side="right")), 1)
+            out.append([rows, seconds, np.asarray(points, dtype=np.float32)[:, :2], nxt])
+        return out
+
+    def _advance_waypoints(self) -> None:
+        """Switch groups to their next waypoint when its time comes."""
+        changed = []
+        for w in self._waypoints:
+            rows, seconds, points, nxt = w
+            k = nxt
+            while k < len(seconds) and seconds[k] <= self.time:
+                k += 1
+            if k != nxt:
+                self.goal[:, rows] = points[k - 1][:, None]
+                w[3] = k
+                changed.append(rows)
+        if not changed:
+            return
+        rows = np.concatenate(changed)
+        self._goal_fields(self.goal, self._goers)      # distance maps are cached per goal point
+        if self.bezier is not None:
+            sel = np.where(np.isin(self.bez_rows, rows))[0]
+            if sel.size:
+                r = self.bez_rows[sel]
+                self.bezier.retarget(sel, self.pos[:, r], self.goal[:, r])
 
     def _goal_fields(self, goal, goers):
         """Distance-map directions to each distinct goal (only around obstacles)."""
@@ -350,6 +389,8 @@ class Simulation:
         dt = np.float32(self.dt)
         pos, vel = self.pos, self.vel
         g = self.groups
+        if self._waypoints:
+            self._advance_waypoints()
         # Bookkeeping that perception depends on.
         self.reactions.update_health(self.health, pos[0, :n], pos[1, :n], self.time)
         g.record_trail(self.time, pos)
