@@ -257,7 +257,7 @@ def test_look_at_rate_limited():
     assert abs(yaw[20] - 70) < 1 and abs(yaw[-1]) < 5
 
 
-def test_animate_crowd_frames():
+def _switching_frames():
     from usdcrowd.model import CrowdFrames
     cls, ph, speed = _switching_sequence()
     t, n = cls.shape
@@ -265,14 +265,39 @@ def test_animate_crowd_frames():
     velocity = np.stack([speed, 0 * speed], -1).astype(np.float32)
     look = np.full((t, n, 3), np.nan, np.float32)
     look[50:120, 0] = [5.0, 5.0, 1.0]
-    frames = CrowdFrames(times=np.arange(t, dtype=np.float64), position=np.zeros((t, n, 3), np.float32),
-                         heading=heading, velocity=velocity, behavior=np.zeros((t, n), np.int8),
-                         anim_class=cls.astype(np.int8), anim_phase=ph,
-                         health=np.zeros((t, n), np.int8), look_at=look,
-                         path_method=np.zeros(n, np.int8))
+    look[90:160, 1] = [-3.0, 4.0, 2.0]
+    return CrowdFrames(times=np.arange(t, dtype=np.float64), position=np.zeros((t, n, 3), np.float32),
+                       heading=heading, velocity=velocity, behavior=np.zeros((t, n), np.int8),
+                       anim_class=cls.astype(np.int8), anim_phase=ph,
+                       health=np.zeros((t, n), np.int8), look_at=look,
+                       path_method=np.zeros(n, np.int8))
+
+
+def test_animate_crowd_frames():
+    frames = _switching_frames()
+    t, n = frames.anim_class.shape
     rot, tr = animate_frames(frames, DT, np.array([1.75, 1.6]))
     assert rot.dtype == tr.dtype == np.float32
     assert rot.shape == (t, n, 3, 4) and tr.shape == (t, n, 3, 3)
     assert _max_step_deg(rot.astype(np.float64)) < MAX_DEG_PER_FRAME
     f = head_forward(rot[100, 0])
     assert np.degrees(np.arctan2(f[1], f[0])) == pytest.approx(45.0, abs=1.0)
+
+
+@pytest.mark.parametrize("cuts", [(1,), (7, 51, 52, 95, 130), tuple(range(3, 200, 11))])
+def test_animation_independent_of_chunks(cuts):
+    """Blends and head turns carry over chunk boundaries: cutting a shot changes nothing."""
+    from dataclasses import fields, replace
+
+    from usdcrowd.character.animation import Animator
+    frames = _switching_frames()
+    height = np.array([1.75, 1.6])
+    whole_rot, whole_tr = animate_frames(frames, DT, height)
+    animator = Animator(DT, height)
+    bounds = [0, *[c for c in cuts if c < len(frames.times)], len(frames.times)]
+    parts = []
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        sliced = {f.name: getattr(frames, f.name)[a:b] for f in fields(frames) if f.name != "path_method"}
+        parts.append(animator(replace(frames, **sliced)))
+    np.testing.assert_array_equal(np.concatenate([p[0] for p in parts]), whole_rot)
+    np.testing.assert_array_equal(np.concatenate([p[1] for p in parts]), whole_tr)

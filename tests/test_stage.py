@@ -222,9 +222,8 @@ def test_a_dead_part_writer_is_an_error_not_a_hang(museum_path, tmp_path):
     writer = CrowdLayerWriter(tmp_path / "crowd.usdc", sc, StageFrame(), "World", workers=2)
     writer._workers[0][0].kill()
     frames = straight_walk(sc.agents, sc.time)
-    rot, trans = animation.animate(frames, 1 / 24, sc.agents.height)
     with pytest.raises(RuntimeError, match="died"):
-        writer.write_chunk(frames, rot, trans)
+        writer.write_chunk(frames)
         writer.save()
     assert not (tmp_path / "crowd.usdc").exists()
     assert not list(tmp_path.glob("crowd.part*"))

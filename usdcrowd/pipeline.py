@@ -121,15 +121,11 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
 
 
 def _author_frames(writer, chunks, scenario, visible, plotted, stride, progress, centres, spreads, tracks) -> str:
-    """Animate and author every chunk; collect what the camera and the picture need. Returns the crowd layer."""
-    from .character.animation import animate
-
-    dt = 1.0 / scenario.time.fps
+    """Author (and animate) every chunk; collect what the camera and the picture need. Returns the crowd layer."""
     done = 0
     with _progress(scenario.time.n_frames, "simulate", progress) as bar:
         for chunk in chunks:
-            rot, trans = animate(chunk, dt, scenario.agents.height)
-            writer.write_chunk(chunk, rot, trans)
+            writer.write_chunk(chunk)
             pos = chunk.position[:, visible].astype(np.float64)
             c = pos.mean(axis=1)
             centres.append(c)

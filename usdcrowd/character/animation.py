@@ -14,11 +14,13 @@ height belong to the SkelRoot transform.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..model import ANIM_CLASSES, CrowdFrames
 from .rig import (EYE_HEIGHT, HEAD_TOP, PELVIS_HEIGHT, REST_TRANSLATIONS, quat_conjugate,
-                  quat_from_axis_angle, quat_multiply, quat_rotate, quat_slerp, quat_to_matrix)
+                  quat_from_axis_angle, quat_multiply, quat_rotate, quat_slerp)
 
 IDLE, WALK, RUN, STRIDE_LEFT, STRIDE_RIGHT = range(len(ANIM_CLASSES))
 
@@ -162,7 +164,7 @@ def pose(anim_class: np.ndarray, phase: np.ndarray, speed: np.ndarray):
     translations = np.broadcast_to(REST_TRANSLATIONS, cls.shape + (3, 3)).copy()
     # Lift the pelvis by the legs' tilt so the feet stay on the ground, then bob
     # twice per cycle (once per step).
-    zz = quat_to_matrix(legs)[..., 2, 2]
+    zz = 1.0 - 2.0 * (legs[..., 1] ** 2 + legs[..., 2] ** 2)       # the legs' rotated Z . Z
     translations[..., 0, 2] = PELVIS_HEIGHT * zz + BOB[cls] * k * 0.5 * (1.0 - np.cos(2.0 * ph))
     return rotations, translations
 
@@ -172,8 +174,32 @@ def _ease(x):
     return x * x * (3.0 - 2.0 * x)
 
 
+@dataclass
+class BlendState:
+    """What a blend needs from the frame before a chunk (see :class:`Animator`).
+
+    Attributes
+    ----------
+    cls : (n,) int
+        Class at the last frame.
+    rot, tr : (n, 3, 4), (n, 3, 3) float
+        Output (blended) pose at the last frame.
+    key_rot, key_tr : (n, 3, 4), (n, 3, 3) float
+        Pose frozen at the last class change.
+    since : (n,) int
+        Frames since that change.
+    """
+
+    cls: np.ndarray
+    rot: np.ndarray
+    tr: np.ndarray
+    key_rot: np.ndarray
+    key_tr: np.ndarray
+    since: np.ndarray
+
+
 def blend_transitions(anim_class: np.ndarray, rotations: np.ndarray, translations: np.ndarray,
-                      frames: int = BLEND_FRAMES):
+                      frames: int = BLEND_FRAMES, state: BlendState | None = None):
     """Smooth class changes with a temporary key frame (seed 003, Figure 6).
 
     When an agent's class changes, the pose it had just before is frozen and
@@ -190,6 +216,11 @@ def blend_transitions(anim_class: np.ndarray, rotations: np.ndarray, translation
         Local translations of the unblended poses.
     frames : int
         Blend length; 0 disables blending.
+    state : BlendState, optional
+        The frame before ``rotations[0]`` (a previous chunk): a change at
+        the chunk's first frame is blended and blends under way continue.
+        Updated in place to this chunk's last frame. None: the first frame
+        starts settled.
 
     Returns
     -------
@@ -198,14 +229,21 @@ def blend_transitions(anim_class: np.ndarray, rotations: np.ndarray, translation
     """
     rot = np.array(rotations, dtype=np.float64)
     tr = np.array(translations, dtype=np.float64)
-    if frames <= 0 or len(rot) < 2:
-        return rot, tr
     cls = np.asarray(anim_class)
-    key_rot, key_tr = rot[0].copy(), tr[0].copy()
-    since = np.full(cls.shape[1], frames, dtype=np.int64)  # frames since last change
-    for t in range(1, len(rot)):
-        changed = cls[t] != cls[t - 1]
-        key_rot[changed], key_tr[changed] = rot[t - 1][changed], tr[t - 1][changed]
+    if frames <= 0 or len(rot) == 0:
+        return rot, tr
+    if state is None or state.cls is None:
+        first = 1
+        prev_cls, prev_rot, prev_tr = cls[0], rot[0], tr[0]
+        key_rot, key_tr = rot[0].copy(), tr[0].copy()
+        since = np.full(cls.shape[1], frames, dtype=np.int64)  # frames since last change
+    else:
+        first = 0
+        prev_cls, prev_rot, prev_tr = state.cls, state.rot, state.tr
+        key_rot, key_tr, since = state.key_rot.copy(), state.key_tr.copy(), state.since.copy()
+    for t in range(first, len(rot)):
+        changed = cls[t] != prev_cls
+        key_rot[changed], key_tr[changed] = prev_rot[changed], prev_tr[changed]
         since = np.where(changed, 0, since + 1)
         w = _ease((since + 1) / frames)
         active = w < 1.0
@@ -214,6 +252,10 @@ def blend_transitions(anim_class: np.ndarray, rotations: np.ndarray, translation
                                         np.broadcast_to(w[active, None], (active.sum(), 3)))
             wa = w[active, None, None]
             tr[t][active] = (1.0 - wa) * key_tr[active] + wa * tr[t][active]
+        prev_cls, prev_rot, prev_tr = cls[t], rot[t], tr[t]
+    if state is not None:
+        state.cls, state.rot, state.tr = np.array(cls[-1]), rot[-1].copy(), tr[-1].copy()
+        state.key_rot, state.key_tr, state.since = key_rot, key_tr, since
     return rot, tr
 
 
@@ -221,8 +263,18 @@ def _wrap(a):
     return (a + np.pi) % (2.0 * np.pi) - np.pi
 
 
+@dataclass
+class LookState:
+    """Head-turn angles and weight at the frame before a chunk, (n,) float each."""
+
+    yaw: np.ndarray
+    pitch: np.ndarray
+    weight: np.ndarray
+
+
 def apply_look_at(rotations: np.ndarray, position: np.ndarray, heading: np.ndarray,
-                  height: np.ndarray, target: np.ndarray, max_step: float | None = None):
+                  height: np.ndarray, target: np.ndarray, max_step: float | None = None,
+                  state: LookState | None = None):
     """Turn torso and head toward a target (seed 003, Figure 5).
 
     The torso takes ``TORSO_SHARE`` of the yaw (limited to
@@ -247,6 +299,9 @@ def apply_look_at(rotations: np.ndarray, position: np.ndarray, heading: np.ndarr
         Most the look angles may change per frame, radians, so that targets
         appearing, switching or vanishing turn the head smoothly; None turns
         instantly.
+    state : LookState, optional
+        With ``max_step``: the angles of the frame before this chunk, so the
+        rate limit carries across chunks; updated in place to the last frame.
 
     Returns
     -------
@@ -266,27 +321,39 @@ def apply_look_at(rotations: np.ndarray, position: np.ndarray, heading: np.ndarr
     pitch = np.clip(pitch, -HEAD_PITCH_LIMIT, HEAD_PITCH_LIMIT)
     weight = has.astype(np.float64)
     if max_step is not None:  # rate-limit angles and the on/off weight alike
-        for t in range(1, len(yaw)):
-            for a in (yaw, pitch):
-                a[t] = a[t - 1] + np.clip(a[t] - a[t - 1], -max_step, max_step)
-            # Fading in or out takes as long as sweeping the head over its range.
-            w_step = max_step / HEAD_YAW_LIMIT
-            weight[t] = weight[t - 1] + np.clip(weight[t] - weight[t - 1], -w_step, w_step)
+        # Fading in or out takes as long as sweeping the head over its range.
+        w_step = max_step / HEAD_YAW_LIMIT
+        before = None if state is None or state.yaw is None else (state.yaw, state.pitch, state.weight)
+        for t in range(len(yaw)):
+            if t == 0 and before is None:
+                continue
+            p_yaw, p_pitch, p_weight = before if t == 0 else (yaw[t - 1], pitch[t - 1], weight[t - 1])
+            yaw[t] = p_yaw + np.clip(yaw[t] - p_yaw, -max_step, max_step)
+            pitch[t] = p_pitch + np.clip(pitch[t] - p_pitch, -max_step, max_step)
+            weight[t] = p_weight + np.clip(weight[t] - p_weight, -w_step, w_step)
             # Where there is no target, the angles hold while the weight fades.
-            yaw[t] = np.where(has[t], yaw[t], yaw[t - 1])
-            pitch[t] = np.where(has[t], pitch[t], pitch[t - 1])
+            yaw[t] = np.where(has[t], yaw[t], p_yaw)
+            pitch[t] = np.where(has[t], pitch[t], p_pitch)
+        if state is not None and len(yaw):
+            state.yaw, state.pitch, state.weight = yaw[-1].copy(), pitch[-1].copy(), weight[-1].copy()
+    # Only agents looking at something (or still turning back) change; most
+    # of a crowd usually does not, so the quaternion work runs on those alone.
+    on = weight > 0.0
+    if not on.any():
+        return rot
+    yaw, pitch, weight, r = yaw[on], pitch[on], weight[on], rot[on]
     torso_yaw = np.clip(TORSO_SHARE * yaw, -TORSO_YAW_LIMIT, TORSO_YAW_LIMIT)
-
-    legs = rot[..., 0, :]
-    torso = quat_multiply(legs, rot[..., 1, :])
-    head = quat_multiply(torso, rot[..., 2, :])
+    legs = r[:, 0, :]
+    torso = quat_multiply(legs, r[:, 1, :])
+    head = quat_multiply(torso, r[:, 2, :])
     torso_new = quat_multiply(quat_from_axis_angle(_Z, torso_yaw), torso)
     # Looking up turns +X toward +Z: a negative rotation about +Y.
     aim = quat_multiply(quat_from_axis_angle(_Z, yaw), quat_from_axis_angle(_Y, -pitch))
     head_new = quat_slerp(head, aim, weight)
     torso_new = quat_slerp(torso, torso_new, weight)
-    rot[..., 1, :] = quat_multiply(quat_conjugate(legs), torso_new)
-    rot[..., 2, :] = quat_multiply(quat_conjugate(torso_new), head_new)
+    r[:, 1, :] = quat_multiply(quat_conjugate(legs), torso_new)
+    r[:, 2, :] = quat_multiply(quat_conjugate(torso_new), head_new)
+    rot[on] = r
     return rot
 
 
@@ -297,8 +364,44 @@ def head_forward(rotations: np.ndarray) -> np.ndarray:
     return quat_rotate(q, np.broadcast_to(_X, q.shape[:-1] + (3,)))
 
 
+class Animator:
+    """Joint animation of one set of agents, chunk after consecutive chunk.
+
+    Blends between classes and rate-limited head turns carry over from one
+    chunk to the next, so the result does not depend on how a shot is cut
+    into chunks.
+
+    Parameters
+    ----------
+    dt : float
+        Seconds per frame.
+    height : (n,) float
+        Body heights, metres.
+    """
+
+    def __init__(self, dt: float, height: np.ndarray):
+        self.dt = float(dt)
+        self.height = np.asarray(height, dtype=np.float64)
+        self.blend = BlendState(None, None, None, None, None, None)
+        self.look = LookState(None, None, None)
+
+    def __call__(self, frames: CrowdFrames):
+        """The next chunk: ``rotations (t, n, 3, 4)``, ``translations (t, n, 3, 3)``, float32.
+
+        Rotations are local joint quaternions (w, x, y, z); reorder with
+        :func:`usdcrowd.character.rig.to_usd_quat_order` for
+        ``Vt.QuatfArray``. Translations are canonical metres.
+        """
+        speed = np.hypot(frames.velocity[..., 0], frames.velocity[..., 1])
+        rot, tr = pose(frames.anim_class, frames.anim_phase, speed)
+        rot, tr = blend_transitions(frames.anim_class, rot, tr, state=self.blend)
+        rot = apply_look_at(rot, frames.position, frames.heading, self.height, frames.look_at,
+                            max_step=LOOK_TURN_RATE * self.dt, state=self.look)
+        return rot.astype(np.float32), tr.astype(np.float32)
+
+
 def animate(frames: CrowdFrames, dt: float, height: np.ndarray):
-    """Joint animation of a simulated crowd, as the USD writer needs it.
+    """Joint animation of a whole simulated crowd in one go (see :class:`Animator`).
 
     Parameters
     ----------
@@ -313,15 +416,6 @@ def animate(frames: CrowdFrames, dt: float, height: np.ndarray):
     Returns
     -------
     rotations : (t, n, 3, 4) float32
-        Local joint quaternions (w, x, y, z); reorder with
-        :func:`usdcrowd.character.rig.to_usd_quat_order` for ``Vt.QuatfArray``.
     translations : (t, n, 3, 3) float32
-        Local joint translations, canonical metres.
     """
-    speed = np.hypot(frames.velocity[..., 0], frames.velocity[..., 1])
-    rot, tr = pose(frames.anim_class, frames.anim_phase, speed)
-    rot, tr = blend_transitions(frames.anim_class, rot, tr)
-    rot = apply_look_at(rot, frames.position, frames.heading, height, frames.look_at,
-                        max_step=LOOK_TURN_RATE * dt)
-    return rot.astype(np.float32), tr.astype(np.float32)
-
+    return Animator(dt, height)(frames)

@@ -56,12 +56,17 @@ def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     -------
     (..., 4) float
     """
-    aw, ax, ay, az = np.moveaxis(np.asarray(a), -1, 0)
-    bw, bx, by, bz = np.moveaxis(np.asarray(b), -1, 0)
-    return np.stack([aw * bw - ax * bx - ay * by - az * bz,
-                     aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx,
-                     aw * bz + ax * by - ay * bx + az * bw], axis=-1)
+    a, b = np.asarray(a), np.asarray(b)
+    aw, ax, ay, az = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
+    bw, bx, by, bz = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
+    # Written into one preallocated array: stacking four temporaries costs
+    # as much again, and this product is the animation writer's hot loop.
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape), dtype=np.result_type(a, b, np.float32))
+    out[..., 0] = aw * bw - ax * bx - ay * by - az * bz
+    out[..., 1] = aw * bx + ax * bw + ay * bz - az * by
+    out[..., 2] = aw * by - ax * bz + ay * bw + az * bx
+    out[..., 3] = aw * bz + ax * by - ay * bx + az * bw
+    return out
 
 
 def quat_conjugate(q: np.ndarray) -> np.ndarray:
@@ -87,8 +92,15 @@ def quat_from_axis_angle(axis, angle) -> np.ndarray:
     axis = np.asarray(axis, dtype=np.float64)
     axis = axis / np.linalg.norm(axis, axis=-1, keepdims=True)
     half = 0.5 * np.asarray(angle, dtype=np.float64)
-    return np.concatenate([np.cos(half)[..., None],
-                           np.sin(half)[..., None] * axis], axis=-1)
+    out = np.empty(np.broadcast_shapes(axis.shape[:-1], half.shape) + (4,))
+    out[..., 0] = np.cos(half)
+    sin = np.sin(half)
+    for k in range(3):
+        if axis.ndim == 1 and axis[k] == 0.0:      # coordinate axes: skip the zero products
+            out[..., k + 1] = 0.0
+        else:
+            out[..., k + 1] = sin * axis[..., k]
+    return out
 
 
 def quat_to_matrix(q: np.ndarray) -> np.ndarray:

@@ -34,6 +34,7 @@ from .. import __version__, model
 from ..atomic import atomic_path
 from ..character import body as body_mod
 from ..character import rig
+from ..character.animation import Animator
 from ..character.root import apply_root_motion, root_scale
 from ..scenario.stageio import StageFrame
 
@@ -143,6 +144,8 @@ class _AgentPart:
         self.authored = authored
         self._last: dict[str, np.ndarray] = {}
         self._paths: list = []
+        self._height = scenario.agents.height[self.rows]
+        self._animator = Animator(1.0 / scenario.time.fps, self._height)
         from pxr import Sdf
 
         with Sdf.ChangeBlock():
@@ -208,6 +211,13 @@ class _AgentPart:
                                            f"{path}.crowd:state:behavior", f"{path}.crowd:state:animClass",
                                            f"{path}.crowd:state:health"))
 
+    def write_frames(self, frames: model.CrowdFrames) -> None:
+        """Animate this part's agents over a chunk (``frames`` holds only them) and author it."""
+        rot, trans = self._animator(frames)
+        rot, trans, _ = apply_root_motion(rot, trans, frames.position, frames.heading, self._height)
+        tokens = {key: getattr(frames, key) for key, _ in _TOKEN_SLOTS}
+        self.write_samples(frames.times, rig.to_usd_quat_order(rot), trans, tokens)
+
     def write_samples(self, times: np.ndarray, rot_usd: np.ndarray, trans: np.ndarray, tokens: dict) -> None:
         """Samples of this part's agents.
 
@@ -252,6 +262,15 @@ class _AgentPart:
                     spec.attributes["crowd:pathMethod"].default = model.PATH_METHODS[path_method[j]]
 
 
+def _agents_of(frames: model.CrowdFrames, rows: np.ndarray) -> model.CrowdFrames:
+    """The chunk restricted to some agents (contiguous copies: they are pickled)."""
+    from dataclasses import fields, replace
+
+    return replace(frames, **{f.name: np.ascontiguousarray(getattr(frames, f.name)[..., rows] if f.name == "path_method"
+                                                           else getattr(frames, f.name)[:, rows])
+                              for f in fields(frames) if f.name != "times"})
+
+
 def _part_worker(conn, layer_path, scenario, frame, rows, authored, default_prim):
     """A process that owns one part layer: commands arrive over ``conn``."""
     from pxr import Sdf
@@ -266,8 +285,8 @@ def _part_worker(conn, layer_path, scenario, frame, rows, authored, default_prim
     while True:
         cmd, payload = conn.recv()
         try:
-            if cmd == "samples":
-                part.write_samples(*payload)
+            if cmd == "frames":
+                part.write_frames(payload)
                 conn.send(("ok", None))
             elif cmd == "finish":
                 part.finish(*payload)
@@ -345,8 +364,9 @@ class CrowdLayerWriter:
                                      {scenario.agents.path[i] for i in rows} & authored, default_prim))
             proc.start()
             self._workers.append((proc, here))
+        # Their "ready" is collected with the other replies in save(): the
+        # workers build their agents' prims while the caller simulates.
         self._pending = {proc.pid: 1 for proc, _ in self._workers}
-        self._collect()
         self.layer.subLayerPaths = [f"./{os.path.basename(p)}" for p in self.part_paths]
 
     def _send(self, proc, conn, message) -> None:
@@ -366,40 +386,41 @@ class CrowdLayerWriter:
                         self.abort()
                         raise RuntimeError(f"crowd layer part writer {proc.pid} died (exit code {proc.exitcode})")
                     continue
-                status, detail = conn.recv()
+                try:
+                    status, detail = conn.recv()
+                except (EOFError, ConnectionResetError, BrokenPipeError):
+                    proc.join(5.0)
+                    self.abort()
+                    raise RuntimeError(f"crowd layer part writer {proc.pid} died (exit code {proc.exitcode})") from None
                 self._pending[proc.pid] -= 1
                 if status == "error":
                     self.abort()
                     raise RuntimeError(f"crowd layer part writer failed: {detail}")
 
-    def write_chunk(self, frames: model.CrowdFrames, rotations: np.ndarray, translations: np.ndarray) -> None:
-        """Author the time samples of consecutive frames.
+    def write_chunk(self, frames: model.CrowdFrames) -> None:
+        """Animate and author the time samples of consecutive frames.
+
+        Each part animates its own agents (:class:`usdcrowd.character.animation.Animator`,
+        whose blends and head turns carry over from the previous chunk), so
+        with part layers the animation runs in the workers too.
 
         Parameters
         ----------
         frames : CrowdFrames
-            The chunk's simulated state, ``t`` frames.
-        rotations, translations : (t, n, 3, 4), (t, n, 3, 3) float
-            Local joint pose of the canonical skeleton (usdcrowd.character.animation.animate).
+            The chunk's simulated state, ``t`` frames of every agent.
         """
-        a = self.scenario.agents
-        rot, trans, _ = apply_root_motion(rotations, translations, frames.position, frames.heading, a.height)
-        rot_usd = rig.to_usd_quat_order(rot)
         pos = frames.position.astype(np.float64)
         self._lo = np.minimum(self._lo, pos.min(0))
         self._hi = np.maximum(self._hi, pos.max(0))
         if self._path_method is None:
             self._path_method = np.asarray(frames.path_method)
-        tokens = {key: getattr(frames, key) for key, _ in _TOKEN_SLOTS}
         if self._local is not None:
-            self._local.write_samples(frames.times, rot_usd, trans, tokens)
+            self._local.write_frames(frames)
             return
-        # No waiting here: the workers author this chunk while the caller
-        # simulates and animates the next one.
+        # No waiting here: the workers animate and author this chunk while the
+        # caller simulates the next one.
         for (proc, conn), rows in zip(self._workers, self._splits):
-            self._send(proc, conn, ("samples", (frames.times, np.ascontiguousarray(rot_usd[:, rows]),
-                                                np.ascontiguousarray(trans[:, rows]),
-                                                {k: v[:, rows] for k, v in tokens.items()})))
+            self._send(proc, conn, ("frames", _agents_of(frames, rows)))
 
     def save(self) -> str:
         """Write extents and per-agent summaries, then save every layer atomically. Returns the path."""
