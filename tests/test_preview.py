@@ -124,12 +124,18 @@ def test_instance_records_skin_like_usdskel():
 
 
 def test_levels_follow_screen_size_and_frustum_culls():
-    s = lod.LodSettings(mesh_levels=((64.0, 0.0), (32.0, 0.05), (12.0, 0.1)), point_levels=((6.0, 48, 0.3),
-                                                                                            (0.0, 16, 0.45)))
+    s = lod.LodSettings(mesh_levels=((64.0, 0.0), (32.0, 0.05), (12.0, 0.1)), impostor_min_px=None,
+                        point_levels=((6.0, 48, 0.3), (0.0, 16, 0.45)))
     px = np.array([500.0, 64.0, 63.0, 31.0, 8.0, 2.0, np.inf])
     levels = lod.choose_levels(px, s)
     assert levels.tolist() == [0, 0, 1, 2, 3, 4, 0]
     assert lod.shadow_levels(levels, s).tolist() == [1, 1, 2, 2, 3, 4, 1]
+    # The default: the full mesh, impostors from 64 px down to 3 px, then points.
+    d = lod.LodSettings()
+    assert d.impostor_level == 1 and d.first_point_level == 2 and d.n_levels == 4
+    levels = lod.choose_levels(np.array([500.0, 64.0, 63.0, 3.0, 2.9, 1.0]), d)
+    assert levels.tolist() == [0, 0, 1, 1, 2, 3]
+    assert lod.shadow_levels(levels, d).tolist() == [0, 0, 1, 1, 2, 3]
     assert lod.choose_levels(px, lod.LodSettings(enabled=False)).tolist() == [0] * 7
     view = np.eye(4)          # camera at the origin looking down -Z
     centres = np.array([[0, 0, -10.0], [0, 0, 10.0], [30, 0, -10.0], [7.5, 0, -10.0], [0, 0, -500.0]])
@@ -243,17 +249,30 @@ def test_characters_cast_shadows_on_the_floor(tiny_shot, gl):
         without.release()
 
 
-def test_distant_characters_become_points_and_keep_their_ids(tiny_shot, gl):
+def test_distant_characters_become_impostors_then_points_and_keep_their_ids(tiny_shot, gl):
     from usdcrowd.render.preview import PreviewRenderer
 
     r = PreviewRenderer(tiny_shot, 320, 180, ctx=gl)
     try:
         cam = r.scene.camera("/World/Cam", 4.0)
-        far = type(cam)(**{**cam.__dict__, "cam_to_world": cam.cam_to_world.copy()})
-        far.cam_to_world[3, :3] += 25.0 * far.cam_to_world[2, :3]     # back off 25 m along the view axis
-        f = r.render(4.0, far)
-        assert f.stats["points"] == 4 and f.stats["full"] == 0
+
+        def backed_off(metres):
+            far = type(cam)(**{**cam.__dict__, "cam_to_world": cam.cam_to_world.copy()})
+            far.cam_to_world[3, :3] += metres * far.cam_to_world[2, :3]     # back off along the view axis
+            return far
+
+        f = r.render(4.0, backed_off(25.0))
+        assert f.stats["impostors"] == 4 and f.stats["full"] == 0
         assert set(f.boxes()) == {1, 2, 7, 12}
+        # Without the impostor level the same characters are seed 004's points.
+        r_points = PreviewRenderer(tiny_shot, 320, 180, ctx=gl, lod_settings=lod.LodSettings(
+            impostor_min_px=None, point_levels=((6.0, 48, 0.3), (0.0, 16, 0.45))))
+        try:
+            g = r_points.render(4.0, backed_off(25.0))
+            assert g.stats["points"] == 4 and g.stats["impostors"] == 0
+            assert set(g.boxes()) == {1, 2, 7, 12}
+        finally:
+            r_points.release()
         # Behind the camera: culled.
         behind = type(cam)(**{**cam.__dict__, "cam_to_world": np.diag([-1.0, 1, -1, 1]) @ cam.cam_to_world})
         assert r.render(4.0, behind).stats["culled"] == 4
@@ -360,3 +379,35 @@ def test_no_display_is_one_clear_error(tiny_shot, monkeypatch):
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     with pytest.raises(UsdcrowdError, match="no display"):
         window_context(100, 100)
+
+
+def test_impostors_stand_where_the_meshes_do(tiny_shot, gl):
+    """Per-joint impostors: same place, size and shading as the mesh they replace, within a preview's tolerance."""
+    from usdcrowd.render.preview import PreviewRenderer
+
+    settings = {"impostors": lod.LodSettings(mesh_levels=((1e9, 0.0),)),   # everyone an impostor
+                "meshes": lod.LodSettings(enabled=False)}
+    frames = {}
+    for name, s in settings.items():
+        r = PreviewRenderer(tiny_shot, 640, 360, ctx=gl, lod_settings=s)
+        try:
+            frames[name] = r.render(4.0, "/World/Cam")
+        finally:
+            r.release()
+    imp, mesh = frames["impostors"], frames["meshes"]
+    assert imp.stats["impostors"] == 4 and mesh.stats["full"] == 4
+    bi, bm = imp.boxes(), mesh.boxes()
+    assert set(bi) == set(bm) == {1, 2, 7, 12}
+    for k in bm:
+        a, b = bi[k], bm[k]
+        ix = max(0, min(a[2], b[2]) - max(a[0], b[0]))
+        iy = max(0, min(a[3], b[3]) - max(a[1], b[1]))
+        inter = ix * iy
+        iou = inter / ((a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - inter)
+        assert iou > 0.75, (k, a, b)
+        n_imp, n_mesh = (imp.ids == k).sum(), (mesh.ids == k).sum()
+        assert abs(n_imp / n_mesh - 1.0) < 0.25, (k, n_imp, n_mesh)
+        # Lit like the mesh: mean colour of the agent's pixels within 12 code values.
+        c_imp = imp.color[imp.ids == k].mean(0)
+        c_mesh = mesh.color[mesh.ids == k].mean(0)
+        assert np.abs(c_imp - c_mesh).max() < 12, (k, c_imp, c_mesh)

@@ -81,7 +81,8 @@ def run(frames: int = 8, workdir: str | os.PathLike | None = None, counts=COUNTS
                 fps, stats = time_renderer(r, poses, cams)
                 results[(n, cam_path, label)] = fps
                 print(f"  {n:>6,} characters  {cam_path.rsplit('/', 1)[-1]:<10} {label:<16} {fps:6.2f} fps  "
-                      f"(full {stats['full']}, clustered {stats['coarse']}, points {stats['points']}, "
+                      f"(full {stats['full']}, clustered {stats['coarse']}, impostors {stats.get('impostors', 0)}, "
+                      f"points {stats['points']}, "
                       f"culled {stats['culled']})")
                 if r is not probe:
                     r.release()

@@ -2,7 +2,8 @@
 
 Each agent is bounded by a sphere around its waist joint. Agents whose
 sphere misses the view frustum are not drawn; the others get a level from
-their height on screen in pixels: the full mesh, the clustered mesh, or a
+their height on screen in pixels: the full mesh (or clustered meshes, when
+configured), per-joint impostors (:mod:`.impostors`), or, for the smallest, a
 number of points from the body's octree-ordered list that shrinks with the
 size (seed 004: "the number of points to be rendered is obtained as a
 function of the distance for each character").
@@ -36,12 +37,17 @@ class LodSettings:
         Frustum culling.
     shadow_bias : int
         Shadow casters are drawn this many mesh levels coarser than in the
-        view (never coarser than the last mesh; points stay points): a
-        shadow on the floor needs less detail than the figure casting it.
+        view (never coarser than the last mesh; impostors and points keep
+        their level): a shadow on the floor needs less detail than the
+        figure casting it.
     mesh_levels : tuple of (min_px, cell)
         Mesh levels from the finest: characters at least ``min_px`` tall on
         screen get the mesh clustered on a ``cell``-metre grid (0: the full
         mesh, which must come first).
+    impostor_min_px : float or None
+        Characters smaller than the last mesh level and at least this tall
+        are drawn as per-joint impostors (:mod:`.impostors`); None: no
+        impostor level.
     point_levels : tuple of (min_px, n_points, splat_m)
         Point levels from the largest: characters at least ``min_px`` tall
         draw the first ``n_points`` points of the octree list, each a square
@@ -52,21 +58,38 @@ class LodSettings:
     enabled: bool = True
     cull: bool = True
     shadow_bias: int = 1
-    mesh_levels: tuple = ((64.0, 0.0), (32.0, 0.05), (12.0, 0.1))
-    point_levels: tuple = ((6.0, 48, 0.3), (0.0, 16, 0.45))
+    mesh_levels: tuple = ((64.0, 0.0),)
+    # Impostors cost a software rasteriser less than 48 points down to a few
+    # pixels (bench_preview), so points are kept for specks.
+    impostor_min_px: float | None = 3.0
+    point_levels: tuple = ((1.5, 16, 0.45), (0.0, 8, 0.6))
 
     @property
     def n_meshes(self) -> int:
         return len(self.mesh_levels)
 
     @property
+    def impostor_level(self) -> int | None:
+        """Index of the impostor level, or None."""
+        return None if self.impostor_min_px is None else self.n_meshes
+
+    @property
+    def first_point_level(self) -> int:
+        return self.n_meshes + (self.impostor_min_px is not None)
+
+    @property
     def n_levels(self) -> int:
-        return len(self.mesh_levels) + len(self.point_levels)
+        return self.first_point_level + len(self.point_levels)
 
     @property
     def cells(self) -> tuple:
         """Clustering grids of the coarser mesh levels."""
         return tuple(cell for _, cell in self.mesh_levels[1:])
+
+    def thresholds(self) -> np.ndarray:
+        """Smallest on-screen height (pixels) of every level, largest first."""
+        imp = [] if self.impostor_min_px is None else [self.impostor_min_px]
+        return np.array([m[0] for m in self.mesh_levels] + imp + [p[0] for p in self.point_levels], dtype=np.float64)
 
 
 def agent_bounds(joints_world: np.ndarray):
@@ -140,12 +163,13 @@ def choose_levels(pixels: np.ndarray, settings: LodSettings) -> np.ndarray:
     Returns
     -------
     (n,) int8
-        LEVEL_FULL, then the clustered meshes, then n_meshes + k for point level k.
+        LEVEL_FULL, then the clustered meshes, the impostor level (if any),
+        then ``first_point_level + k`` for point level k.
     """
     if not settings.enabled:
         return np.zeros(len(pixels), dtype=np.int8)
     # Thresholds from the largest down; a character takes the first it reaches.
-    thresholds = np.array([m[0] for m in settings.mesh_levels] + [p[0] for p in settings.point_levels])
+    thresholds = settings.thresholds()
     level = np.searchsorted(-thresholds, -np.asarray(pixels, dtype=np.float64), side="left")
     return np.minimum(level, settings.n_levels - 1).astype(np.int8)
 

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..scene import AgentPoses, CameraView, ShotScene
-from . import instancing, lod, shaders, shadows
+from . import impostors, instancing, lod, shaders, shadows
 from .context import headless_context
 
 
@@ -288,6 +288,24 @@ class PreviewRenderer:
             self._body_vaos.append((main, shadow))
         self._instances = None
         self._instance_capacity = 0
+        self.atlas = None
+        if self.lod.impostor_min_px is not None:
+            full = self.body.meshes[0].vertices
+            self.atlas = impostors.build_atlas(ctx, full[:, :3], self.body.meshes[0].indices.reshape(-1, 3),
+                                               full[:, 6:9], full[:, 3:6])
+            self.prog_imp = ctx.program(vertex_shader=shaders.IMPOSTOR_VS, fragment_shader=shaders.IMPOSTOR_FS)
+            self.prog_shadow_imp = ctx.program(vertex_shader=shaders.SHADOW_IMPOSTOR_VS,
+                                               fragment_shader=shaders.SHADOW_IMPOSTOR_FS)
+            corners, indices = impostors.quad_vertices()
+            quad_vbo, quad_ibo = ctx.buffer(corners.tobytes()), ctx.buffer(indices.tobytes())
+            self._imp_vaos = tuple(ctx.vertex_array(prog, [(quad_vbo, "3f", "in_corner")], quad_ibo, 4,
+                                                    skip_errors=True)
+                                   for prog in (self.prog_imp, self.prog_shadow_imp))
+            for prog in (self.prog_imp, self.prog_shadow_imp):
+                for name, value in self.atlas.uniforms().items():
+                    _set(prog, name, value)
+                _set(prog, "u_atlas", 2)
+                _set(prog, "u_cell_box", 3)
 
         t0 = float(self.scene.time_codes[0]) if len(self.scene.time_codes) else 0.0
         self._scenery = []
@@ -327,8 +345,11 @@ class PreviewRenderer:
         sky = self.lights.sky * self.exposure if self.lights.sky.any() else np.array([0.5, 0.55, 0.6])
         self.background = srgb8(np.clip(sky, 0, 1) * 0.9)
 
-        for prog in (self.prog_char, self.prog_scenery):
+        for prog in self._lit_programs():
             self._set_lights(prog)
+
+    def _lit_programs(self) -> tuple:
+        return (self.prog_scenery, self.prog_char) + ((self.prog_imp,) if self.atlas is not None else ())
 
     def _load_texture(self, item):
         path = item.material.base_color_texture
@@ -460,6 +481,10 @@ class PreviewRenderer:
         self._upload(np.concatenate([records, s_records]))
         s_base = len(records)
 
+        if self.atlas is not None:
+            self.atlas.texture.use(2)
+            self.atlas.boxes.use(3)
+
         # --- the sun's shadow map -----------------------------------------
         light_vp, texel = np.eye(4), 1.0
         if sun_dir is not None and self.shadows:
@@ -483,6 +508,9 @@ class PreviewRenderer:
                 _set(self.prog_shadow_scenery, "u_model", self._world(d, time))
                 d.shadow_vao.render(mgl.TRIANGLES)
             _set(self.prog_shadow_char, "u_light_vp", light_vp)
+            if self.atlas is not None:
+                _set(self.prog_shadow_imp, "u_light_vp", light_vp)
+                _set(self.prog_shadow_imp, "u_view_dir", np.asarray(sun_dir, np.float32))
             self._draw_levels(self.prog_shadow_char, 1, s_starts, s_base, shadow_texel=texel)
             ctx.polygon_offset = (0.0, 0.0)
 
@@ -498,7 +526,10 @@ class PreviewRenderer:
         self.fbo.color_mask = ((True,) * 4,) * 3
         ctx.enable(mgl.DEPTH_TEST | mgl.PROGRAM_POINT_SIZE)
         self.shadow_tex.use(0)
-        for prog in (self.prog_scenery, self.prog_char):
+        if self.atlas is not None:
+            _set(self.prog_imp, "u_eye", np.asarray(camera.cam_to_world[3, :3], np.float32))
+            _set(self.prog_imp, "u_view_dir", np.zeros(3, np.float32))
+        for prog in self._lit_programs():
             _set(prog, "u_view", view)
             _set(prog, "u_proj", proj)
             _set(prog, "u_light_vp", light_vp)
@@ -529,10 +560,10 @@ class PreviewRenderer:
         if target is not None:
             ctx.copy_framebuffer(target, self.fbo)
         counts = np.diff(starts)
-        m = self.lod.n_meshes
+        m, p = self.lod.n_meshes, self.lod.first_point_level
         return {"agents": n, "culled": int((draw_mask & ~in_view).sum()), "shadow_casters": int(casts.sum()),
-                "full": int(counts[0]), "coarse": int(counts[1:m].sum()), "points": int(counts[m:].sum()),
-                "levels": counts.tolist()}
+                "full": int(counts[0]), "coarse": int(counts[1:m].sum()), "impostors": int(counts[m:p].sum()),
+                "points": int(counts[p:].sum()), "levels": counts.tolist()}
 
     def _world(self, d: _SceneryDraw, time) -> np.ndarray:
         return d.item.local_to_world(time) if d.item.animated else d.world
@@ -564,8 +595,11 @@ class PreviewRenderer:
                     self.ctx.enable(mgl.CULL_FACE)
                 vao.render(mgl.TRIANGLES, instances=count)
                 self.ctx.disable(mgl.CULL_FACE)
+            elif level == self.lod.impostor_level:
+                _set(self._imp_vaos[which].program, "u_base", int(base + starts[level]))
+                self._imp_vaos[which].render(mgl.TRIANGLES, instances=count)
             else:
-                _, k, splat = self.lod.point_levels[level - self.lod.n_meshes]
+                _, k, splat = self.lod.point_levels[level - self.lod.first_point_level]
                 k = min(int(k), len(self.body.points.vertices))
                 _set(prog, "u_point_size", float(splat))
                 _set(prog, "u_point_size_px", float(splat / shadow_texel) if shadow_texel else 1.0)
@@ -578,3 +612,6 @@ class PreviewRenderer:
             obj.release()
         if self._instances is not None:
             self._instances.release()
+        if self.atlas is not None:
+            self.atlas.texture.release()
+            self.atlas.boxes.release()

@@ -184,6 +184,144 @@ void main() {
 }
 """
 
+# ---------------------------------------------------------------- impostors
+# Per-joint impostors (see impostors.py; the constants must match it).
+IMPOSTOR_CONSTANTS = """
+const int N_AZ = 16;
+const int N_EL = 6;
+const float EL0 = radians(-10.0);
+const float EL_STEP = radians(20.0);
+const float LEAN = 0.05;
+const float MARGIN = 1.04;
+"""
+
+IMPOSTOR_PLACE = """
+uniform vec4 u_part_centre[3];        // bind-space cylinder centre, w: radius
+uniform float u_part_half_height[3];
+uniform vec3 u_eye;                   // perspective views: the camera's position
+uniform vec3 u_view_dir;              // orthographic views (the sun): toward the viewer; else 0
+uniform sampler2D u_cell_box;         // covered rectangle of each view, corner space
+
+// One corner of a joint's quad: world position, texture cell and the joint's rotation.
+void impostor(vec3 corner, out vec3 wp, out vec2 local_uv, out vec2 cell, out mat3 rot,
+              out float radius, out vec3 color, out uint id) {
+    int b = (u_base + gl_InstanceID) * 10;
+    int j = int(corner.z + 0.5);
+    vec4 c0 = inst[b + 3 * j], c1 = inst[b + 3 * j + 1], c2 = inst[b + 3 * j + 2];
+    vec4 pc = vec4(u_part_centre[j].xyz, 1.0);
+    vec3 centre = vec3(dot(pc, c0), dot(pc, c1), dot(pc, c2));
+    float s = length(c0.xyz);
+    rot = transpose(mat3(c0.xyz, c1.xyz, c2.xyz)) / s;
+    vec3 d = dot(u_view_dir, u_view_dir) > 0.5 ? u_view_dir : normalize(u_eye - centre);
+    vec3 dl = transpose(rot) * d;
+    float az = atan(dl.y, dl.x);
+    float el = asin(clamp(dl.z, -1.0, 1.0));
+    int ia = int(mod(round(az * float(N_AZ) / 6.28318530718), float(N_AZ)));
+    int ie = clamp(int(round((el - EL0) / EL_STEP)), 0, N_EL - 1);
+    float e = EL0 + float(ie) * EL_STEP;
+    float r = u_part_centre[j].w;
+    float hw = r * MARGIN * s;
+    float hh = (u_part_half_height[j] * cos(e) + r * abs(sin(e))) * MARGIN * s;
+    vec3 up_axis = rot[2], facing = rot[0];
+    vec3 up = normalize(up_axis - dot(up_axis, d) * d + LEAN * (facing - dot(facing, d) * d));
+    vec3 right = cross(up, d);
+    vec4 box = texelFetch(u_cell_box, ivec2(ia, j * N_EL + ie), 0);
+    vec2 k = mix(box.xy, box.zw, corner.xy * 0.5 + 0.5);
+    wp = centre + k.x * hw * right + k.y * hh * up;
+    local_uv = k * 0.5 + 0.5;
+    cell = vec2(float(ia), float(j * N_EL + ie));
+    radius = r * s;
+    color = inst[b + 9].rgb;
+    id = inst_u[b + 9].w;
+}
+"""
+
+IMPOSTOR_SAMPLE = """
+float impostor_alpha(sampler2D atlas, vec2 cell, vec2 local_uv, out vec3 normal) {
+    // Clamp half a texel inside the cell: linear filtering must not read the neighbours.
+    vec2 size = vec2(textureSize(atlas, 0));
+    vec2 grid = vec2(float(N_AZ), float(3 * N_EL));
+    vec2 half_texel = 0.5 * grid / size;
+    vec4 t = texture(atlas, (cell + clamp(local_uv, half_texel, 1.0 - half_texel)) / grid);
+    normal = t.rgb * 2.0 - 1.0;
+    return t.a;
+}
+"""
+
+IMPOSTOR_VS = VERSION + SKINNING + IMPOSTOR_CONSTANTS + IMPOSTOR_PLACE + """
+uniform mat4 u_view;
+uniform mat4 u_proj;
+in vec3 in_corner;
+out vec3 v_world;
+out vec2 v_uv;
+out float v_z;
+flat out vec2 v_cell;
+flat out mat3 v_rot;
+flat out float v_radius;
+flat out vec3 v_color;
+flat out uint v_id;
+
+void main() {
+    vec3 wp;
+    impostor(in_corner, wp, v_uv, v_cell, v_rot, v_radius, v_color, v_id);
+    vec4 vp = u_view * vec4(wp, 1.0);
+    gl_Position = u_proj * vp;
+    v_world = wp;
+    v_z = -vp.z;
+}
+"""
+
+IMPOSTOR_FS = VERSION + LIGHTING + OUTPUTS + IMPOSTOR_CONSTANTS + IMPOSTOR_SAMPLE + """
+uniform sampler2D u_atlas;
+in vec3 v_world;
+in vec2 v_uv;
+in float v_z;
+flat in vec2 v_cell;
+flat in mat3 v_rot;
+flat in float v_radius;
+flat in vec3 v_color;
+flat in uint v_id;
+
+void main() {
+    vec3 n_local;
+    if (impostor_alpha(u_atlas, v_cell, v_uv, n_local) < 0.5) discard;
+    vec3 n = normalize(v_rot * n_local);
+    // The quad runs through the joint's middle: look the shadow up on the
+    // sun's side of the body, or half of it would shadow itself.
+    vec3 wp = v_world + u_sun_dir * v_radius;
+    o_color = vec4(srgb_encode(shade(v_color, wp, n)), 1.0);
+    o_id = v_id;
+    o_depth = v_z;
+}
+"""
+
+SHADOW_IMPOSTOR_VS = VERSION + SKINNING + IMPOSTOR_CONSTANTS + IMPOSTOR_PLACE + """
+uniform mat4 u_light_vp;
+in vec3 in_corner;
+out vec2 v_uv;
+flat out vec2 v_cell;
+
+void main() {
+    vec3 wp, color;
+    mat3 rot;
+    float radius;
+    uint id;
+    impostor(in_corner, wp, v_uv, v_cell, rot, radius, color, id);
+    gl_Position = u_light_vp * vec4(wp, 1.0);
+}
+"""
+
+SHADOW_IMPOSTOR_FS = VERSION + IMPOSTOR_CONSTANTS + IMPOSTOR_SAMPLE + """
+uniform sampler2D u_atlas;
+in vec2 v_uv;
+flat in vec2 v_cell;
+
+void main() {
+    vec3 n;
+    if (impostor_alpha(u_atlas, v_cell, v_uv, n) < 0.5) discard;
+}
+"""
+
 # ------------------------------------------------------------------- shadows
 SHADOW_CHARACTER_VS = VERSION + SKINNING + """
 uniform mat4 u_light_vp;

@@ -121,10 +121,9 @@ class Viewer:
         elif key == glfw.KEY_F:
             self.fly = None if self.fly is not None else FreeFly(self.camera())
         elif key == glfw.KEY_L:
-            from .lod import LodSettings
+            from dataclasses import replace
 
-            self.r.lod = LodSettings(enabled=not self.r.lod.enabled, shadow_bias=self.r.lod.shadow_bias,
-                                     mesh_levels=self.r.lod.mesh_levels, point_levels=self.r.lod.point_levels)
+            self.r.lod = replace(self.r.lod, enabled=not self.r.lod.enabled)
         elif key == glfw.KEY_H:
             self.r.shadows = not self.r.shadows
             if not self.r.shadows:
@@ -168,7 +167,8 @@ class Viewer:
     def title(self) -> str:
         cam = "free-fly" if self.fly is not None else (self.cameras[self.cam_index] if self.cameras else "-")
         s = self.stats
-        lod = f"full {s.get('full', 0)} clustered {s.get('coarse', 0)} points {s.get('points', 0)}" if s else ""
+        lod = (f"full {s.get('full', 0)} clustered {s.get('coarse', 0)} impostors {s.get('impostors', 0)} "
+               f"points {s.get('points', 0)}") if s else ""
         state = "playing" if self.playing else "paused"
         return (f"usdcrowd preview  t={self.time:g} ({self.index + 1}/{len(self.times)}, {state})  {cam}  "
                 f"{self.draw_fps:.1f} fps  {lod}")
