@@ -123,6 +123,18 @@ def test_instance_records_skin_like_usdskel():
     assert rec[:, 9, 3].view(np.uint32).tolist() == [1, 2, 3, 4, 5]
 
 
+def test_shadow_map_is_sized_to_the_screen_pixels():
+    from usdcrowd.render.preview import shadows
+    assert shadows.used_size(60.0, 0.044, 2048) == 1408       # 60 m at 4.4 cm per pixel
+    assert shadows.used_size(60.0, 0.01, 2048) == 2048        # never more than the map
+    assert shadows.used_size(1.0, 0.05, 2048) == 512          # nor less than the floor
+    assert shadows.used_size(60.0, None, 2048) == 2048
+    view = np.eye(4)                                          # camera at the origin looking down -Z
+    centres = np.array([[0.0, 0.0, -z] for z in (10.0, 20.0, 40.0)])
+    assert shadows.pixel_footprint(centres, view, 1000.0, quantile=0.0) == pytest.approx(0.01)
+    assert shadows.pixel_footprint(np.zeros((0, 3)), view, 1000.0) is None
+
+
 def test_levels_follow_screen_size_and_frustum_culls():
     s = lod.LodSettings(mesh_levels=((64.0, 0.0), (32.0, 0.05), (12.0, 0.1)), impostor_min_px=None,
                         point_levels=((6.0, 48, 0.3), (0.0, 16, 0.45)))
@@ -235,6 +247,9 @@ def test_characters_cast_shadows_on_the_floor(tiny_shot, gl):
     without = PreviewRenderer(tiny_shot, 320, 180, ctx=gl, lod_settings=LodSettings(enabled=False), shadows=False)
     try:
         a, b = with_shadows.render(4.0, "/World/Cam"), without.render(4.0, "/World/Cam")
+        # A small image needs only part of the map: the shadows must still land right.
+        assert 512 <= a.stats["shadow_texels"] < with_shadows.shadow_size
+        assert b.stats["shadow_texels"] == 0
         floor_id = next(s.shape_id for s in with_shadows.scene.scenery if s.path.endswith("Floor"))
         floor = (a.ids == floor_id) & (b.ids == floor_id)
         darker = floor & (a.color.astype(int).sum(-1) < b.color.astype(int).sum(-1) - 30)

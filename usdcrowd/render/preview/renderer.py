@@ -486,7 +486,7 @@ class PreviewRenderer:
             self.atlas.boxes.use(3)
 
         # --- the sun's shadow map -----------------------------------------
-        light_vp, texel = np.eye(4), 1.0
+        light_vp, texel, shadow_scale, used = np.eye(4), 1.0, 1.0, 0
         if sun_dir is not None and self.shadows:
             lo, hi = self._scenery_box
             if n:
@@ -498,8 +498,16 @@ class PreviewRenderer:
             corners = shadows.frustum_corners(camera.cam_to_world, focal, w, h, camera.near,
                                               min(camera.far, self.shadow_distance))
             light_vp, texel = shadows.fit_light_matrix(sun_dir, lo, hi, corners, self.shadow_size)
+            # Texels finer than a screen pixel at the nearest characters are
+            # wasted fill: use only as much of the map as they need.
+            footprint = shadows.pixel_footprint(centres[order[:starts[-1]]], view, focal) if n else None
+            used = shadows.used_size(texel * self.shadow_size, footprint, self.shadow_size)
+            texel, shadow_scale = texel * self.shadow_size / used, used / self.shadow_size
+            self.shadow_fbo.viewport = (0, 0, self.shadow_size, self.shadow_size)
             self.shadow_fbo.use()
             self.shadow_fbo.clear(depth=1.0)
+            self.shadow_fbo.viewport = (0, 0, used, used)
+            self.shadow_fbo.use()
             ctx.enable(mgl.DEPTH_TEST | mgl.PROGRAM_POINT_SIZE)
             ctx.disable(mgl.CULL_FACE)         # both faces: thin open meshes still cast
             ctx.polygon_offset = (2.0, 4.0)
@@ -534,6 +542,7 @@ class PreviewRenderer:
             _set(prog, "u_proj", proj)
             _set(prog, "u_light_vp", light_vp)
             _set(prog, "u_shadow_texel", float(texel))
+            _set(prog, "u_shadow_scale", float(shadow_scale))
             _set(prog, "u_sun", np.asarray(self.lights.sun, np.float32) if sun_dir is not None else np.zeros(3, np.float32))
         ctx.disable(mgl.CULL_FACE)
         # The Y flip mirrors the image, so counter-clockwise triangles arrive
@@ -563,7 +572,7 @@ class PreviewRenderer:
         m, p = self.lod.n_meshes, self.lod.first_point_level
         return {"agents": n, "culled": int((draw_mask & ~in_view).sum()), "shadow_casters": int(casts.sum()),
                 "full": int(counts[0]), "coarse": int(counts[1:m].sum()), "impostors": int(counts[m:p].sum()),
-                "points": int(counts[p:].sum()), "levels": counts.tolist()}
+                "points": int(counts[p:].sum()), "levels": counts.tolist(), "shadow_texels": int(used)}
 
     def _world(self, d: _SceneryDraw, time) -> np.ndarray:
         return d.item.local_to_world(time) if d.item.animated else d.world

@@ -53,6 +53,7 @@ uniform vec4 u_lamp_dir[8];      // xyz emission axis, w = 1 for one-sided (rect
 uniform sampler2DShadow u_shadow;
 uniform mat4 u_light_vp;
 uniform float u_shadow_texel;    // world size of one shadow-map texel, metres
+uniform float u_shadow_scale;    // fraction of the map's side this frame uses (from its corner)
 uniform float u_exposure;
 
 float sun_visibility(vec3 wp, vec3 n) {
@@ -63,7 +64,7 @@ float sun_visibility(vec3 wp, vec3 n) {
     // One hardware-filtered comparison (bilinear over 2x2 texels): soft
     // enough for a preview, and a quarter of the cost of a 4-tap kernel on
     // a software rasteriser.
-    return texture(u_shadow, s);
+    return texture(u_shadow, vec3(s.xy * u_shadow_scale, s.z));
 }
 
 vec3 shade(vec3 albedo, vec3 wp, vec3 n) {

@@ -84,3 +84,30 @@ def fit_light_matrix(sun_dir: np.ndarray, scene_lo: np.ndarray, scene_hi: np.nda
     m[3, 2] = (centre[2]) * 2.0 / depth
     m[3, 3] = 1.0
     return m, span / size
+
+
+def pixel_footprint(centres: np.ndarray, world_to_cam: np.ndarray, focal_px: float,
+                    quantile: float = 0.05) -> float | None:
+    """Metres one screen pixel spans at the nearer characters (a low depth quantile), or None.
+
+    Parameters
+    ----------
+    centres : (n, 3) float
+        World positions of the drawn characters.
+    world_to_cam : (4, 4) float
+        Row-vector view matrix.
+    focal_px : float
+    """
+    if len(centres) == 0:
+        return None
+    z = -(np.asarray(centres) @ world_to_cam[:3, 2] + world_to_cam[3, 2])
+    z = z[z > 1e-3]
+    return float(np.quantile(z, quantile)) / focal_px if len(z) else None
+
+
+def used_size(span: float, footprint: float | None, size: int, step: int = 128, least: int = 512) -> int:
+    """Texels per side to render: about one per screen pixel at ``footprint``, in ``step``s, at most ``size``."""
+    if footprint is None or footprint <= 0:
+        return size
+    want = int(np.ceil(span / footprint / step)) * step
+    return int(min(size, max(least, want)))
