@@ -271,6 +271,10 @@ def _agents_of(frames: model.CrowdFrames, rows: np.ndarray) -> model.CrowdFrames
                               for f in fields(frames) if f.name != "times"})
 
 
+# A pipe whose other end (a part writer) has gone.
+_LOST = (BrokenPipeError, ConnectionResetError, EOFError)
+
+
 def _part_worker(conn, layer_path, scenario, frame, rows, authored, default_prim):
     """A process that owns one part layer: commands arrive over ``conn``."""
     from pxr import Sdf
@@ -369,12 +373,17 @@ class CrowdLayerWriter:
         self._pending = {proc.pid: 1 for proc, _ in self._workers}
         self.layer.subLayerPaths = [f"./{os.path.basename(p)}" for p in self.part_paths]
 
+    def _died(self, proc) -> RuntimeError:
+        """Stop everything and describe a part writer that is gone."""
+        proc.join(5.0)
+        self.abort()
+        return RuntimeError(f"crowd layer part writer {proc.pid} died (exit code {proc.exitcode})")
+
     def _send(self, proc, conn, message) -> None:
         try:
             conn.send(message)
-        except (BrokenPipeError, ConnectionResetError, EOFError):
-            self.abort()
-            raise RuntimeError(f"crowd layer part writer {proc.pid} died (exit code {proc.exitcode})") from None
+        except _LOST:
+            raise self._died(proc) from None
         self._pending[proc.pid] += 1
 
     def _collect(self) -> None:
@@ -383,15 +392,12 @@ class CrowdLayerWriter:
             while self._pending[proc.pid]:
                 if not conn.poll(1.0):
                     if not proc.is_alive():
-                        self.abort()
-                        raise RuntimeError(f"crowd layer part writer {proc.pid} died (exit code {proc.exitcode})")
+                        raise self._died(proc)
                     continue
                 try:
                     status, detail = conn.recv()
-                except (EOFError, ConnectionResetError, BrokenPipeError):
-                    proc.join(5.0)
-                    self.abort()
-                    raise RuntimeError(f"crowd layer part writer {proc.pid} died (exit code {proc.exitcode})") from None
+                except _LOST:
+                    raise self._died(proc) from None
                 self._pending[proc.pid] -= 1
                 if status == "error":
                     self.abort()
