@@ -214,14 +214,3 @@ def cell_boxes(alpha: np.ndarray) -> np.ndarray:
         out[..., lo_k] = np.where(any_hit, np.maximum(first - 1, 0) / CELL * 2.0 - 1.0, -1.0)
         out[..., hi_k] = np.where(any_hit, np.minimum(last + 2, CELL) / CELL * 2.0 - 1.0, 1.0)
     return out
-
-
-def quad_vertices() -> tuple[np.ndarray, np.ndarray]:
-    """The three parts' quads: corners (12, 3) float32 (x, y in [-1, 1], the joint) and indices (18,) int32.
-
-    Indexed, so the vertex shader runs four times per quad, not six.
-    """
-    corners = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], np.float32)
-    vertices = np.concatenate([np.c_[corners, np.full(4, j, np.float32)] for j in range(3)])
-    indices = np.concatenate([np.array([0, 1, 2, 0, 2, 3], np.int32) + 4 * j for j in range(3)])
-    return vertices, indices

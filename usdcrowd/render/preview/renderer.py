@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..scene import AgentPoses, CameraView, ShotScene
+from ..scene import SCENERY_ID_BASE, AgentPoses, CameraView, ShotScene
 from . import impostors, instancing, lod, shaders, shadows
 from .context import headless_context
 
@@ -288,6 +288,8 @@ class PreviewRenderer:
             self._body_vaos.append((main, shadow))
         self._instances = None
         self._instance_capacity = 0
+        self._slots = None
+        self._slot_capacity = 0
         self.atlas = None
         if self.lod.impostor_min_px is not None:
             full = self.body.meshes[0].vertices
@@ -296,16 +298,21 @@ class PreviewRenderer:
             self.prog_imp = ctx.program(vertex_shader=shaders.IMPOSTOR_VS, fragment_shader=shaders.IMPOSTOR_FS)
             self.prog_shadow_imp = ctx.program(vertex_shader=shaders.SHADOW_IMPOSTOR_VS,
                                                fragment_shader=shaders.SHADOW_IMPOSTOR_FS)
-            corners, indices = impostors.quad_vertices()
-            quad_vbo, quad_ibo = ctx.buffer(corners.tobytes()), ctx.buffer(indices.tobytes())
-            self._imp_vaos = tuple(ctx.vertex_array(prog, [(quad_vbo, "3f", "in_corner")], quad_ibo, 4,
-                                                    skip_errors=True)
-                                   for prog in (self.prog_imp, self.prog_shadow_imp))
-            for prog in (self.prog_imp, self.prog_shadow_imp):
+            self.prog_imp_place = ctx.compute_shader(shaders.IMPOSTOR_CS)
+            self._imp_vaos = None         # (view, shadow), made with the quad indices
+            self._imp_index = None
+            self._imp_capacity = 0        # parts the quad indices cover
+            self._sprites = None
+            self._sprite_capacity = 0     # bytes
+            for prog in (self.prog_imp, self.prog_shadow_imp, self.prog_imp_place):
                 for name, value in self.atlas.uniforms().items():
                     _set(prog, name, value)
                 _set(prog, "u_atlas", 2)
                 _set(prog, "u_cell_box", 3)
+
+        full = self.body.meshes[0]
+        self._parts = self.atlas.parts if self.atlas is not None else impostors.body_parts(
+            full.vertices[:, :3], full.indices.reshape(-1, 3), full.vertices[:, 6:9])
 
         t0 = float(self.scene.time_codes[0]) if len(self.scene.time_codes) else 0.0
         self._scenery = []
@@ -449,6 +456,7 @@ class PreviewRenderer:
 
         # --- which agents, at which level --------------------------------
         n = len(poses)
+        skinning = poses.skinning if n else np.zeros((0, 3, 4, 4))
         centres, radius, body_h = lod.agent_bounds(poses.joints_world) if n else (np.zeros((0, 3)),) * 3
         draw_mask = np.asarray(poses.visible, dtype=bool).copy()
         if n and self.lod.cull:
@@ -458,8 +466,9 @@ class PreviewRenderer:
         pixels = lod.screen_height(centres, body_h, view, focal) if n else np.zeros(0)
         levels = lod.choose_levels(pixels, self.lod)
         n_levels = self.lod.n_levels
-        order, starts = lod.group_by_level(levels, draw_mask & in_view, n_levels, distance=-pixels / body_h
-                                           if n else None)
+        nearest_first = -pixels / body_h if n else None
+        drawn = draw_mask & in_view
+        order, starts = lod.group_by_level(levels, drawn, n_levels, distance=nearest_first)
 
         # Shadow casters: drawn agents plus those just outside the frustum
         # whose shadows may reach into it.
@@ -474,12 +483,11 @@ class PreviewRenderer:
             casts = draw_mask
         s_order, s_starts = lod.group_by_level(lod.shadow_levels(levels, self.lod), casts, n_levels)
 
-        records = instancing.pack_instances(poses.skinning[order], poses.color[order], poses.agent_ids[order]) \
-            if n else np.zeros((0, 10, 4), np.float32)
-        s_records = instancing.pack_instances(poses.skinning[s_order], poses.color[s_order],
-                                              poses.agent_ids[s_order]) if n else np.zeros((0, 10, 4), np.float32)
-        self._upload(np.concatenate([records, s_records]))
-        s_base = len(records)
+        # One record per agent; draws index them through the slot list.
+        self._upload(instancing.pack_instances(skinning, poses.color, poses.agent_ids) if n
+                     else np.zeros((0, 10, 4), np.float32))
+        s_base = len(order)
+        self._upload_slots(np.concatenate([order, s_order]))
 
         if self.atlas is not None:
             self.atlas.texture.use(2)
@@ -500,7 +508,7 @@ class PreviewRenderer:
             light_vp, texel = shadows.fit_light_matrix(sun_dir, lo, hi, corners, self.shadow_size)
             # Texels finer than a screen pixel at the nearest characters are
             # wasted fill: use only as much of the map as they need.
-            footprint = shadows.pixel_footprint(centres[order[:starts[-1]]], view, focal) if n else None
+            footprint = shadows.pixel_footprint(centres[drawn], view, focal) if n else None
             used = shadows.used_size(texel * self.shadow_size, footprint, self.shadow_size)
             texel, shadow_scale = texel * self.shadow_size / used, used / self.shadow_size
             self.shadow_fbo.viewport = (0, 0, self.shadow_size, self.shadow_size)
@@ -518,7 +526,7 @@ class PreviewRenderer:
             _set(self.prog_shadow_char, "u_light_vp", light_vp)
             if self.atlas is not None:
                 _set(self.prog_shadow_imp, "u_light_vp", light_vp)
-                _set(self.prog_shadow_imp, "u_view_dir", np.asarray(sun_dir, np.float32))
+                _set(self.prog_imp_place, "u_view_dir", np.asarray(sun_dir, np.float32))
             self._draw_levels(self.prog_shadow_char, 1, s_starts, s_base, shadow_texel=texel)
             ctx.polygon_offset = (0.0, 0.0)
 
@@ -535,8 +543,8 @@ class PreviewRenderer:
         ctx.enable(mgl.DEPTH_TEST | mgl.PROGRAM_POINT_SIZE)
         self.shadow_tex.use(0)
         if self.atlas is not None:
-            _set(self.prog_imp, "u_eye", np.asarray(camera.cam_to_world[3, :3], np.float32))
-            _set(self.prog_imp, "u_view_dir", np.zeros(3, np.float32))
+            _set(self.prog_imp_place, "u_eye", np.asarray(camera.cam_to_world[3, :3], np.float32))
+            _set(self.prog_imp_place, "u_view_dir", np.zeros(3, np.float32))
         for prog in self._lit_programs():
             _set(prog, "u_view", view)
             _set(prog, "u_proj", proj)
@@ -589,6 +597,18 @@ class PreviewRenderer:
             self._instances.write(data)
         self._instances.bind_to_storage_buffer(0)
 
+    def _upload_slots(self, slots: np.ndarray) -> None:
+        """Write the draws' agent indices (view levels, then shadow casters)."""
+        need = 4 * max(len(slots), 4)
+        if self._slots is None or need > self._slot_capacity:
+            if self._slots is not None:
+                self._slots.release()
+            self._slot_capacity = max(need, 2 * self._slot_capacity)
+            self._slots = self.ctx.buffer(reserve=self._slot_capacity, dynamic=True)
+        if len(slots):
+            self._slots.write(np.asarray(slots, dtype=np.uint32).tobytes())
+        self._slots.bind_to_storage_buffer(1)
+
     def _draw_levels(self, prog, which: int, starts: np.ndarray, base: int, shadow_texel: float = 0.0) -> None:
         """Instanced draws, one per level of detail (``which``: 0 view, 1 shadow)."""
         mgl = self._moderngl
@@ -605,8 +625,7 @@ class PreviewRenderer:
                 vao.render(mgl.TRIANGLES, instances=count)
                 self.ctx.disable(mgl.CULL_FACE)
             elif level == self.lod.impostor_level:
-                _set(self._imp_vaos[which].program, "u_base", int(base + starts[level]))
-                self._imp_vaos[which].render(mgl.TRIANGLES, instances=count)
+                self._draw_impostors(which, int(base + starts[level]), count)
             else:
                 _, k, splat = self.lod.point_levels[level - self.lod.first_point_level]
                 k = min(int(k), len(self.body.points.vertices))
@@ -614,13 +633,48 @@ class PreviewRenderer:
                 _set(prog, "u_point_size_px", float(splat / shadow_texel) if shadow_texel else 1.0)
                 self._body_vaos[-1][which].render(mgl.POINTS, vertices=k, instances=count)
 
+    def _draw_impostors(self, which: int, first: int, count: int) -> None:
+        """Place (compute pass) then draw the quads of ``count`` agents from slot ``first``."""
+        mgl = self._moderngl
+        parts = 3 * count
+        if parts > self._imp_capacity:
+            self._imp_capacity = max(parts, 2 * self._imp_capacity)
+            quad = np.array([0, 1, 3, 0, 3, 2], np.int32)
+            indices = (np.arange(self._imp_capacity, dtype=np.int32)[:, None] * 4 + quad).ravel()
+            for obj in (*(self._imp_vaos or ()), self._imp_index):
+                if obj is not None:
+                    obj.release()
+            self._imp_index = self.ctx.buffer(indices.tobytes())
+            self._imp_vaos = tuple(self.ctx.vertex_array(prog, [], self._imp_index, 4, skip_errors=True)
+                                   for prog in (self.prog_imp, self.prog_shadow_imp))
+        # Shadow and view sprites go to different halves: the shadow draw may still be reading.
+        need = 2 * parts * 64
+        if self._sprites is None or need > self._sprite_capacity:
+            if self._sprites is not None:
+                self._sprites.release()
+            self._sprite_capacity = max(need, 2 * self._sprite_capacity)
+            self._sprites = self.ctx.buffer(reserve=self._sprite_capacity)
+        self._sprites.bind_to_storage_buffer(2)
+        sprite_base = which * (self._sprite_capacity // 128)
+        cs = self.prog_imp_place
+        _set(cs, "u_base", first)
+        _set(cs, "u_count", parts)
+        _set(cs, "u_sprite_base", sprite_base)
+        cs.run(group_x=(parts + 63) // 64)
+        self.ctx.memory_barrier()
+        vao = self._imp_vaos[which]
+        _set(vao.program, "u_base", first)
+        _set(vao.program, "u_sprite_base", sprite_base)
+        vao.render(mgl.TRIANGLES, vertices=6 * parts)
+
     def release(self) -> None:
         """Free the GL objects (the context too when this renderer made it)."""
         for obj in (self.fbo, self.fbo_color, self.shadow_fbo, self.color_tex, self.id_tex, self.depth_lin_tex,
                     self.depth_rb, self.shadow_tex):
             obj.release()
-        if self._instances is not None:
-            self._instances.release()
+        for buf in (self._instances, self._slots, getattr(self, "_sprites", None), getattr(self, "_imp_index", None)):
+            if buf is not None:
+                buf.release()
         if self.atlas is not None:
             self.atlas.texture.release()
             self.atlas.boxes.release()

@@ -14,21 +14,30 @@ from __future__ import annotations
 
 VERSION = "#version 430\n"
 
-# Per-instance record: 10 vec4. Rows 0-8: for joint j, the three columns
+# Per-agent record: 10 vec4. Rows 0-8: for joint j, the three columns
 # (c = 0, 1, 2) of its 4x4 row-vector skinning matrix, so a point's world
 # coordinate c is dot(vec4(p, 1), column c). Row 9: linear RGB colour and
 # the agent's track id (uint bits in .w). See instancing.pack_instances.
+# Draws reach the records through a list of agent indices (``slot``).
 INSTANCE_STRIDE = 10
 
-SKINNING = """
+INSTANCES = """
 layout(std430, binding = 0) readonly buffer Instances { vec4 inst[]; };
 // The same buffer seen as integers: the id is read as bits, never as a float
 // (a small uint's bits are a denormal, which a flush-to-zero unit would zero).
 layout(std430, binding = 0) readonly buffer InstanceIds { uvec4 inst_u[]; };
-uniform int u_base;          // first record of this draw (LOD levels are contiguous)
+// Which agent each drawn instance is: one record per agent is uploaded per
+// frame, and every draw (levels, shadow casters, occlusion phases) is a
+// contiguous run of this list starting at u_base.
+layout(std430, binding = 1) readonly buffer Slots { uint slot[]; };
+uniform int u_base;
 
+int record(int k) { return int(slot[u_base + k]) * 10; }
+"""
+
+SKINNING = INSTANCES + """
 void skin(vec3 p, vec3 n, vec3 w, out vec3 wp, out vec3 wn, out vec3 color, out uint id) {
-    int b = (u_base + gl_InstanceID) * 10;
+    int b = record(gl_InstanceID);
     // Linear blend skinning with dense weights over the three joints.
     vec4 c0 = w.x * inst[b + 0] + w.y * inst[b + 3] + w.z * inst[b + 6];
     vec4 c1 = w.x * inst[b + 1] + w.y * inst[b + 4] + w.z * inst[b + 7];
@@ -203,17 +212,18 @@ uniform vec3 u_eye;                   // perspective views: the camera's positio
 uniform vec3 u_view_dir;              // orthographic views (the sun): toward the viewer; else 0
 uniform sampler2D u_cell_box;         // covered rectangle of each view, corner space
 
-// One corner of a joint's quad: world position, texture cell and the joint's rotation.
-void impostor(vec3 corner, out vec3 wp, out vec2 local_uv, out vec2 cell, out mat3 rot,
-              out float radius, out vec3 color, out uint id) {
-    int b = (u_base + gl_InstanceID) * 10;
-    int j = int(corner.z + 0.5);
+// Joint j's picture for this view: the centre of its covered rectangle, the
+// rectangle's half axes (world vectors), the atlas cell and rectangle, and
+// the joint's rotation.
+void impostor(int instance, int j, out vec3 centre, out vec3 right, out vec3 up, out vec2 cell, out vec4 box,
+              out mat3 rot, out float radius, out vec3 color, out uint id) {
+    int b = record(instance);
     vec4 c0 = inst[b + 3 * j], c1 = inst[b + 3 * j + 1], c2 = inst[b + 3 * j + 2];
     vec4 pc = vec4(u_part_centre[j].xyz, 1.0);
-    vec3 centre = vec3(dot(pc, c0), dot(pc, c1), dot(pc, c2));
+    vec3 joint = vec3(dot(pc, c0), dot(pc, c1), dot(pc, c2));
     float s = length(c0.xyz);
     rot = transpose(mat3(c0.xyz, c1.xyz, c2.xyz)) / s;
-    vec3 d = dot(u_view_dir, u_view_dir) > 0.5 ? u_view_dir : normalize(u_eye - centre);
+    vec3 d = dot(u_view_dir, u_view_dir) > 0.5 ? u_view_dir : normalize(u_eye - joint);
     vec3 dl = transpose(rot) * d;
     float az = atan(dl.y, dl.x);
     float el = asin(clamp(dl.z, -1.0, 1.0));
@@ -224,12 +234,13 @@ void impostor(vec3 corner, out vec3 wp, out vec2 local_uv, out vec2 cell, out ma
     float hw = r * MARGIN * s;
     float hh = (u_part_half_height[j] * cos(e) + r * abs(sin(e))) * MARGIN * s;
     vec3 up_axis = rot[2], facing = rot[0];
-    vec3 up = normalize(up_axis - dot(up_axis, d) * d + LEAN * (facing - dot(facing, d) * d));
-    vec3 right = cross(up, d);
-    vec4 box = texelFetch(u_cell_box, ivec2(ia, j * N_EL + ie), 0);
-    vec2 k = mix(box.xy, box.zw, corner.xy * 0.5 + 0.5);
-    wp = centre + k.x * hw * right + k.y * hh * up;
-    local_uv = k * 0.5 + 0.5;
+    vec3 u = normalize(up_axis - dot(up_axis, d) * d + LEAN * (facing - dot(facing, d) * d));
+    vec3 rt = cross(u, d);
+    box = texelFetch(u_cell_box, ivec2(ia, j * N_EL + ie), 0);
+    vec2 mid = 0.5 * (box.xy + box.zw), half_k = 0.5 * (box.zw - box.xy);
+    centre = joint + mid.x * hw * rt + mid.y * hh * u;
+    right = half_k.x * hw * rt;
+    up = half_k.y * hh * u;
     cell = vec2(float(ia), float(j * N_EL + ie));
     radius = r * s;
     color = inst[b + 9].rgb;
@@ -249,10 +260,57 @@ float impostor_alpha(sampler2D atlas, vec2 cell, vec2 local_uv, out vec3 normal)
 }
 """
 
-IMPOSTOR_VS = VERSION + SKINNING + IMPOSTOR_CONSTANTS + IMPOSTOR_PLACE + """
+# Placing a joint's picture takes trigonometry and a table lookup: done once
+# per part in a compute pass (threaded on a software renderer too), not once
+# per corner. Each sprite record is 4 vec4: centre and radius, the half axes
+# right and up with the atlas cell in their w, and the covered rectangle.
+IMPOSTOR_CS = VERSION + """
+layout(local_size_x = 64) in;
+""" + INSTANCES + IMPOSTOR_CONSTANTS + IMPOSTOR_PLACE + """
+layout(std430, binding = 2) writeonly buffer Sprites { vec4 sprite_out[]; };
+uniform int u_count;              // parts to place: three per agent
+uniform int u_sprite_base;        // first record written
+
+void main() {
+    int k = int(gl_GlobalInvocationID.x);
+    if (k >= u_count) return;
+    vec3 centre, right, up, color;
+    vec2 cell;
+    vec4 box;
+    mat3 rot;
+    float radius;
+    uint id;
+    impostor(k / 3, k % 3, centre, right, up, cell, box, rot, radius, color, id);
+    int o = (u_sprite_base + k) * 4;
+    sprite_out[o] = vec4(centre, radius);
+    sprite_out[o + 1] = vec4(right, cell.x);
+    sprite_out[o + 2] = vec4(up, cell.y);
+    sprite_out[o + 3] = box;
+}
+"""
+
+IMPOSTOR_QUAD = """
+layout(std430, binding = 2) readonly buffer Sprites { vec4 sprite[]; };
+uniform int u_sprite_base;
+
+// Corner of part quad gl_VertexID / 4 (indexed draw, no instancing: Mesa's
+// software pipeline runs its whole front end once per instance).
+void quad_corner(out vec3 wp, out vec2 local_uv, out vec2 cell, out float radius, out int part) {
+    part = gl_VertexID >> 2;
+    vec2 corner = vec2(float(gl_VertexID & 1), float((gl_VertexID >> 1) & 1));
+    int o = (u_sprite_base + part) * 4;
+    vec4 s0 = sprite[o], s1 = sprite[o + 1], s2 = sprite[o + 2], box = sprite[o + 3];
+    vec2 q = corner * 2.0 - 1.0;
+    wp = s0.xyz + q.x * s1.xyz + q.y * s2.xyz;
+    local_uv = mix(box.xy, box.zw, corner) * 0.5 + 0.5;
+    cell = vec2(s1.w, s2.w);
+    radius = s0.w;
+}
+"""
+
+IMPOSTOR_VS = VERSION + INSTANCES + IMPOSTOR_QUAD + """
 uniform mat4 u_view;
 uniform mat4 u_proj;
-in vec3 in_corner;
 out vec3 v_world;
 out vec2 v_uv;
 out float v_z;
@@ -264,7 +322,13 @@ flat out uint v_id;
 
 void main() {
     vec3 wp;
-    impostor(in_corner, wp, v_uv, v_cell, v_rot, v_radius, v_color, v_id);
+    int part;
+    quad_corner(wp, v_uv, v_cell, v_radius, part);
+    int b = record(part / 3), j = part % 3;
+    vec3 c0 = inst[b + 3 * j].xyz, c1 = inst[b + 3 * j + 1].xyz, c2 = inst[b + 3 * j + 2].xyz;
+    v_rot = transpose(mat3(c0, c1, c2)) / length(c0);
+    v_color = inst[b + 9].rgb;
+    v_id = inst_u[b + 9].w;
     vec4 vp = u_view * vec4(wp, 1.0);
     gl_Position = u_proj * vp;
     v_world = wp;
@@ -296,18 +360,16 @@ void main() {
 }
 """
 
-SHADOW_IMPOSTOR_VS = VERSION + SKINNING + IMPOSTOR_CONSTANTS + IMPOSTOR_PLACE + """
+SHADOW_IMPOSTOR_VS = VERSION + INSTANCES + IMPOSTOR_QUAD + """
 uniform mat4 u_light_vp;
-in vec3 in_corner;
 out vec2 v_uv;
 flat out vec2 v_cell;
 
 void main() {
-    vec3 wp, color;
-    mat3 rot;
+    vec3 wp;
     float radius;
-    uint id;
-    impostor(in_corner, wp, v_uv, v_cell, rot, radius, color, id);
+    int part;
+    quad_corner(wp, v_uv, v_cell, radius, part);
     gl_Position = u_light_vp * vec4(wp, 1.0);
 }
 """
