@@ -40,6 +40,10 @@ class LodSettings:
         view (never coarser than the last mesh; impostors and points keep
         their level): a shadow on the floor needs less detail than the
         figure casting it.
+    shadow_cell : float
+        Mesh-level characters cast their shadows with the body clustered on
+        this grid, metres, when it is coarser than their own level's (a
+        third of the full mesh's triangles at 0.06 m; 0: no shadow mesh).
     mesh_levels : tuple of (min_px, cell)
         Mesh levels from the finest: characters at least ``min_px`` tall on
         screen get the mesh clustered on a ``cell``-metre grid (0: the full
@@ -58,6 +62,7 @@ class LodSettings:
     enabled: bool = True
     cull: bool = True
     shadow_bias: int = 1
+    shadow_cell: float = 0.06
     mesh_levels: tuple = ((64.0, 0.0),)
     # Impostors cost a software rasteriser less than 48 points down to a few
     # pixels (bench_preview), so points are kept for specks.

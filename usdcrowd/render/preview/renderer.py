@@ -286,6 +286,13 @@ class PreviewRenderer:
             main = ctx.vertex_array(self.prog_char, content, ibo, 4, skip_errors=True)
             shadow = ctx.vertex_array(self.prog_shadow_char, content, ibo, 4, skip_errors=True)
             self._body_vaos.append((main, shadow))
+        self._shadow_mesh_vao = None
+        if self.lod.shadow_cell > 0:
+            coarse = instancing.body_lods(body.points, body.faces, body.joint_indices, body.joint_weights,
+                                          cells=(self.lod.shadow_cell,)).meshes[1]
+            self._shadow_mesh_vao = ctx.vertex_array(
+                self.prog_shadow_char, [(ctx.buffer(coarse.vertices.tobytes()), "3f 3f 3f", "in_pos", "in_nrm", "in_w")],
+                ctx.buffer(coarse.indices.astype(np.int32).tobytes()), 4, skip_errors=True)
         self._instances = None
         self._instance_capacity = 0
         self._slots = None
@@ -511,11 +518,11 @@ class PreviewRenderer:
             footprint = shadows.pixel_footprint(centres[drawn], view, focal) if n else None
             used = shadows.used_size(texel * self.shadow_size, footprint, self.shadow_size)
             texel, shadow_scale = texel * self.shadow_size / used, used / self.shadow_size
-            self.shadow_fbo.viewport = (0, 0, self.shadow_size, self.shadow_size)
-            self.shadow_fbo.use()
-            self.shadow_fbo.clear(depth=1.0)
             self.shadow_fbo.viewport = (0, 0, used, used)
             self.shadow_fbo.use()
+            # Lookups stay inside the used square (bilinear reads one texel past it).
+            edge = min(used + 1, self.shadow_size)
+            self.shadow_fbo.clear(depth=1.0, viewport=(0, 0, edge, edge))
             ctx.enable(mgl.DEPTH_TEST | mgl.PROGRAM_POINT_SIZE)
             ctx.disable(mgl.CULL_FACE)         # both faces: thin open meshes still cast
             ctx.polygon_offset = (2.0, 4.0)
@@ -619,6 +626,9 @@ class PreviewRenderer:
             _set(prog, "u_base", int(base + starts[level]))
             if level < self.lod.n_meshes:
                 vao = self._body_vaos[level][which]
+                if which == 1 and self._shadow_mesh_vao is not None \
+                        and self.lod.mesh_levels[level][1] < self.lod.shadow_cell:
+                    vao = self._shadow_mesh_vao
                 # Closed meshes: skip back faces in the view (the Y flip reverses the winding).
                 if which == 0:
                     self.ctx.enable(mgl.CULL_FACE)
