@@ -264,6 +264,36 @@ def test_characters_cast_shadows_on_the_floor(tiny_shot, gl):
         without.release()
 
 
+def test_clustered_shadow_mesh_casts_the_full_meshs_shadow(tiny_shot, gl):
+    """Mesh-level characters cast with a coarser body: the shadow on the floor barely moves."""
+    from usdcrowd.render.preview import LodSettings, PreviewRenderer
+
+    frames, lit = {}, None
+    for cell in (0.06, 0.0):
+        r = PreviewRenderer(tiny_shot, 320, 180, ctx=gl, lod_settings=LodSettings(enabled=False, shadow_cell=cell))
+        try:
+            assert (r._shadow_mesh_vao is not None) == (cell > 0)
+            frames[cell] = r.render(4.0, "/World/Cam")
+            if lit is None:
+                lit = PreviewRenderer(tiny_shot, 320, 180, ctx=gl, lod_settings=LodSettings(enabled=False),
+                                      shadows=False)
+                frames["lit"] = lit.render(4.0, "/World/Cam")
+                lit.release()
+        finally:
+            r.release()
+    floor_id = next(s.shape_id for s in r.scene.scenery if s.path.endswith("Floor"))
+    bright = frames["lit"].color.astype(int).sum(-1)
+
+    def shadowed(f):
+        return (f.ids == floor_id) & (f.color.astype(int).sum(-1) < bright - 30)
+
+    coarse, full = shadowed(frames[0.06]), shadowed(frames[0.0])
+    assert full.sum() > 40
+    # The same shadow to within a pixel of its outline (a 0.4 m grid already falls below 0.8).
+    assert (coarse & full).sum() / (coarse | full).sum() > 0.95
+    assert abs(int(coarse.sum()) - int(full.sum())) < 0.05 * full.sum()
+
+
 def test_distant_characters_become_impostors_then_points_and_keep_their_ids(tiny_shot, gl):
     from usdcrowd.render.preview import PreviewRenderer
 
