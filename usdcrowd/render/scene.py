@@ -193,7 +193,7 @@ class AgentPoses:
     @property
     def skinning(self) -> np.ndarray:
         """(n, 3, 4, 4) skinning transforms, bind pose to canonical world."""
-        return np.linalg.inv(rig.BIND_SKEL) @ self.joints_world
+        return rig.skinning_transforms(self.joints_world)
 
     def keypoints(self) -> np.ndarray:
         """(n, 5, 3) world keypoints in rig.KEYPOINT_NAMES order (the ground point

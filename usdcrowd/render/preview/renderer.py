@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..scene import SCENERY_ID_BASE, AgentPoses, CameraView, ShotScene
+from ..scene import AgentPoses, CameraView, ShotScene
 from . import impostors, instancing, lod, shaders, shadows
 from .context import headless_context
 
@@ -278,21 +278,14 @@ class PreviewRenderer:
         body = self.scene.body
         self.body = instancing.body_lods(body.points, body.faces, body.joint_indices, body.joint_weights,
                                          cells=self.lod.cells)
-        self._body_vaos = []      # per geometry: (main vao, shadow vao); the point list last
-        for geom in (*self.body.meshes, self.body.points):
-            vbo = ctx.buffer(geom.vertices.tobytes())
-            ibo = ctx.buffer(geom.indices.astype(np.int32).tobytes()) if geom.indices is not None else None
-            content = [(vbo, "3f 3f 3f", "in_pos", "in_nrm", "in_w")]
-            main = ctx.vertex_array(self.prog_char, content, ibo, 4, skip_errors=True)
-            shadow = ctx.vertex_array(self.prog_shadow_char, content, ibo, 4, skip_errors=True)
-            self._body_vaos.append((main, shadow))
+        # Per geometry: (main vao, shadow vao); the point list last.
+        self._body_vaos = [self._skinned_vaos(geom, (self.prog_char, self.prog_shadow_char))
+                           for geom in (*self.body.meshes, self.body.points)]
         self._shadow_mesh_vao = None
         if self.lod.shadow_cell > 0:
             coarse = instancing.body_lods(body.points, body.faces, body.joint_indices, body.joint_weights,
                                           cells=(self.lod.shadow_cell,)).meshes[1]
-            self._shadow_mesh_vao = ctx.vertex_array(
-                self.prog_shadow_char, [(ctx.buffer(coarse.vertices.tobytes()), "3f 3f 3f", "in_pos", "in_nrm", "in_w")],
-                ctx.buffer(coarse.indices.astype(np.int32).tobytes()), 4, skip_errors=True)
+            (self._shadow_mesh_vao,) = self._skinned_vaos(coarse, (self.prog_shadow_char,))
         self._instances = None
         self._instance_capacity = 0
         self._slots = None
@@ -316,10 +309,6 @@ class PreviewRenderer:
                     _set(prog, name, value)
                 _set(prog, "u_atlas", 2)
                 _set(prog, "u_cell_box", 3)
-
-        full = self.body.meshes[0]
-        self._parts = self.atlas.parts if self.atlas is not None else impostors.body_parts(
-            full.vertices[:, :3], full.indices.reshape(-1, 3), full.vertices[:, 6:9])
 
         t0 = float(self.scene.time_codes[0]) if len(self.scene.time_codes) else 0.0
         self._scenery = []
@@ -361,6 +350,14 @@ class PreviewRenderer:
 
         for prog in self._lit_programs():
             self._set_lights(prog)
+
+    def _skinned_vaos(self, geom, programs) -> tuple:
+        """Vertex arrays of one body geometry (position, normal, joint weights) for each program."""
+        ctx = self.ctx
+        vbo = ctx.buffer(geom.vertices.tobytes())
+        ibo = ctx.buffer(geom.indices.astype(np.int32).tobytes()) if geom.indices is not None else None
+        content = [(vbo, "3f 3f 3f", "in_pos", "in_nrm", "in_w")]
+        return tuple(ctx.vertex_array(prog, content, ibo, 4, skip_errors=True) for prog in programs)
 
     def _lit_programs(self) -> tuple:
         return (self.prog_scenery, self.prog_char) + ((self.prog_imp,) if self.atlas is not None else ())

@@ -27,8 +27,8 @@ layout(std430, binding = 0) readonly buffer Instances { vec4 inst[]; };
 // (a small uint's bits are a denormal, which a flush-to-zero unit would zero).
 layout(std430, binding = 0) readonly buffer InstanceIds { uvec4 inst_u[]; };
 // Which agent each drawn instance is: one record per agent is uploaded per
-// frame, and every draw (levels, shadow casters, occlusion phases) is a
-// contiguous run of this list starting at u_base.
+// frame, and every draw (a level of detail, in the view or the shadow map)
+// is a contiguous run of this list starting at u_base.
 layout(std430, binding = 1) readonly buffer Slots { uint slot[]; };
 uniform int u_base;
 
@@ -214,15 +214,15 @@ uniform sampler2D u_cell_box;         // covered rectangle of each view, corner 
 
 // Joint j's picture for this view: the centre of its covered rectangle, the
 // rectangle's half axes (world vectors), the atlas cell and rectangle, and
-// the joint's rotation.
+// the part's radius.
 void impostor(int instance, int j, out vec3 centre, out vec3 right, out vec3 up, out vec2 cell, out vec4 box,
-              out mat3 rot, out float radius, out vec3 color, out uint id) {
+              out float radius) {
     int b = record(instance);
     vec4 c0 = inst[b + 3 * j], c1 = inst[b + 3 * j + 1], c2 = inst[b + 3 * j + 2];
     vec4 pc = vec4(u_part_centre[j].xyz, 1.0);
     vec3 joint = vec3(dot(pc, c0), dot(pc, c1), dot(pc, c2));
     float s = length(c0.xyz);
-    rot = transpose(mat3(c0.xyz, c1.xyz, c2.xyz)) / s;
+    mat3 rot = transpose(mat3(c0.xyz, c1.xyz, c2.xyz)) / s;
     vec3 d = dot(u_view_dir, u_view_dir) > 0.5 ? u_view_dir : normalize(u_eye - joint);
     vec3 dl = transpose(rot) * d;
     float az = atan(dl.y, dl.x);
@@ -243,8 +243,6 @@ void impostor(int instance, int j, out vec3 centre, out vec3 right, out vec3 up,
     up = half_k.y * hh * u;
     cell = vec2(float(ia), float(j * N_EL + ie));
     radius = r * s;
-    color = inst[b + 9].rgb;
-    id = inst_u[b + 9].w;
 }
 """
 
@@ -274,13 +272,11 @@ uniform int u_sprite_base;        // first record written
 void main() {
     int k = int(gl_GlobalInvocationID.x);
     if (k >= u_count) return;
-    vec3 centre, right, up, color;
+    vec3 centre, right, up;
     vec2 cell;
     vec4 box;
-    mat3 rot;
     float radius;
-    uint id;
-    impostor(k / 3, k % 3, centre, right, up, cell, box, rot, radius, color, id);
+    impostor(k / 3, k % 3, centre, right, up, cell, box, radius);
     int o = (u_sprite_base + k) * 4;
     sprite_out[o] = vec4(centre, radius);
     sprite_out[o + 1] = vec4(right, cell.x);
