@@ -223,7 +223,36 @@ def test_a_dead_part_writer_is_an_error_not_a_hang(museum_path, tmp_path):
     writer._workers[0][0].kill()
     frames = straight_walk(sc.agents, sc.time)
     with pytest.raises(RuntimeError, match="died"):
-        writer.write_chunk(frames)
+        # Far more than a pipe's buffer: sending must fail, not block.
+        for _ in range(200):
+            writer.write_chunk(frames)
         writer.save()
     assert not (tmp_path / "crowd.usdc").exists()
     assert not list(tmp_path.glob("crowd.part*"))
+
+
+def test_part_layers_hold_the_same_samples_as_one_layer(museum_path, tmp_path, monkeypatch):
+    from usdcrowd.scenario import StageFrame
+    from usdcrowd.usd import crowd_layer
+
+    sc = load_scenario(museum_path)
+    frames = straight_walk(sc.agents, sc.time)
+    monkeypatch.setattr(crowd_layer, "AGENTS_PER_PART", 4)
+    saved = {}
+    for workers in (1, 2):
+        out = tmp_path / f"w{workers}" / "crowd.usdc"
+        out.parent.mkdir()
+        writer = crowd_layer.CrowdLayerWriter(out, sc, StageFrame(), "World", workers=workers)
+        writer.write_chunk(frames)
+        saved[workers] = Sdf.Layer.FindOrOpen(writer.save())
+    n = len(sc.agents)
+    assert len(saved[2].subLayerPaths) == 2 * round(n / 2 / 4) > 2
+    stages = {w: Usd.Stage.Open(layer) for w, layer in saved.items()}
+    for path in sc.agents.path:
+        for attr in ("rotations", "translations"):
+            a, b = (stages[w].GetAttributeAtPath(f"{path}/Anim.{attr}") for w in (1, 2))
+            assert a.GetTimeSamples() == b.GetTimeSamples() and len(a.GetTimeSamples()) == len(frames.times)
+            for t in a.GetTimeSamples()[::7]:
+                assert np.array_equal(np.asarray(a.Get(t)), np.asarray(b.Get(t))), (path, attr, t)
+        ext = [stages[w].GetPrimAtPath(path).GetAttribute("extent").Get() for w in (1, 2)]
+        assert np.array_equal(np.asarray(ext[0]), np.asarray(ext[1]))

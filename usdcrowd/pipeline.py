@@ -103,25 +103,33 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     # The trajectory map draws at most this many agents at about 200 instants.
     plotted = np.sort(np.random.default_rng(0).permutation(len(scenario.agents))[:PLOT_MAX_AGENTS])
     stride = max(1, scenario.time.n_frames // 200)
+    cameras = plot = None
     try:
-        crowd = _author_frames(writer, crowd_source(scenario), scenario, visible, plotted, stride, progress,
-                               centres, spreads, tracks)
+        _author_frames(writer, crowd_source(scenario), scenario, visible, plotted, stride, progress,
+                       centres, spreads, tracks)
+        # The part writers save while the cameras and the picture are made.
+        writer.start_saving()
+        cameras = write_cameras(out_dir, np.concatenate(centres), np.concatenate(spreads), scenario.time.codes,
+                                sframe, default_prim, scenario.time)
+        plot = trajectory_map(_subset(scenario, plotted), np.concatenate(tracks), out_dir / "trajectories.png",
+                              title=f"{Path(scenario_path).name}: {len(scenario.agents)} agents, "
+                                    f"{scenario.time.n_frames} frames, seed {scenario.seed}")
+        crowd = writer.save()
     except BaseException:
         writer.abort()          # stop the part writers; nothing half-written is left behind
+        for done in (cameras, plot):
+            if done is not None and os.path.exists(done):
+                os.unlink(done)
         raise
-    cameras = write_cameras(out_dir, np.concatenate(centres), np.concatenate(spreads), scenario.time.codes,
-                            sframe, default_prim, scenario.time)
+    # Last: the shot is the entry point, and exists only once everything it sublayers does.
     shot = write_shot(out_dir, scenario_path, scenario.time, sframe, default_prim, scenario.seed,
                       add_lights=not has_lights)
-    plot = trajectory_map(_subset(scenario, plotted), np.concatenate(tracks), out_dir / "trajectories.png",
-                          title=f"{Path(scenario_path).name}: {len(scenario.agents)} agents, "
-                                f"{scenario.time.n_frames} frames, seed {scenario.seed}")
     camera = f"/{default_prim}/{CROWD_CAMERA}" if default_prim else f"/{CROWD_CAMERA}"
     return ShotResult(shot, crowd, cameras, camera, plot, len(scenario.agents), scenario.time.n_frames, scenario.seed)
 
 
-def _author_frames(writer, chunks, scenario, visible, plotted, stride, progress, centres, spreads, tracks) -> str:
-    """Author (and animate) every chunk; collect what the camera and the picture need. Returns the crowd layer."""
+def _author_frames(writer, chunks, scenario, visible, plotted, stride, progress, centres, spreads, tracks) -> None:
+    """Author (and animate) every chunk; collect what the camera and the picture need."""
     done = 0
     with _progress(scenario.time.n_frames, "simulate", progress) as bar:
         for chunk in chunks:
@@ -134,7 +142,6 @@ def _author_frames(writer, chunks, scenario, visible, plotted, stride, progress,
             tracks.append(chunk.position[keep][:, plotted])
             done += len(chunk.times)
             bar.update(len(chunk.times))
-    return writer.save()
 
 
 def _subset(scenario: model.Scenario, rows: np.ndarray) -> model.Scenario:
