@@ -236,13 +236,19 @@ class _AgentPart:
 
         layer = self.layer
         times = [float(t) for t in times]
-        quat_from, vec_from = Vt.QuatfArray.FromNumpy, Vt.Vec3fArray.FromNumpy
+        n_t, n_j = len(times), rot_usd.shape[2]
+        # One Vt array per agent for the whole chunk, sliced per frame: a slice
+        # of a Vt array is cheaper than a Vt array made from a numpy row.
+        frames = list(zip(times, (slice(k * n_j, (k + 1) * n_j) for k in range(n_t))))
+        rot_agent = np.ascontiguousarray(np.swapaxes(rot_usd, 0, 1)).reshape(-1, n_t * n_j, 4)
+        trans_agent = np.ascontiguousarray(np.swapaxes(trans, 0, 1)).reshape(-1, n_t * n_j, 3)
+        set_sample = layer.SetTimeSample
         with Sdf.ChangeBlock():
             for j, (rpath, tpath, *_rest) in enumerate(self._paths):
-                r_j, t_j = rot_usd[:, j], trans[:, j]
-                for k, t in enumerate(times):
-                    layer.SetTimeSample(rpath, t, quat_from(r_j[k]))
-                    layer.SetTimeSample(tpath, t, vec_from(t_j[k]))
+                r_j, t_j = Vt.QuatfArray.FromNumpy(rot_agent[j]), Vt.Vec3fArray.FromNumpy(trans_agent[j])
+                for t, k in frames:
+                    set_sample(rpath, t, r_j[k])
+                    set_sample(tpath, t, t_j[k])
             for slot, (key, vocab) in enumerate(_TOKEN_SLOTS, start=2):
                 values = tokens[key]
                 changed = np.ones_like(values, dtype=bool)
