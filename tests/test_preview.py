@@ -135,6 +135,21 @@ def test_shadow_map_is_sized_to_the_screen_pixels():
     assert shadows.pixel_footprint(np.zeros((0, 3)), view, 1000.0) is None
 
 
+def test_only_the_tallest_drawn_characters_keep_meshes_past_the_budget(rng):
+    s = lod.LodSettings(max_meshes=150)
+    px = rng.uniform(70.0, 900.0, 1000)           # all tall enough for the full mesh
+    drawn = rng.random(1000) < 0.8
+    levels = lod.choose_levels(px, s, drawn)
+    meshed = levels == 0
+    assert (meshed & drawn).sum() == 150
+    # The kept ones are the 150 tallest of the drawn; the rest are impostors.
+    assert px[meshed & drawn].min() > px[~meshed & drawn].max()
+    assert set(levels[drawn & ~meshed].tolist()) == {s.impostor_level}
+    # Under the budget, or with no limit, nothing changes.
+    assert (lod.choose_levels(px[:100], s) == 0).all()
+    assert (lod.choose_levels(px, lod.LodSettings(max_meshes=None)) == 0).all()
+
+
 def test_levels_follow_screen_size_and_frustum_culls():
     s = lod.LodSettings(mesh_levels=((64.0, 0.0), (32.0, 0.05), (12.0, 0.1)), impostor_min_px=None,
                         point_levels=((6.0, 48, 0.3), (0.0, 16, 0.45)))

@@ -468,10 +468,10 @@ class PreviewRenderer:
         else:
             in_view = np.ones(n, dtype=bool)
         pixels = lod.screen_height(centres, body_h, view, focal) if n else np.zeros(0)
-        levels = lod.choose_levels(pixels, self.lod)
+        drawn = draw_mask & in_view
+        levels = lod.choose_levels(pixels, self.lod, drawn)
         n_levels = self.lod.n_levels
         nearest_first = -pixels / body_h if n else None
-        drawn = draw_mask & in_view
         order, starts = lod.group_by_level(levels, drawn, n_levels, distance=nearest_first)
 
         # Shadow casters: drawn agents plus those just outside the frustum
