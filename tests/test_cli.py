@@ -103,6 +103,7 @@ def test_bad_scenarios_fail_simulate_with_one_line_and_no_output(write_stage, tm
     (["new", "dialogue", "-o", "x.usda", "--agents", "9"], "fixed cast of 4 agents"),
     (["simulate", "s.usda", "-o", "o", "--frames", "10:1"], "bad frame spec"),
     (["frobnicate"], "invalid choice"),
+    (["preview", "shot.usda", "-o", "p.mp4", "--max-meshes", "-1"], "expected a whole number >= 0, got '-1'"),
 ])
 def test_usage_mistakes(tmp_path, capsys, monkeypatch, argv, text):
     monkeypatch.chdir(tmp_path)

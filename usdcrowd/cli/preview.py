@@ -7,6 +7,18 @@ from .args import add_camera, add_frames, add_progress, add_resolution
 OVERLAYS = ("frusta", "trajectories", "layers", "events", "ids")
 
 
+def _count(text: str) -> int:
+    import argparse
+
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}")
+    return value
+
+
 def add_parser(sub):
     p = sub.add_parser("preview", help="fast OpenGL preview of a shot: an MP4, PNG frames, or a window",
                        description="Draw a shot with OpenGL (headless through EGL, Mesa's llvmpipe is enough). "
@@ -21,6 +33,9 @@ def add_parser(sub):
                    help=f"comma-separated annotations: {', '.join(OVERLAYS)} (or 'all')")
     p.add_argument("--no-lod", dest="lod", action="store_false",
                    help="full mesh for every character (exact silhouettes), no points")
+    p.add_argument("--max-meshes", type=_count, default=150, metavar="N",
+                   help="at most N characters drawn as meshes, the tallest on screen; "
+                        "the rest become impostors (default 150; 0: no limit)")
     p.add_argument("--aovs", action="store_true",
                    help="with a frames folder, also write ids (uint32) and depth (metres) per frame as .npz")
     p.add_argument("--sheet", metavar="PNG", help="contact sheet path (default: next to the output)")
@@ -60,7 +75,7 @@ def run(args) -> int:
         from ..render.preview.overlays import Overlays
 
         overlays = Overlays(scene, overlay_names, times=times)
-    lod_settings = LodSettings(enabled=args.lod)
+    lod_settings = LodSettings(enabled=args.lod, max_meshes=args.max_meshes or None)
 
     if args.output is None:
         from ..render.preview.window import run_viewer
