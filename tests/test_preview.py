@@ -173,6 +173,8 @@ def test_levels_follow_screen_size_and_frustum_culls():
 # ------------------------------------------------------------------ rendering
 def test_srgb_encoding_matches_colour_science(gl):
     """The fragment shader's display transform against colour-science's."""
+    import colour
+
     from usdcrowd.plots import srgb8
     from usdcrowd.render.preview import shaders
 
@@ -187,8 +189,12 @@ def test_srgb_encoding_matches_colour_science(gl):
     fbo.use()
     vao.render()
     got = np.frombuffer(fbo.read(components=3), np.uint8).reshape(256, 3)[:, 0].astype(int)
-    want = srgb8(np.arange(256) / 255.0).astype(int)
+    want = np.round(colour.cctf_encoding(np.arange(256) / 255.0, function="sRGB") * 255).astype(int)
     assert np.abs(got - want).max() <= 1
+    # The pictures' own encoder (plots.srgb8) is colour-science's exactly.
+    sweep = np.linspace(-0.1, 1.1, 100_001)
+    exact = np.round(colour.cctf_encoding(np.clip(sweep, 0, 1), function="sRGB") * 255)
+    assert np.array_equal(srgb8(sweep), exact.astype(np.uint8))
 
 
 @pytest.mark.parametrize("name", ["preview_tiny.png", "preview_tiny_full.png"])
