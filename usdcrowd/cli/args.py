@@ -31,6 +31,22 @@ def parse_frames(spec: str) -> np.ndarray:
     return np.arange(start, end + 1e-9, stride)
 
 
+def int_at_least(minimum: int):
+    """An argparse type: a whole number >= ``minimum``, else a one-line usage error."""
+    what = "a positive integer" if minimum == 1 else f"a whole number >= {minimum}"
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = minimum - 1
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
+        return value
+
+    return parse
+
+
 def add_frames(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--frames", type=parse_frames, metavar="SPEC",
                         help="frames to use: N, START:END or START:ENDxSTRIDE (default: the stage's range)")

@@ -2,21 +2,9 @@
 
 from __future__ import annotations
 
-from .args import add_camera, add_frames, add_progress, add_resolution
+from .args import add_camera, add_frames, add_progress, add_resolution, int_at_least
 
 OVERLAYS = ("frusta", "trajectories", "layers", "events", "ids")
-
-
-def _count(text: str) -> int:
-    import argparse
-
-    try:
-        value = int(text)
-    except ValueError:
-        value = -1
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}")
-    return value
 
 
 def add_parser(sub):
@@ -33,7 +21,7 @@ def add_parser(sub):
                    help=f"comma-separated annotations: {', '.join(OVERLAYS)} (or 'all')")
     p.add_argument("--no-lod", dest="lod", action="store_false",
                    help="full mesh for every character (exact silhouettes), no points")
-    p.add_argument("--max-meshes", type=_count, default=150, metavar="N",
+    p.add_argument("--max-meshes", type=int_at_least(0), default=150, metavar="N",
                    help="at most N characters drawn as meshes, the tallest on screen; "
                         "the rest become impostors (default 150; 0: no limit)")
     p.add_argument("--aovs", action="store_true",

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .args import add_camera, add_frames, add_progress, add_resolution
+from .args import add_camera, add_frames, add_progress, add_resolution, int_at_least
 
 
 def add_parser(sub):
@@ -18,8 +18,8 @@ def add_parser(sub):
     add_resolution(p)
     p.add_argument("--preset", default="groundtruth", help="preset in render/presets.toml: preview, groundtruth "
                                                             "(default), final")
-    p.add_argument("--spp", type=_positive, help="beauty samples per pixel (overrides the preset)")
-    p.add_argument("--max-depth", type=_positive, help="longest light path (overrides the preset)")
+    p.add_argument("--spp", type=int_at_least(1), help="beauty samples per pixel (overrides the preset)")
+    p.add_argument("--max-depth", type=int_at_least(1), help="longest light path (overrides the preset)")
     p.add_argument("--no-ground-truth", dest="ground_truth", action="store_const", const=False, default=None,
                    help="beauty only: no ground-truth passes or annotations")
     p.add_argument("--exposure", type=float, help="display exposure in stops (PNG, sheet, MP4)")
@@ -35,18 +35,6 @@ def add_parser(sub):
     p.add_argument("--seed", type=int, default=0, help="sampler seed of the beauty pass")
     add_progress(p)
     p.set_defaults(run=run)
-
-
-def _positive(text: str) -> int:
-    import argparse
-
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return value
 
 
 def run(args) -> int:
