@@ -51,7 +51,15 @@ void skin(vec3 p, vec3 n, vec3 w, out vec3 wp, out vec3 wn, out vec3 color, out 
 }
 """
 
-LIGHTING = """
+# The exact piecewise sRGB curve (IEC 61966-2-1): frames leave the shaders encoded.
+SRGB_ENCODE = """
+vec3 srgb_encode(vec3 c) {
+    c = clamp(c, 0.0, 1.0);
+    return mix(12.92 * c, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, step(vec3(0.0031308), c));
+}
+"""
+
+LIGHTING = SRGB_ENCODE + """
 uniform vec3 u_sun_dir;          // unit, from the surface towards the sun
 uniform vec3 u_sun;              // sun irradiance * rgb / pi (radiance per unit albedo)
 uniform vec3 u_sky;              // dome radiance * rgb
@@ -90,11 +98,6 @@ vec3 shade(vec3 albedo, vec3 wp, vec3 n) {
         c += albedo * u_lamp_rgb[i].rgb * max(dot(n, l), 0.0) * emit / r2;
     }
     return c * u_exposure;
-}
-
-vec3 srgb_encode(vec3 c) {
-    c = clamp(c, 0.0, 1.0);
-    return mix(12.92 * c, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, step(vec3(0.0031308), c));
 }
 """
 
@@ -428,17 +431,12 @@ void main() {
 }
 """
 
-OVERLAY_FS = VERSION + """
+OVERLAY_FS = VERSION + SRGB_ENCODE + """
 uniform bool u_has_tex;
 uniform sampler2D u_tex;
 in vec4 v_color;
 in vec2 v_uv;
 layout(location = 0) out vec4 o_color;
-
-vec3 srgb_encode(vec3 c) {
-    c = clamp(c, 0.0, 1.0);
-    return mix(12.92 * c, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, step(vec3(0.0031308), c));
-}
 
 void main() {
     vec4 c = u_has_tex ? v_color * texture(u_tex, v_uv) : v_color;
