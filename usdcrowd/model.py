@@ -359,3 +359,196 @@ class CrowdFrames:
     @property
     def n_agents(self) -> int:
         return self.position.shape[1]
+
+
+# Events (seed 000, section 4.1) and camera agents (sections 4.2 to 4.4).
+EVENT_KINDS = ("interaction", "groupMotion", "explosion", "eruption", "arrival", "dialogue")
+CAMERA_MODES = ("scouting", "tracking")
+
+
+@dataclass
+class Event:
+    """One CrowdEvent: who takes part, where, and when.
+
+    Detected events and authored (scenario) events share this form. Samples
+    cover every frame from ``start`` to ``end`` of the shot they belong to.
+
+    Attributes
+    ----------
+    path : str
+        Prim path of the CrowdEvent.
+    kind : int
+        Code into EVENT_KINDS.
+    start, end : float
+        First and last time code (inclusive).
+    members : (k,) int32
+        Agent rows of everyone who ever took part, ascending.
+    times : (m,) float64
+        Time codes of the samples below (``start`` .. ``end``, every frame).
+    active : (m, k) bool
+        ``active[i, j]``: member ``j`` takes part at ``times[i]``.
+    center : (m, 3) float64
+        Centre of the event, canonical metres.
+    radius : (m,) float64
+        Radius of the event's area, metres.
+    authored : bool
+        True for events the user authored in the scenario (never rewritten).
+    """
+
+    path: str
+    kind: int
+    start: float
+    end: float
+    members: np.ndarray
+    times: np.ndarray
+    active: np.ndarray
+    center: np.ndarray
+    radius: np.ndarray
+    authored: bool = False
+
+    def sample(self, time: float) -> int:
+        """Index into ``times`` of ``time``, or -1 outside the event."""
+        if time < self.start - 1e-6 or time > self.end + 1e-6 or len(self.times) == 0:
+            return -1
+        i = int(np.searchsorted(self.times, time - 1e-6))
+        return min(i, len(self.times) - 1)
+
+    def members_at(self, time: float) -> np.ndarray:
+        """(j,) int32 agent rows taking part at ``time`` (empty outside)."""
+        i = self.sample(time)
+        return self.members[self.active[i]] if i >= 0 else np.zeros(0, np.int32)
+
+
+@dataclass
+class EventTable:
+    """Every event of a shot, in a stable order (authored first, then detected by id)."""
+
+    events: list[Event] = field(default_factory=list)
+
+    def __len__(self) -> int:
+        return len(self.events)
+
+    def __iter__(self):
+        return iter(self.events)
+
+    def __getitem__(self, i) -> Event:
+        return self.events[i]
+
+    @property
+    def paths(self) -> list[str]:
+        return [e.path for e in self.events]
+
+    def active_at(self, time: float) -> list[int]:
+        """Rows of the events running at ``time``."""
+        return [i for i, e in enumerate(self.events) if e.start - 1e-6 <= time <= e.end + 1e-6]
+
+    def agent_events(self, time: float, n_agents: int) -> list[list[int]]:
+        """Per agent row, the rows of the events it takes part in at ``time``."""
+        out: list[list[int]] = [[] for _ in range(n_agents)]
+        for i in self.active_at(time):
+            for a in self.events[i].members_at(time):
+                out[int(a)].append(i)
+        return out
+
+
+@dataclass
+class CameraAgentTable:
+    """Camera agents (CameraAgentAPI cameras), one row each, initial state.
+
+    Attributes
+    ----------
+    path : list[str]
+        Prim paths of the UsdGeom.Camera prims.
+    cam_to_world : (c, 4, 4) float64
+        Initial camera-to-world, canonical metres, row vectors; the camera
+        looks down its local -Z with +Y up.
+    focal_length, horizontal_aperture, vertical_aperture : (c,) float64
+        Lens values as authored (only their ratios matter here).
+    near, far : (c,) float64
+        Clipping range, metres.
+    mode : (c,) int8
+        Initial mode, code into CAMERA_MODES.
+    max_speed : (c,) float64
+        m/s.
+    max_force : (c,) float64
+        m/s^2.
+    max_angular_speed : (c,) float64
+        Radians per second (alpha max).
+    arrival_distance : (c,) float64
+        Metres.
+    aim_threshold : (c,) float64
+        Radians (alpha t).
+    separation_distance : (c,) float64
+        Metres (d max).
+    view_angle : (c,) float64
+        Share of the field of view the event subtends, in (0, 1).
+    elevation : (c, 2) float64
+        Lowest and highest camera height, metres.
+    target : list[str | None]
+        Prim path of the CrowdEvent or agent tracked, None if unauthored.
+    """
+
+    path: list[str]
+    cam_to_world: np.ndarray
+    focal_length: np.ndarray
+    horizontal_aperture: np.ndarray
+    vertical_aperture: np.ndarray
+    near: np.ndarray
+    far: np.ndarray
+    mode: np.ndarray
+    max_speed: np.ndarray
+    max_force: np.ndarray
+    max_angular_speed: np.ndarray
+    arrival_distance: np.ndarray
+    aim_threshold: np.ndarray
+    separation_distance: np.ndarray
+    view_angle: np.ndarray
+    elevation: np.ndarray
+    target: list
+
+    def __len__(self) -> int:
+        return len(self.path)
+
+    @classmethod
+    def empty(cls) -> "CameraAgentTable":
+        z = np.zeros(0)
+        return cls([], np.zeros((0, 4, 4)), z, z, z, z, z, np.zeros(0, np.int8), z, z, z, z, z, z, z,
+                   np.zeros((0, 2)), [])
+
+
+@dataclass
+class CameraTrack:
+    """A camera's trajectory, ready to author as a UsdGeom.Camera.
+
+    Attributes
+    ----------
+    path : str
+        Prim path of the camera.
+    times : (t,) float64
+        Time codes.
+    cam_to_world : (t, 4, 4) float64
+        Camera-to-world, canonical metres, row vectors (-Z forward, +Y up).
+    focal_length : (t,) float64
+        Lens focal length (same unit as the apertures).
+    horizontal_aperture, vertical_aperture : float
+    near, far : float
+        Clipping range, metres.
+    state : (t,) int8 or None
+        Code into CAMERA_MODES per frame (camera agents only).
+    tracked : list[str] or None
+        Per frame, the CrowdEvent path tracked, "" while scouting.
+    agent : CameraAgentTable row as a dict, or None
+        CameraAgentAPI values to author on the camera.
+    """
+
+    path: str
+    times: np.ndarray
+    cam_to_world: np.ndarray
+    focal_length: np.ndarray
+    horizontal_aperture: float
+    vertical_aperture: float
+    near: float = 0.1
+    far: float = 1000.0
+    state: np.ndarray | None = None
+    tracked: list | None = None
+    agent: dict | None = None
