@@ -28,8 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..render.final.camera import camera_record
-from ..render.scene import SCENERY_ID_BASE
+from ..shading import SCENERY_ID_BASE
+from ..view import camera_record
 from . import rle
 
 # Joints are inside the body: a surface up to this much nearer still counts as the body itself.

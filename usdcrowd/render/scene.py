@@ -21,21 +21,13 @@ import numpy as np
 
 from ..character import rig
 from ..geometry import MeshData, mesh_of
+# The shared types live in the pure core; imported here for renderers and old imports.
+from ..poses import AgentPoses
+from ..shading import SCENERY_ID_BASE, Light, Material
+from ..view import CameraView
 
-# Agents' ids are small positive integers (their track ids); scenery gets ids
-# from this offset up so the two never collide in an id buffer.
-SCENERY_ID_BASE = 1 << 24
-
-
-@dataclass
-class Material:
-    """What UsdPreviewSurface (or displayColor) says about a surface, linear RGB."""
-
-    base_color: np.ndarray = field(default_factory=lambda: np.array([0.6, 0.6, 0.6]))
-    roughness: float = 0.5
-    metallic: float = 0.0
-    opacity: float = 1.0
-    base_color_texture: str | None = None      # resolved file path
+__all__ = ["SCENERY_ID_BASE", "AgentPoses", "CameraView", "Light", "Material", "SceneryItem", "ShotScene",
+           "color_temperature_rgb"]
 
 
 @dataclass
@@ -53,156 +45,6 @@ class SceneryItem:
     def local_to_world(self, time) -> np.ndarray:
         """(4, 4) mesh space to canonical world at ``time``."""
         return self._scene._world(self._prim, time)
-
-
-@dataclass
-class Light:
-    """A UsdLux light, resolved to what a renderer needs.
-
-    Attributes
-    ----------
-    kind : str
-        "distant", "dome", "sphere", "rect", "disk" or "cylinder".
-    rgb : (3,) float
-        Linear colour times the colour-temperature tint.
-    intensity : float
-        ``inputs:intensity * 2 ** inputs:exposure``.
-    to_world : (4, 4) float
-        Light space to canonical world (lights shine along their local -Z).
-    radius, width, height, length, angle : float
-        Shape parameters in metres (angle in degrees).
-    texture : str or None
-        Dome texture file, resolved.
-    normalize : bool
-        inputs:normalize (power independent of size).
-    """
-
-    path: str
-    kind: str
-    rgb: np.ndarray
-    intensity: float
-    to_world: np.ndarray
-    radius: float = 0.0
-    width: float = 0.0
-    height: float = 0.0
-    length: float = 0.0
-    angle: float = 0.0
-    texture: str | None = None
-    normalize: bool = False
-
-
-@dataclass
-class CameraView:
-    """A camera at one time code.
-
-    Attributes
-    ----------
-    cam_to_world : (4, 4) float64
-        Camera space to canonical world; the camera looks down its local -Z
-        with +Y up (USD's convention).
-    focal_length, horizontal_aperture, vertical_aperture : float
-        Lens values as authored (their unit cancels out in the field of view).
-    near, far : float
-        Clipping range in metres.
-    """
-
-    path: str
-    time: float
-    cam_to_world: np.ndarray
-    focal_length: float
-    horizontal_aperture: float
-    vertical_aperture: float
-    near: float
-    far: float
-
-    @property
-    def world_to_cam(self) -> np.ndarray:
-        return np.linalg.inv(self.cam_to_world)
-
-    @property
-    def position(self) -> np.ndarray:
-        return self.cam_to_world[3, :3].copy()
-
-    def fov_x(self) -> float:
-        """Horizontal field of view in degrees."""
-        return float(np.degrees(2 * np.arctan(0.5 * self.horizontal_aperture / self.focal_length)))
-
-    def intrinsics(self, width: int, height: int) -> np.ndarray:
-        """(3, 3) pinhole matrix K for an image of ``width`` x ``height`` pixels.
-
-        The horizontal aperture fills the image width; pixels are square, so
-        the vertical field of view follows the image's aspect (usdrecord's
-        behaviour when the aspects differ). Pixel centres are at +0.5.
-        """
-        f = width * self.focal_length / self.horizontal_aperture
-        return np.array([[f, 0.0, width / 2.0], [0.0, f, height / 2.0], [0.0, 0.0, 1.0]])
-
-    def project(self, points: np.ndarray, width: int, height: int):
-        """Project world points to pixels.
-
-        Parameters
-        ----------
-        points : (..., 3) float
-            Canonical world positions.
-
-        Returns
-        -------
-        uv : (..., 2) float64
-            Pixel coordinates (x right, y down; pixel centres at +0.5).
-        z : (...) float64
-            Depth along the view axis, metres (positive in front).
-        """
-        p = np.asarray(points, dtype=np.float64)
-        cam = p @ self.world_to_cam[:3, :3] + self.world_to_cam[3, :3]
-        z = -cam[..., 2]
-        k = self.intrinsics(width, height)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            u = k[0, 2] + k[0, 0] * cam[..., 0] / z
-            v = k[1, 2] - k[1, 1] * cam[..., 1] / z
-        return np.stack([u, v], -1), z
-
-
-@dataclass
-class AgentPoses:
-    """Every agent at one time code.
-
-    Attributes
-    ----------
-    time : float
-    paths : list[str]
-    agent_ids : (n,) int32
-        Track ids (crowd:agentId).
-    visible : (n,) bool
-        Rendered (not an invisible leader, not hidden).
-    color : (n, 3) float32
-        Linear RGB clothing colour.
-    joints_world : (n, 3, 4, 4) float64
-        Joint-to-world matrices (canonical), legs / torso / head.
-    """
-
-    time: float
-    paths: list[str]
-    agent_ids: np.ndarray
-    visible: np.ndarray
-    color: np.ndarray
-    joints_world: np.ndarray
-
-    def __len__(self) -> int:
-        return len(self.paths)
-
-    @property
-    def skinning(self) -> np.ndarray:
-        """(n, 3, 4, 4) skinning transforms, bind pose to canonical world."""
-        return rig.skinning_transforms(self.joints_world)
-
-    def keypoints(self) -> np.ndarray:
-        """(n, 5, 3) world keypoints in rig.KEYPOINT_NAMES order (the ground point
-        is the pelvis dropped by its rest height, which follows terrain)."""
-        k = rig.keypoints(self.joints_world)
-        scale = np.linalg.norm(self.joints_world[:, 0, 0, :3], axis=-1)
-        k[:, 4] = self.joints_world[:, 0, 3, :3] - np.stack(
-            [np.zeros_like(scale), np.zeros_like(scale), rig.PELVIS_HEIGHT * scale], -1)
-        return k
 
 
 class ShotScene:

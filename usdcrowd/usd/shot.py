@@ -20,6 +20,10 @@ import numpy as np
 from .. import __version__, model
 from ..atomic import atomic_path
 from ..scenario.stageio import StageFrame
+from ..view import look_at
+
+# The package's one look-at helper, under the name this module used to define.
+look_at_matrix = look_at
 
 SHOT = "shot.usda"
 CROWD = "crowd.usdc"
@@ -93,30 +97,6 @@ def _set(spec, name, type_name, value, uniform=False):
     attr = Sdf.AttributeSpec(spec, name, type_name, Sdf.VariabilityUniform if uniform else Sdf.VariabilityVarying)
     attr.default = value
     return attr
-
-
-def look_at_matrix(eye: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """Camera-to-world matrices (row vectors) looking from ``eye`` to ``target``, Z up.
-
-    Parameters
-    ----------
-    eye, target : (t, 3) float
-        Canonical metres.
-
-    Returns
-    -------
-    (t, 4, 4) float64
-        USD cameras look down their local -Z with +Y up.
-    """
-    forward = target - eye
-    forward /= np.linalg.norm(forward, axis=1, keepdims=True)
-    right = np.cross(forward, np.array([0.0, 0.0, 1.0]))
-    right /= np.linalg.norm(right, axis=1, keepdims=True)
-    up = np.cross(right, forward)
-    m = np.zeros((len(eye), 4, 4))
-    m[:, 0, :3], m[:, 1, :3], m[:, 2, :3], m[:, 3, :3] = right, up, -forward, eye
-    m[:, 3, 3] = 1.0
-    return m
 
 
 def write_cameras(out_dir: str | os.PathLike, centre: np.ndarray, spread: np.ndarray, times: np.ndarray,

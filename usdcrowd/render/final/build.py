@@ -19,7 +19,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..scene import SCENERY_ID_BASE, CameraView, ShotScene
+from ...shading import SCENERY_ID_BASE
+from ...view import CameraView
+from ..scene import ShotScene
 from .camera import sensor_dict
 from .lights import emitters
 from .materials import agent_bsdf_dict, bsdf_dict, usd_uv_to_mitsuba

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..scene import CameraView
+from ...view import CameraView, camera_record  # noqa: F401  (camera_record: re-exported)
 
 # Mitsuba camera space -> USD camera space (row vectors): x and z flip.
 _MITSUBA_TO_USD = np.diag([-1.0, 1.0, -1.0, 1.0])
@@ -82,32 +82,3 @@ def pixel_rays(cam: CameraView, width: int, height: int):
     near = max(cam.near, 1e-4)
     origin = cam.position + direction * (near * scale)[:, None]
     return origin, direction, (cam.far - near) * scale, near * scale, 1.0 / scale
-
-
-def camera_record(cam: CameraView, width: int, height: int) -> dict:
-    """Intrinsics and extrinsics of one frame, for annotation files.
-
-    Returns
-    -------
-    dict
-        ``K`` (3x3, pixels, centres at +0.5), ``world_to_camera_opencv``
-        (4x4 column-vector matrix to OpenCV camera axes: x right, y down,
-        z forward), ``camera_to_world_usd`` (4x4 row-vector, USD axes),
-        position, lens values and clipping range.
-    """
-    flip = np.diag([1.0, -1.0, -1.0])                    # USD camera axes -> OpenCV axes
-    w2c = cam.world_to_cam                               # row vectors: p_cam = p @ R + t
-    r = (w2c[:3, :3] @ flip).T
-    t = w2c[3, :3] @ flip
-    ext = np.eye(4)
-    ext[:3, :3], ext[:3, 3] = r, t
-    return {
-        "camera": cam.path, "time": cam.time, "width": int(width), "height": int(height),
-        "K": cam.intrinsics(width, height).tolist(),
-        "world_to_camera_opencv": ext.tolist(),
-        "camera_to_world_usd": cam.cam_to_world.tolist(),
-        "position": cam.position.tolist(),
-        "focal_length": cam.focal_length, "horizontal_aperture": cam.horizontal_aperture,
-        "vertical_aperture": cam.vertical_aperture, "fov_x_deg": cam.fov_x(),
-        "clipping_range": [cam.near, cam.far],
-    }

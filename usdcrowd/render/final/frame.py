@@ -26,7 +26,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..scene import SCENERY_ID_BASE, AgentPoses, CameraView, ShotScene
+from ...poses import AgentPoses
+from ...shading import SCENERY_ID_BASE
+from ...view import CameraView
+from ..scene import ShotScene
 from . import variant as _variant
 from .build import AGENTS_KEY, SENSOR_KEY, BuiltScene, agent_vertices, build_scene, posed_scenery
 from .camera import pixel_rays, sensor_to_world

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..scene import Material
+from ...shading import Material
 
 # Clothing of the characters: matte fabric.
 AGENT_ROUGHNESS = 0.75

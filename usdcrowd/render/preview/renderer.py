@@ -24,7 +24,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..scene import AgentPoses, CameraView, ShotScene
+from ...poses import AgentPoses
+from ...view import CameraView
+from ..scene import ShotScene
 from . import impostors, instancing, lod, shaders, shadows
 from .context import headless_context
 
@@ -76,7 +78,7 @@ def boxes_from_ids(ids: np.ndarray, include_scenery: bool = False) -> dict[int, 
         box covers columns x0 .. x1 - 1), so ``(x1 - x0) * (y1 - y0)`` is its
         area and IoU needs no +1.
     """
-    from ..scene import SCENERY_ID_BASE
+    from ...shading import SCENERY_ID_BASE
 
     ids = np.asarray(ids)
     ys, xs = np.nonzero(ids)

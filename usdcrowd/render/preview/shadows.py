@@ -11,15 +11,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...view import look_at
+
 
 def light_basis(sun_dir: np.ndarray) -> np.ndarray:
     """(3, 3) rows right, up, towards-sun of the light's frame (orthonormal)."""
     d = np.asarray(sun_dir, dtype=np.float64)
     d = d / np.linalg.norm(d)
-    helper = np.array([0.0, 0.0, 1.0]) if abs(d[2]) < 0.95 else np.array([0.0, 1.0, 0.0])
-    right = np.cross(helper, d)
-    right /= np.linalg.norm(right)
-    return np.stack([right, np.cross(d, right), d])
+    # A camera looking from the sun (down -d); near-vertical suns keep +Y up.
+    helper = (0.0, 0.0, 1.0) if abs(d[2]) < 0.95 else (0.0, 1.0, 0.0)
+    return look_at(np.zeros(3), -d, up=helper)[0, :3, :3]
 
 
 def box_corners(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:

@@ -25,7 +25,7 @@ import time as _time
 
 import numpy as np
 
-from ..scene import CameraView
+from ...view import CameraView, look_at
 
 SCRUB_PX = 14           # height of the scrub strip, pixels
 
@@ -36,12 +36,7 @@ def look_at_matrix(eye: np.ndarray, yaw: float, pitch: float) -> np.ndarray:
     The camera looks down its local -Z with +Y up (USD's convention).
     """
     forward = np.array([np.cos(pitch) * np.cos(yaw), np.cos(pitch) * np.sin(yaw), np.sin(pitch)])
-    right = np.cross(forward, [0.0, 0.0, 1.0])
-    right /= max(np.linalg.norm(right), 1e-9)
-    up = np.cross(right, forward)
-    m = np.eye(4)
-    m[0, :3], m[1, :3], m[2, :3], m[3, :3] = right, up, -forward, eye
-    return m
+    return look_at(eye, np.asarray(eye, dtype=np.float64) + forward)[0]
 
 
 class FreeFly:

@@ -1,0 +1,62 @@
+"""Surfaces and lights as numpy, shared by both renderers and the ground truth.
+
+Pure core (no ``pxr``, no renderer). :class:`usdcrowd.render.scene.ShotScene`
+fills these from a stage's UsdPreviewSurface materials and UsdLux lights.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+# Agents' ids are small positive integers (their track ids); scenery gets ids
+# from this offset up so the two never collide in an id buffer.
+SCENERY_ID_BASE = 1 << 24
+
+
+@dataclass
+class Material:
+    """What UsdPreviewSurface (or displayColor) says about a surface, linear RGB."""
+
+    base_color: np.ndarray = field(default_factory=lambda: np.array([0.6, 0.6, 0.6]))
+    roughness: float = 0.5
+    metallic: float = 0.0
+    opacity: float = 1.0
+    base_color_texture: str | None = None      # resolved file path
+
+
+@dataclass
+class Light:
+    """A UsdLux light, resolved to what a renderer needs.
+
+    Attributes
+    ----------
+    kind : str
+        "distant", "dome", "sphere", "rect", "disk" or "cylinder".
+    rgb : (3,) float
+        Linear colour times the colour-temperature tint.
+    intensity : float
+        ``inputs:intensity * 2 ** inputs:exposure``.
+    to_world : (4, 4) float
+        Light space to canonical world (lights shine along their local -Z).
+    radius, width, height, length, angle : float
+        Shape parameters in metres (angle in degrees).
+    texture : str or None
+        Dome texture file, resolved.
+    normalize : bool
+        inputs:normalize (power independent of size).
+    """
+
+    path: str
+    kind: str
+    rgb: np.ndarray
+    intensity: float
+    to_world: np.ndarray
+    radius: float = 0.0
+    width: float = 0.0
+    height: float = 0.0
+    length: float = 0.0
+    angle: float = 0.0
+    texture: str | None = None
+    normalize: bool = False
