@@ -1,0 +1,150 @@
+"""Seed 000's evaluation: how much of what happens the cameras see.
+
+- Activity metric (Algorithm 7): each camera scores every character it
+  sees, ``1 / distance``, into an active score (characters taking part in an
+  event) or an idle score. Summed over a group of cameras, per frame.
+- Viewed ratio (section 5.4): active characters seen by at least one camera
+  of the group against active characters seen by none.
+
+"Seen" is geometric: the character's chest inside the camera's frustum and
+within ``max_distance``; occlusion by scenery or other people is not
+counted (the paper does not say it was).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .. import model
+from .frustum import half_tangents, points_in_frustum
+
+CHEST_HEIGHT = 1.1
+
+
+@dataclass
+class CoverageSeries:
+    """Per-frame scores of a group of cameras.
+
+    Attributes
+    ----------
+    times : (t,) float64
+    score_active, score_idle : (t,) float64
+        Algorithm 7's sums of 1 / distance (1/m).
+    n_active : (t,) int64
+        Active characters in the shot.
+    n_active_viewed : (t,) int64
+        Of them, seen by at least one camera.
+    """
+
+    times: np.ndarray
+    score_active: np.ndarray
+    score_idle: np.ndarray
+    n_active: np.ndarray
+    n_active_viewed: np.ndarray
+
+    @property
+    def active_share(self) -> np.ndarray:
+        """(t,) active score / (active + idle score); NaN where nothing is seen."""
+        total = self.score_active + self.score_idle
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(total > 0, self.score_active / total, np.nan)
+
+    @property
+    def active_idle_ratio(self) -> np.ndarray:
+        """(t,) active score / idle score (the paper's Figures 12 and 13); NaN where the idle score is 0."""
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(self.score_idle > 0, self.score_active / self.score_idle, np.nan)
+
+    @property
+    def viewed_ratio(self) -> np.ndarray:
+        """(t,) active viewed / active not viewed (Figures 14 and 15); NaN where none is active, inf where all are seen."""
+        not_viewed = self.n_active - self.n_active_viewed
+        with np.errstate(invalid="ignore", divide="ignore"):
+            r = self.n_active_viewed / not_viewed.astype(np.float64)
+        return np.where(self.n_active > 0, r, np.nan)
+
+    @property
+    def viewed_share(self) -> np.ndarray:
+        """(t,) active viewed / active; NaN where none is active."""
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(self.n_active > 0, self.n_active_viewed / np.maximum(self.n_active, 1), np.nan)
+
+    def summary(self) -> dict:
+        """Means over the frames where they are defined."""
+        ratio = self.viewed_ratio
+        finite = np.isfinite(ratio)
+        return {"mean_active_share": float(np.nanmean(self.active_share)),
+                "mean_active_idle_ratio": float(np.nanmean(self.active_idle_ratio)),
+                "mean_viewed_share": float(np.nanmean(self.viewed_share)),
+                "median_viewed_ratio": float(np.median(ratio[~np.isnan(ratio)])) if (~np.isnan(ratio)).any()
+                else float("nan"),
+                "frames_all_active_viewed": int(np.sum(np.isinf(ratio))),
+                "mean_viewed_ratio_finite": float(np.mean(ratio[finite])) if finite.any() else float("nan")}
+
+
+def active_mask(events: model.EventTable, times: np.ndarray, n_agents: int) -> np.ndarray:
+    """(t, n) bool: agents taking part in some event at each frame."""
+    times = np.asarray(times, dtype=np.float64)
+    out = np.zeros((len(times), n_agents), dtype=bool)
+    for e in events:
+        if len(e.times) == 0:
+            continue
+        k = np.searchsorted(times, e.times - 1e-6)
+        ok = (k < len(times))
+        ok[ok] &= np.abs(times[k[ok]] - e.times[ok]) < 1e-6
+        for i in np.flatnonzero(ok):
+            out[k[i], e.members[e.active[i]]] = True
+    return out
+
+
+def coverage(tracks: list[model.CameraTrack], positions: np.ndarray, active: np.ndarray,
+             visible: np.ndarray | None = None, max_distance: float = 100.0) -> CoverageSeries:
+    """Algorithm 7 and the viewed ratio for a group of cameras.
+
+    Parameters
+    ----------
+    tracks : list[CameraTrack]
+        The group, sampled at the same frames as ``positions``.
+    positions : (t, n, 3) float
+        Characters' ground positions, metres.
+    active : (t, n) bool
+        From :func:`active_mask`.
+    visible : (n,) bool, optional
+        Characters that are rendered (invisible leaders are never seen).
+    max_distance : float
+        Metres; characters further away count as not seen.
+    """
+    t, n = positions.shape[:2]
+    vis = np.ones(n, bool) if visible is None else np.asarray(visible, bool)
+    mats = np.stack([tr.cam_to_world for tr in tracks], 1)          # (t, c, 4, 4)
+    tan_x = np.array([half_tangents(tr.focal_length[0], tr.horizontal_aperture, tr.vertical_aperture)[0]
+                      for tr in tracks])
+    tan_y = np.array([half_tangents(tr.focal_length[0], tr.horizontal_aperture, tr.vertical_aperture)[1]
+                      for tr in tracks])
+    near = np.array([tr.near for tr in tracks])
+    s_act = np.zeros(t)
+    s_idle = np.zeros(t)
+    n_act = active[:, vis].sum(axis=1)
+    n_seen = np.zeros(t, dtype=np.int64)
+    rows = np.flatnonzero(vis)
+    for k in range(t):
+        chest = np.asarray(positions[k, rows], dtype=np.float64) + [0.0, 0.0, CHEST_HEIGHT]
+        tree = cKDTree(chest)
+        eye = mats[k, :, 3, :3]
+        lists = tree.query_ball_point(eye, r=max_distance)
+        cam = np.repeat(np.arange(len(tracks)), [len(x) for x in lists])
+        if len(cam) == 0:
+            continue
+        who = np.concatenate([np.asarray(x, dtype=np.int64) for x in lists])
+        inside, dist = points_in_frustum(chest[who], eye[cam], -mats[k, cam, 2, :3], mats[k, cam, 0, :3],
+                                         mats[k, cam, 1, :3], tan_x[cam], tan_y[cam], near[cam], max_distance)
+        cam, who, dist = cam[inside], who[inside], dist[inside]
+        act = active[k, rows[who]]
+        w = 1.0 / np.maximum(dist, 1e-3)
+        s_act[k] = w[act].sum()
+        s_idle[k] = w[~act].sum()
+        n_seen[k] = len(np.unique(who[act]))
+    return CoverageSeries(np.asarray(tracks[0].times, dtype=np.float64), s_act, s_idle, n_act, n_seen)

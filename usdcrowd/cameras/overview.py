@@ -1,0 +1,54 @@
+"""The overview behavior: one camera that keeps the whole crowd in frame.
+
+It keeps the crowd's centroid in view from a fixed bearing, at a distance
+that fits the crowd's spread into the field of view, smoothed over a second
+so it does not jitter with individual agents. It is the shot's
+``Cameras/CrowdCam`` beside the camera agents.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import model
+from ..view import look_at
+
+NAME = "CrowdCam"
+# A 35 mm full-frame 16:9 crop with a 28 mm lens.
+FOCAL_LENGTH = 28.0
+H_APERTURE = 36.0
+V_APERTURE = 20.25
+ELEVATION_DEG = 35.0
+
+
+def overview_track(centre: np.ndarray, spread: np.ndarray, times: np.ndarray, fps: float,
+                   path: str) -> model.CameraTrack:
+    """A camera framing the whole crowd.
+
+    Parameters
+    ----------
+    centre : (t, 3) float
+        Centroid of the visible agents, canonical metres.
+    spread : (t,) float
+        Largest distance of a visible agent from the centroid, metres.
+    times : (t,) float
+        Time codes.
+    fps : float
+    path : str
+        Prim path of the camera.
+    """
+    # Half a metre around the outermost agent, and at least a 3 m wide view.
+    spread = np.maximum(np.asarray(spread, dtype=np.float64) + 0.5, 1.5)
+    centre = np.asarray(centre, dtype=np.float64)
+    k = max(1, int(fps))
+    kernel = np.ones(k) / k
+    pad = lambda a: np.pad(a, [(k // 2, k - 1 - k // 2)] + [(0, 0)] * (a.ndim - 1), mode="edge")
+    centre = np.stack([np.convolve(pad(centre[:, j]), kernel, mode="valid") for j in range(3)], 1)
+    spread = np.convolve(pad(spread), kernel, mode="valid")
+    half_fov = np.arctan(0.5 * V_APERTURE / FOCAL_LENGTH)
+    distance = spread / np.tan(half_fov)
+    bearing = np.array([0.0, -np.cos(np.radians(ELEVATION_DEG)), np.sin(np.radians(ELEVATION_DEG))])
+    target = centre + np.array([0.0, 0.0, 1.0])
+    eye = target + distance[:, None] * bearing
+    return model.CameraTrack(path, np.asarray(times, dtype=np.float64), look_at(eye, target),
+                             np.full(len(times), FOCAL_LENGTH), H_APERTURE, V_APERTURE, 0.1, 1000.0)

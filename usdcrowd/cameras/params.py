@@ -1,0 +1,95 @@
+"""Tunable constants of the camera agents, with units, in one place.
+
+The per-camera limits (maximum speed, force and angular speed, arrival
+distance, aiming threshold, separation distance, view angle, elevation) are
+authored on each camera with CameraAgentAPI; what follows is shared by all
+cameras of a run.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass
+class CameraParams:
+    """Weights and ranges of seed 000's forces and torques.
+
+    Attributes
+    ----------
+    substeps : int
+        Integration steps per frame (Algorithm 1's Euler step is 1 / (fps x substeps)).
+    w_framing, w_obstacle, w_separation, w_wander, w_containment, w_elevation : float
+        Weights of the steering forces in the sum (section 4.3).
+    w_aim, w_avoid, w_wander_torque : float
+        Weights of the torques (section 4.4).
+    force_gain : float
+        1/s: the forces are velocity differences (Reynolds' desired minus
+        current velocity); this turns their sum into an acceleration before
+        the maxForce limit (at 1/s a camera would lag a second behind).
+    angular_gain : float
+        1/s: how fast the rotational velocity follows a torque's desired one
+        (the ``q_dot_d q_dot_c^-1`` products of Algorithms 5 and 6 scaled per second).
+    beta_deg : float
+        Degrees: below this angle at a circle's centre the framing range is a
+        Bezier curve (Figure 7), so no shot is taken from next to A or B.
+    min_frame_width : float
+        Metres: a single character is framed as this wide.
+    crane_members : int
+        Events with at least this many members are filmed from a crane
+        elevation that grows with their radius.
+    crane_gain : float
+        Metres of camera height per metre of event radius (crane shots).
+    look_height : float
+        Metres above the ground the cameras aim at (chest height).
+    scout_range : float
+        Metres: a scouting camera notices events up to this far in its frustum.
+    avoid_range : float
+        Metres: frusta are tested for overlap (Algorithm 6) up to this far;
+        cameras further apart than twice this are never paired.
+    obstacle_range : float
+        Metres: obstacles further than this are not considered (Algorithm 3).
+    obstacle_min_height : float
+        Metres: lower scenery (kerbs, bollards) cannot hide a person.
+    obstacle_clearance : float
+        Metres kept between a camera and scenery it flies beside.
+    wander_jitter : float
+        Radians per second of random change of the wandering direction (Reynolds 1999).
+    wander_speed : float
+        Share of the maximum speed used while wandering.
+    wander_look_distance : float
+        Metres ahead along the wandering direction a scouting camera aims at.
+    contain_margin : float
+        Metres beyond the crowd's extent where containment starts pulling back.
+    min_track_seconds : float
+        A camera keeps a new event at least this long before it may switch
+        (only if the event still runs).
+    """
+
+    substeps: int = 2
+    w_framing: float = 1.0
+    w_obstacle: float = 0.6
+    w_separation: float = 0.8
+    w_wander: float = 0.5
+    w_containment: float = 1.0
+    w_elevation: float = 1.0
+    w_aim: float = 1.0
+    w_avoid: float = 0.4
+    w_wander_torque: float = 1.0
+    force_gain: float = 3.0
+    angular_gain: float = 4.0
+    beta_deg: float = 80.0
+    min_frame_width: float = 0.6
+    crane_members: int = 8
+    crane_gain: float = 0.6
+    look_height: float = 1.1
+    scout_range: float = 60.0
+    avoid_range: float = 25.0
+    obstacle_range: float = 40.0
+    obstacle_min_height: float = 1.2
+    obstacle_clearance: float = 0.6
+    wander_jitter: float = 1.5
+    wander_speed: float = 0.6
+    wander_look_distance: float = 15.0
+    contain_margin: float = 10.0
+    min_track_seconds: float = 3.0

@@ -1,0 +1,97 @@
+"""Where cameras start or stand: rings around the crowd, static cameras, generated agents."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import model
+from ..view import look_at
+
+# A 35 mm lens on a full-frame 16:9 crop (the lens of generated cameras).
+FOCAL_LENGTH = 35.0
+H_APERTURE = 36.0
+V_APERTURE = 20.25
+# CameraAgentAPI's fallbacks (schemas/schema.usda), for generated camera agents.
+AGENT_DEFAULTS = {"max_speed": 3.0, "max_force": 2.0, "max_angular_speed": np.radians(60.0),
+                  "arrival_distance": 4.0, "aim_threshold": np.radians(15.0), "separation_distance": 5.0,
+                  "view_angle": 0.6, "elevation": (1.5, 8.0)}
+
+
+def crowd_extent(positions: np.ndarray, quantile: float = 0.9) -> tuple[np.ndarray, float]:
+    """Centre (3,) and radius of a crowd's positions ``(..., 3)`` (the ``quantile`` of distances)."""
+    p = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    p = p[np.isfinite(p).all(axis=1)]
+    if len(p) == 0:
+        return np.zeros(3), 1.0
+    centre = np.median(p, axis=0)
+    radius = float(np.quantile(np.linalg.norm(p[:, :2] - centre[:2], axis=1), quantile))
+    return centre, max(radius, 1.0)
+
+
+def ring(centre: np.ndarray, radius: float, height: float, count: int, phase: float = 0.0,
+         look_height: float = 1.0) -> np.ndarray:
+    """(count, 4, 4) cameras evenly on a ring around ``centre``, looking at it."""
+    ang = phase + 2 * np.pi * np.arange(count) / max(count, 1)
+    eye = np.column_stack([centre[0] + radius * np.cos(ang), centre[1] + radius * np.sin(ang),
+                           np.full(count, height)])
+    target = np.tile([centre[0], centre[1], look_height], (count, 1))
+    return look_at(eye, target)
+
+
+def static_cameras(positions: np.ndarray, count: int, times: np.ndarray, root: str = "/World",
+                   height: float = 7.0, margin: float = 8.0) -> list[model.CameraTrack]:
+    """Static cameras at strategic positions: a ring just outside everywhere the crowd goes.
+
+    This is the baseline of seed 000's evaluation: the cameras are placed
+    knowing the crowd's whole extent over the shot, so they never lose sight
+    of it (knowledge the autonomous cameras do not have).
+
+    Parameters
+    ----------
+    positions : (t, n, 3) float
+        The crowd over the shot (any subsample of frames).
+    count : int
+    times : (t,) float
+        Time codes of the shot.
+    """
+    centre, radius = crowd_extent(positions)
+    # Half the horizontal field of view fits the crowd's diameter at the ring's distance.
+    mats = ring(centre, radius + margin, height, count, phase=np.pi / max(count, 1) - np.pi / 2)
+    out = []
+    for k, m in enumerate(mats):
+        out.append(model.CameraTrack(f"{root}/Cameras/Static{k + 1:02d}", np.asarray(times, dtype=np.float64),
+                                     np.repeat(m[None], len(times), axis=0), np.full(len(times), FOCAL_LENGTH),
+                                     H_APERTURE, V_APERTURE, 0.1, 1000.0))
+    return out
+
+
+def generated_agents(count: int, centre: np.ndarray, radius: float, root: str = "/World",
+                     start: int = 1) -> model.CameraAgentTable:
+    """``count`` camera agents with the schema's default limits, on a ring around the crowd."""
+    d = AGENT_DEFAULTS
+    lo, hi = d["elevation"]
+    mats = ring(centre, radius + 5.0, 0.5 * (lo + hi), count)
+    full = lambda v: np.full(count, float(v))
+    return model.CameraAgentTable(
+        [f"{root}/Cameras/Agent{k + start:02d}" for k in range(count)], mats, full(FOCAL_LENGTH),
+        full(H_APERTURE), full(V_APERTURE), full(0.1), full(1000.0),
+        np.full(count, model.code(model.CAMERA_MODES, "scouting"), np.int8), full(d["max_speed"]),
+        full(d["max_force"]), full(d["max_angular_speed"]), full(d["arrival_distance"]),
+        full(d["aim_threshold"]), full(d["separation_distance"]), full(d["view_angle"]),
+        np.tile([lo, hi], (count, 1)).astype(np.float64), [None] * count)
+
+
+def concat_agents(a: model.CameraAgentTable, b: model.CameraAgentTable) -> model.CameraAgentTable:
+    """Rows of ``a`` then ``b``."""
+    out = {}
+    for k, v in vars(a).items():
+        w = getattr(b, k)
+        out[k] = v + w if isinstance(v, list) else np.concatenate([v, w])
+    return model.CameraAgentTable(**out)
+
+
+def take_agents(a: model.CameraAgentTable, rows) -> model.CameraAgentTable:
+    """The given rows of a camera agent table."""
+    rows = np.asarray(rows, dtype=np.int64)
+    return model.CameraAgentTable(**{k: ([v[i] for i in rows] if isinstance(v, list) else v[rows])
+                                     for k, v in vars(a).items()})

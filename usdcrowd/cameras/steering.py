@@ -1,0 +1,336 @@
+"""Steering camera agents (seed 000): scouting and tracking cameras stepped together.
+
+:class:`CameraAgents` holds every camera's state as arrays and advances
+them one time step at a time (Algorithms 1 and 2): forces from
+:mod:`.forces` move positions, torques from :mod:`.torques` turn
+orientations. Camera-camera terms and camera-obstacle terms come from
+KD-trees, never all pairs.
+
+Modes: a scouting camera wanders and pans; when a running event's centre
+enters its frustum it starts tracking it, preferring events no other camera
+follows. A tracking camera whose event ends scouts again. A camera whose
+``crowd:camera:target`` is authored tracks only that event (or agent) while
+it runs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .. import model
+from . import forces, torques
+from .frustum import half_tangents
+from .orientation import axes, integrate, level_from_forward, matrix_to_quat
+from .params import CameraParams
+
+SCOUTING = model.code(model.CAMERA_MODES, "scouting")
+TRACKING = model.code(model.CAMERA_MODES, "tracking")
+# Cameras never look steeper than this (sin of the pitch): a level head.
+_MAX_PITCH_SIN = 0.95
+
+
+@dataclass
+class _ObstacleSet:
+    """Scenery footprints that occlude or block cameras."""
+
+    tree: cKDTree | None
+    xyz: np.ndarray          # (o, 3) footprint centres, half height up
+    radius: np.ndarray       # (o,) horizontal radius
+    height: np.ndarray       # (o,)
+    polygons: list           # (k, 2) ccw convex
+
+    @classmethod
+    def of(cls, obstacles: model.Obstacles, min_height: float) -> "_ObstacleSet":
+        keep = [i for i in range(len(obstacles)) if obstacles.height[i] >= min_height]
+        if not keep:
+            return cls(None, np.zeros((0, 3)), np.zeros(0), np.zeros(0), [])
+        polys = [np.asarray(obstacles.polygons[i], dtype=np.float64) for i in keep]
+        centre = np.array([p.mean(axis=0) for p in polys])
+        radius = np.array([np.linalg.norm(p - c, axis=1).max() for p, c in zip(polys, centre)])
+        height = np.asarray(obstacles.height, dtype=np.float64)[keep]
+        xyz = np.column_stack([centre, 0.5 * height])
+        return cls(cKDTree(centre), xyz, radius, height, polys)
+
+
+class CameraAgents:
+    """Every camera agent's state, stepped through a shot.
+
+    Parameters
+    ----------
+    table : CameraAgentTable
+        Initial poses, lenses and limits.
+    events : EventTable
+        The shot's events (detected and authored).
+    obstacles : Obstacles
+        Scenery footprints.
+    agent_rows : dict[str, int]
+        Agent prim path to row (for cameras whose target is an agent).
+    params : CameraParams, optional
+    seed : int
+        Seeds the wandering.
+    """
+
+    def __init__(self, table: model.CameraAgentTable, events: model.EventTable, obstacles: model.Obstacles,
+                 agent_rows: dict[str, int] | None = None, params: CameraParams | None = None, seed: int = 0):
+        self.table = table
+        self.params = params or CameraParams()
+        c = len(table)
+        self.p = table.cam_to_world[:, 3, :3].astype(np.float64).copy()
+        self.v = np.zeros((c, 3))
+        self.q = _level(matrix_to_quat(table.cam_to_world[:, :3, :3])) if c else np.zeros((0, 4))
+        self.w = np.zeros((c, 3))
+        self.tan_x, self.tan_y = half_tangents(table.focal_length, table.horizontal_aperture,
+                                               table.vertical_aperture)
+        self.half_x = np.arctan(self.tan_x)
+        self.alpha = table.view_angle * 2.0 * self.half_x
+        self.beta = np.full(c, np.radians(self.params.beta_deg))
+        self.rng = np.random.default_rng(seed)
+        fwd = axes(self.q)[0] if c else np.zeros((0, 3))
+        self.wander = np.arctan2(fwd[:, 1], fwd[:, 0]) if c else np.zeros(0)
+        self.events = list(events)
+        self.n_shot_events = len(self.events)
+        # Authored targets: an event of the shot, or an agent followed as a one-member event.
+        self.pinned = np.full(c, -1)
+        rows = agent_rows or {}
+        paths = {e.path: k for k, e in enumerate(self.events)}
+        for k, target in enumerate(table.target):
+            if not target:
+                continue
+            if target in paths:
+                self.pinned[k] = paths[target]
+            elif target in rows:
+                self.pinned[k] = len(self.events)
+                self.events.append(_agent_event(target, rows[target]))
+                paths[target] = self.pinned[k]
+        self.mode = np.full(c, SCOUTING, dtype=np.int8)
+        self.tracked = np.full(c, -1)
+        self.since = np.zeros(c)
+        self.obstacles = _ObstacleSet.of(obstacles, self.params.obstacle_min_height)
+        self.time = None
+
+    def __len__(self) -> int:
+        return len(self.p)
+
+    # ------------------------------------------------------------------ modes
+    def _running(self, time: float) -> list[int]:
+        return [k for k, e in enumerate(self.events) if e.start - 1e-6 <= time <= e.end + 1e-6
+                and len(e.members_at(time))]
+
+    def _event_state(self, k: int, time: float, positions: np.ndarray):
+        """Active members' positions (j, 3) and the event's radius at ``time``."""
+        e = self.events[k]
+        pts = positions[e.members_at(time)]
+        i = e.sample(time)
+        return pts, float(e.radius[i]) if i >= 0 and len(e.radius) else 1.0
+
+    def update_modes(self, time: float, positions: np.ndarray) -> None:
+        """Drop ended events; scouting cameras pick up events they see (section 4.1)."""
+        running = self._running(time)
+        alive = set(running)
+        ended = (self.tracked >= 0) & ~np.isin(self.tracked, list(alive))
+        self.mode[ended], self.tracked[ended] = SCOUTING, -1
+        pinned = self.pinned >= 0
+        on = pinned & np.isin(self.pinned, list(alive)) & (self.tracked < 0)
+        self.mode[on], self.tracked[on], self.since[on] = TRACKING, self.pinned[on], time
+        free = np.flatnonzero((self.mode == SCOUTING) & ~pinned)
+        if len(free) == 0 or not running:
+            return
+        centres = np.array([self._event_state(k, time, positions)[0].mean(axis=0) for k in running])
+        centres[:, 2] += self.params.look_height
+        fwd, right, up = axes(self.q[free])
+        d = centres[None] - self.p[free, None]                       # (f, e, 3)
+        z = np.einsum("fek,fk->fe", d, fwd)
+        x = np.einsum("fek,fk->fe", d, right)
+        y = np.einsum("fek,fk->fe", d, up)
+        dist = np.linalg.norm(d, axis=2)
+        seen = (z > 0.5) & (dist < self.params.scout_range) & (np.abs(x) <= self.tan_x[free, None] * z) & (
+            np.abs(y) <= self.tan_y[free, None] * z)
+        followers = np.bincount(self.tracked[self.tracked >= 0], minlength=len(self.events))
+        run = np.asarray(running)
+        for row, cam in enumerate(free):
+            cand = np.flatnonzero(seen[row])
+            if len(cand) == 0:
+                continue
+            # Events no other camera follows first, then the nearest.
+            score = followers[run[cand]] * 1e6 + dist[row, cand]
+            k = run[cand[np.argmin(score)]]
+            self.mode[cam], self.tracked[cam], self.since[cam] = TRACKING, k, time
+            followers[k] += 1
+
+    # ------------------------------------------------------------------- step
+    def step(self, time: float, positions: np.ndarray, crowd_centre: np.ndarray, crowd_radius: float,
+             dt: float) -> None:
+        """Advance every camera by ``dt`` seconds.
+
+        Parameters
+        ----------
+        time : float
+            Time code (for events).
+        positions : (n, 3) float
+            Every agent's ground position at ``time``, metres.
+        crowd_centre : (3,) float
+            Centre of the visible crowd (containment).
+        crowd_radius : float
+            Radius of the visible crowd, metres.
+        dt : float
+            Seconds.
+        """
+        c = len(self)
+        if c == 0:
+            return
+        prm, t = self.params, self.table
+        fwd, right, _ = axes(self.q)
+        vmax = t.max_speed
+        force = np.zeros((c, 3))
+        tracking = np.flatnonzero(self.tracked >= 0)
+        scouting = np.flatnonzero(self.tracked < 0)
+
+        # Aim point, framing force and crane height per tracking camera.
+        look = self.p + fwd * prm.wander_look_distance
+        height = 0.5 * (t.elevation[:, 0] + t.elevation[:, 1])
+        if len(tracking):
+            a = np.zeros((len(tracking), 2))
+            b = np.zeros((len(tracking), 2))
+            n_members = np.zeros(len(tracking))
+            radius = np.zeros(len(tracking))
+            for j, cam in enumerate(tracking):
+                pts, r = self._event_state(self.tracked[cam], time, positions)
+                a[j], b[j] = _extremes(self.p[cam, :2], pts[:, :2])
+                look[cam] = pts.mean(axis=0) + np.array([0.0, 0.0, prm.look_height])
+                n_members[j], radius[j] = len(pts), r
+            goal = forces.framing_target(self.p[tracking, :2], a, b, self.alpha[tracking], self.beta[tracking],
+                                         prm.min_frame_width)
+            goal3 = np.column_stack([goal, self.p[tracking, 2]])
+            f = forces.arrival(self.p[tracking], goal3, self.v[tracking] * [1, 1, 0], vmax[tracking],
+                               t.arrival_distance[tracking])
+            force[tracking] += prm.w_framing * f
+            height[tracking] = forces.crane_height(n_members, radius, t.elevation[tracking], prm.crane_members,
+                                                   prm.crane_gain)
+        if len(scouting):
+            self.wander[scouting] += self.rng.normal(0.0, prm.wander_jitter * np.sqrt(dt), len(scouting))
+            force[scouting] += prm.w_wander * forces.wandering(self.v[scouting], self.wander[scouting],
+                                                               vmax[scouting], prm.wander_speed)
+            heading = np.stack([np.cos(self.wander[scouting]), np.sin(self.wander[scouting]),
+                                np.zeros(len(scouting))], 1)
+            look[scouting] = self.p[scouting] * [1, 1, 0] + heading * prm.wander_look_distance + [0, 0, prm.look_height]
+        force += prm.w_elevation * forces.elevation(self.p, self.v, height, vmax)
+        force += prm.w_obstacle * forces.obstacle_avoidance(
+            self.p, self.v, fwd, right, look, vmax, self.tan_x, self.obstacles.tree, self.obstacles.xyz,
+            self.obstacles.radius, prm.obstacle_range)
+        tree = cKDTree(self.p)
+        sep_pairs = tree.query_pairs(float(t.separation_distance.max()), output_type="ndarray")
+        force += prm.w_separation * forces.separation(self.p, self.v, fwd, right, vmax, t.separation_distance,
+                                                      sep_pairs)
+        force += prm.w_containment * forces.containment(self.p, self.v, crowd_centre,
+                                                        crowd_radius + prm.contain_margin, vmax)
+        # Algorithm 1, with Reynolds' limits on force and speed.
+        force = _clamp(prm.force_gain * force, t.max_force)
+        self.v = _clamp(self.v + force * dt, vmax)
+        self.p = self.p + self.v * dt
+        self._constrain()
+
+        # Algorithm 2: torques -> rotational velocity -> orientation.
+        q_desired = _level_towards(look - self.p)
+        tau = prm.w_aim * torques.aiming(self.q, q_desired, self.w, t.max_angular_speed, t.aim_threshold)
+        if len(scouting):
+            tau[scouting] *= prm.w_wander_torque / max(prm.w_aim, 1e-9)
+        avoid_pairs = tree.query_pairs(2.0 * prm.avoid_range, output_type="ndarray")
+        tau += prm.w_avoid * torques.avoidance(self.p, fwd, right, self.half_x, self.w, t.max_angular_speed,
+                                               avoid_pairs, 1.0, prm.avoid_range)
+        self.w = _clamp(self.w + prm.angular_gain * tau * dt, t.max_angular_speed)
+        self.q = _level(integrate(self.q, self.w, dt))
+
+    def _constrain(self) -> None:
+        """Keep cameras inside their elevation range and out of scenery (pushed to its outline)."""
+        t = self.table
+        self.p[:, 2] = np.clip(self.p[:, 2], np.maximum(t.elevation[:, 0], 0.3), t.elevation[:, 1])
+        obs = self.obstacles
+        if obs.tree is None:
+            return
+        clearance = self.params.obstacle_clearance
+        lists = obs.tree.query_ball_point(self.p[:, :2], r=float(obs.radius.max()) + clearance)
+        for cam, near in enumerate(lists):
+            for o in near:
+                if self.p[cam, 2] > obs.height[o] + clearance:
+                    continue                        # flying over it
+                pushed = _push_out(obs.polygons[o], self.p[cam, :2], clearance)
+                if pushed is not None:
+                    normal = pushed - self.p[cam, :2]
+                    normal /= max(np.linalg.norm(normal), 1e-9)
+                    self.p[cam, :2] = pushed
+                    inward = min(0.0, float(self.v[cam, :2] @ normal))
+                    self.v[cam, :2] -= inward * normal
+
+    # ---------------------------------------------------------------- output
+    def cam_to_world(self) -> np.ndarray:
+        """(c, 4, 4) current camera-to-world matrices (row vectors)."""
+        from ..character.rig import quat_to_matrix
+
+        m = np.zeros((len(self), 4, 4))
+        m[:, :3, :3] = quat_to_matrix(self.q)
+        m[:, 3, :3] = self.p
+        m[:, 3, 3] = 1.0
+        return m
+
+    def tracked_paths(self) -> list[str]:
+        return [self.events[k].path if k >= 0 else "" for k in self.tracked]
+
+
+def _agent_event(path: str, row: int) -> model.Event:
+    """An agent tracked by an authored target, as an event that always runs."""
+    return model.Event(path, model.code(model.EVENT_KINDS, "interaction"), -np.inf, np.inf,
+                       np.array([row], np.int32), np.array([0.0]), np.ones((1, 1), bool), np.zeros((1, 3)),
+                       np.array([1.0]))
+
+
+def _extremes(camera_xy: np.ndarray, pts: np.ndarray):
+    from .framing import extreme_pair
+
+    if len(pts) == 1:
+        return pts[0], pts[0]
+    return extreme_pair(camera_xy, pts)
+
+
+def _clamp(v: np.ndarray, limit: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=1)
+    return v * np.minimum(1.0, limit / np.maximum(n, 1e-12))[:, None]
+
+
+def _level_towards(direction: np.ndarray) -> np.ndarray:
+    d = direction / np.maximum(np.linalg.norm(direction, axis=1, keepdims=True), 1e-9)
+    return level_from_forward(_limit_pitch(d))
+
+
+def _limit_pitch(f: np.ndarray) -> np.ndarray:
+    f = f.copy()
+    z = np.clip(f[:, 2], -_MAX_PITCH_SIN, _MAX_PITCH_SIN)
+    flat = f[:, :2]
+    n = np.linalg.norm(flat, axis=1, keepdims=True)
+    flat = np.where(n > 1e-9, flat / np.maximum(n, 1e-12), [1.0, 0.0])
+    f[:, :2] = flat * np.sqrt(1.0 - z ** 2)[:, None]
+    f[:, 2] = z
+    return f
+
+
+def _level(q: np.ndarray) -> np.ndarray:
+    """Roll removed and pitch limited."""
+    return level_from_forward(_limit_pitch(axes(q)[0]))
+
+
+def _push_out(poly: np.ndarray, p: np.ndarray, clearance: float):
+    """Nearest point ``clearance`` outside a convex ccw polygon if ``p`` is closer than that, else None."""
+    a = poly
+    b = np.roll(poly, -1, axis=0)
+    e = b - a
+    length = np.maximum(np.linalg.norm(e, axis=1), 1e-12)
+    outward = np.stack([e[:, 1], -e[:, 0]], 1) / length[:, None]     # ccw: the right of each edge is out
+    signed = np.einsum("ij,ij->i", p - a, outward)
+    if signed.max() >= clearance:
+        return None                            # outside, with room to spare
+    k = int(np.argmax(signed))
+    return p + (clearance - signed[k]) * outward[k]
+
+
