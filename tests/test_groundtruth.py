@@ -178,6 +178,16 @@ def test_metadata_reads_leaders_and_events(museum_shot):
     meta = AgentMetadata.from_shot(shot)
     assert meta.at(student, 3.0)["events"] == [{"path": "/World/Events/Chat", "kind": "interaction"}]
     assert meta.at(student, 5.0)["events"] == []
+    # Time-sampled crowd:memberIds: the student leaves the chat at frame 4, the teacher (id 100) joins.
+    with Usd.EditContext(shot.stage, shot.stage.GetSessionLayer()):
+        ids = ev.CreateAttribute("crowd:memberIds", Sdf.ValueTypeNames.IntArray)
+        sid = int(shot.stage.GetPrimAtPath(student).GetAttribute("crowd:agentId").Get())
+        ids.Set([sid], 2.0)
+        ids.Set([100], 4.0)
+    meta = AgentMetadata.from_shot(shot)
+    teacher = next(p for p, a in zip(shot.agent_paths, shot._agent_static[1]) if a == 100)
+    assert [bool(meta.at(student, t)["events"]) for t in (2.0, 3.0, 4.0)] == [True, True, False]
+    assert [bool(meta.at(teacher, t)["events"]) for t in (2.0, 3.0, 4.0)] == [False, False, True]
     info = meta.at(student, 3.0)
     assert info["group"] == "/World/Crowd/Visitors/Students" and info["role"] == "member"
     leaders = {meta.at(p, 1.0)["leader"] for p in shot.agent_paths if "/Students/" in p}

@@ -296,6 +296,10 @@ class Scenario:
     obstacles : Obstacles
     bounds : (2, 2) float64
         [[xmin, ymin], [xmax, ymax]] of the walkable area, metres.
+    cameras : CameraAgentTable
+        The scenario's camera agents (CameraAgentAPI cameras).
+    events : EventTable
+        The events the user authored (detected ones belong to a shot).
     """
 
     source: str
@@ -307,6 +311,9 @@ class Scenario:
     interest: InterestTable
     obstacles: Obstacles
     bounds: np.ndarray
+    # Both classes are defined further down this module, hence the lambdas.
+    cameras: "CameraAgentTable" = field(default_factory=lambda: CameraAgentTable.empty())
+    events: "EventTable" = field(default_factory=lambda: EventTable())
 
     def field(self, meaning: str) -> BehaviorField | None:
         """The first behavior field with this meaning, or None."""

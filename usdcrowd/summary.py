@@ -20,7 +20,9 @@ def summarize(path: str | os.PathLike, stage=None) -> dict:
     from pxr import UsdGeom, UsdLux
 
     from .scenario import load_scenario, open_stage, stage_frame
+    from .scenario.events import read_events
     from .scenario.read import stored_seed
+    from .scenario.stageio import time_range
 
     path = os.fspath(path)
     stage = stage or open_stage(path)
@@ -68,12 +70,11 @@ def summarize(path: str | os.PathLike, stage=None) -> dict:
                            "intensity": light.GetIntensityAttr().Get(),
                            "exposure": light.GetExposureAttr().Get(),
                            "color": list(light.GetColorAttr().Get())})
-        elif prim.GetTypeName() == schema.EVENT:
-            rel = prim.GetRelationship("crowd:members")
-            events.append({"path": str(prim.GetPath()), "kind": str(prim.GetAttribute("crowd:kind").Get()),
-                           "members": len(rel.GetTargets()) if rel else 0,
-                           "start": prim.GetAttribute("crowd:startTime").Get(),
-                           "end": prim.GetAttribute("crowd:endTime").Get()})
+    rows = {p: i for i, p in enumerate(sc.agents.path)} if has_crowd else {}
+    ids = sc.agents.agent_id if has_crowd else None
+    for e in read_events(stage, rows, time_range(stage), agent_ids=ids):
+        events.append({"path": e.path, "kind": model.EVENT_KINDS[e.kind], "members": len(e.members),
+                       "start": e.start, "end": e.end, "authored": e.authored})
     out["cameras"], out["lights"], out["events"] = cams, lights, events
     return out
 

@@ -24,10 +24,11 @@ top-left corner at (0, 0) (pixel centres at +0.5).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..model import EVENT_KINDS, EventTable
 from ..shading import SCENERY_ID_BASE
 from ..view import camera_record
 from . import rle
@@ -46,20 +47,25 @@ class AgentMetadata:
         Prim path -> {"group", "leader", "role", "behavior", "character_type"}.
     state_queries : dict[str, dict[str, Usd.AttributeQuery]]
         Prim path -> state name -> query of ``crowd:state:<name>``.
-    events : list[dict]
-        Every CrowdEvent: path, kind, start, end, members (prim paths).
+    events : EventTable
+        Every CrowdEvent, its members as rows of ``rows``.
+    rows : dict[str, int]
+        Agent prim path -> row (the ShotScene's agent order).
     """
 
     by_path: dict
     state_queries: dict
-    events: list
+    events: EventTable
+    rows: dict = field(default_factory=dict)
+    _per_time: dict = field(default_factory=dict, repr=False)
 
     @classmethod
     def from_shot(cls, shot) -> "AgentMetadata":
         """Read groups, leaders, roles, behaviours and events from a ShotScene's stage."""
         from pxr import Usd
 
-        from .. import schema
+        from ..scenario.events import read_events
+        from ..scenario.stageio import time_range
 
         stage = shot.stage
         ids = dict(zip(shot.agent_paths, (int(i) for i in shot._agent_static[1])))
@@ -85,24 +91,21 @@ class AgentMetadata:
             queries[path] = {name: Usd.AttributeQuery(prim.GetAttribute(f"crowd:state:{name}"))
                              for name in ("behavior", "animClass", "health")
                              if prim.GetAttribute(f"crowd:state:{name}")}
-        events = []
-        for prim in stage.Traverse():
-            if prim.GetTypeName() != schema.EVENT:
-                continue
-            members = prim.GetRelationship("crowd:members")
-            events.append({"path": str(prim.GetPath()), "kind": str(prim.GetAttribute("crowd:kind").Get()),
-                           "start": float(prim.GetAttribute("crowd:startTime").Get()),
-                           "end": float(prim.GetAttribute("crowd:endTime").Get()),
-                           "members": {str(p) for p in (members.GetTargets() if members else [])}})
-        return cls(by_path, queries, events)
+        rows = {p: i for i, p in enumerate(shot.agent_paths)}
+        events = read_events(stage, rows, time_range(stage), agent_ids=shot._agent_static[1])
+        return cls(by_path, queries, events, rows)
 
     def at(self, path: str, time: float) -> dict:
-        """Static fields plus state and active events of one agent at ``time``."""
+        """Static fields plus state and the events the agent takes part in at ``time``."""
         d = dict(self.by_path.get(path, {}))
         d["state"] = {k: (str(v) if (v := q.Get(time)) is not None else None)
                       for k, q in self.state_queries.get(path, {}).items()}
-        d["events"] = [{"path": e["path"], "kind": e["kind"]} for e in self.events
-                       if path in e["members"] and e["start"] <= time <= e["end"]]
+        if time not in self._per_time:          # every agent of a frame asks for the same time
+            self._per_time.clear()
+            self._per_time[time] = self.events.agent_events(time, len(self.rows))
+        row = self.rows.get(path)
+        mine = self._per_time[time][row] if row is not None else []
+        d["events"] = [{"path": self.events[i].path, "kind": EVENT_KINDS[self.events[i].kind]} for i in mine]
         return d
 
 

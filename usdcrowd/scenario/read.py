@@ -16,9 +16,9 @@ import numpy as np
 from .. import model, schema
 from ..errors import ScenarioError
 from .attributes import INHERITED, AgentSpec, GroupSpec, inherited_values, resolve_group_members
-from .stageio import StageFrame, open_stage, stage_frame
+from .events import read_camera_agents, read_events
+from .stageio import StageFrame, open_stage, stage_frame, time_range
 
-DEFAULT_TIME = model.TimeRange(1.0, 240.0, 24.0)
 # Scenery lower than this is ground or markings, not an obstacle (metres).
 OBSTACLE_MIN_HEIGHT = 0.05
 # Scenery whose bottom is above this does not block walking (roofs, signs).
@@ -129,13 +129,6 @@ class _Reader:
         return tuple(m[3, :3]), math.atan2(m[0, 1], m[0, 0])
 
 
-def _time_range(stage) -> model.TimeRange:
-    if not stage.HasAuthoredTimeCodeRange():
-        return DEFAULT_TIME
-    fps = stage.GetTimeCodesPerSecond() or DEFAULT_TIME.fps
-    return model.TimeRange(float(stage.GetStartTimeCode()), float(stage.GetEndTimeCode()), float(fps))
-
-
 def stored_seed(stage) -> int | None:
     """The seed a stage records in its root layer's customLayerData, if any."""
     data = stage.GetRootLayer().customLayerData.get("usdcrowd", {})
@@ -186,7 +179,7 @@ def load_scenario(path: str | os.PathLike, seed: int | None = None, stage=None) 
             subclones = int(r.get(prim, "subclones"))
             group_row[path] = len(groups)
             authored = r.authored(prim, INHERITED)
-            schedule = r.goal_waypoints(prim, _time_range(stage).start)
+            schedule = r.goal_waypoints(prim, time_range(stage).start)
             if schedule is not None:
                 authored["goal"] = schedule[2]
             groups.append(GroupSpec(path, parent, authored, clones, subclones))
@@ -216,8 +209,11 @@ def load_scenario(path: str | os.PathLike, seed: int | None = None, stage=None) 
     fields = [_behavior_field(r, p) for p in layers]
     interest = _interest(r, points)
     bounds = _bounds(ground, obstacles, table, interest, fields)
-    return model.Scenario(source, _time_range(stage), int(seed), group_table, table, fields,
-                          interest, obstacles, bounds)
+    time = time_range(stage)
+    events = read_events(stage, {p: i for i, p in enumerate(table.path)}, time, agent_ids=table.agent_id)
+    events = model.EventTable([e for e in events if e.authored])
+    return model.Scenario(source, time, int(seed), group_table, table, fields, interest, obstacles, bounds,
+                          cameras=read_camera_agents(stage), events=events)
 
 
 def clone_path(group_path: str, k: int) -> str:

@@ -11,8 +11,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import model
 from ..errors import StageError, usd_error_text
 from ..tolerances import UNIT_RTOL
+
+# A stage without an authored time range is read as this one.
+DEFAULT_TIME = model.TimeRange(1.0, 240.0, 24.0)
 
 # Row-vector convention (USD's): p_canonical = p_stage @ matrix.
 _Y_UP_TO_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
@@ -59,6 +63,14 @@ def stage_frame(stage) -> StageFrame:
     from pxr import UsdGeom
 
     return StageFrame(str(UsdGeom.GetStageUpAxis(stage)), float(UsdGeom.GetStageMetersPerUnit(stage)))
+
+
+def time_range(stage) -> model.TimeRange:
+    """The stage's frames and rate (:data:`DEFAULT_TIME` when it authors no time range)."""
+    if not stage.HasAuthoredTimeCodeRange():
+        return DEFAULT_TIME
+    fps = stage.GetTimeCodesPerSecond() or DEFAULT_TIME.fps
+    return model.TimeRange(float(stage.GetStartTimeCode()), float(stage.GetEndTimeCode()), float(fps))
 
 
 def open_stage(path: str | os.PathLike):

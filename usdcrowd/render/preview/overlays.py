@@ -8,10 +8,9 @@ ids are text, drawn with Pillow on the read-back colour.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
+from ... import model
 from . import shaders
 
 # Linear RGBA colours of the annotations.
@@ -21,38 +20,14 @@ _EVENT = {"interaction": (1.0, 0.25, 0.6, 1.0), "groupMotion": (0.2, 0.9, 1.0, 1
           "arrival": (0.3, 1.0, 0.3, 1.0), "dialogue": (0.7, 0.4, 1.0, 1.0)}
 
 
-@dataclass
-class EventMarker:
-    """A CrowdEvent as the overlay draws it."""
+def read_events(scene):
+    """Every CrowdEvent of the shot (:func:`usdcrowd.scenario.events.read_events`), over its frames."""
+    from ...scenario.events import read_events as read
 
-    path: str
-    kind: str
-    start: float
-    end: float
-    prim: object
-
-    def center(self, time, to_canonical: np.ndarray) -> np.ndarray:
-        attr = self.prim.GetAttribute("crowd:center")
-        c = np.array(attr.Get(time) if attr and attr.HasValue() else (0.0, 0.0, 0.0), dtype=np.float64)
-        return c @ to_canonical[:3, :3] + to_canonical[3, :3]
-
-
-def read_events(scene) -> list[EventMarker]:
-    """Every CrowdEvent prim of the shot."""
-    from pxr import Usd
-
-    from ... import schema
-
-    out = []
-    for prim in Usd.PrimRange(scene.stage.GetPseudoRoot()):
-        if prim.GetTypeName() == schema.EVENT:
-            def get(name, default):
-                a = prim.GetAttribute(name)
-                v = a.Get() if a else None
-                return default if v is None else v
-            out.append(EventMarker(str(prim.GetPath()), str(get("crowd:kind", "interaction")),
-                                   float(get("crowd:startTime", 0.0)), float(get("crowd:endTime", 0.0)), prim))
-    return out
+    codes = scene.time_codes
+    time = model.TimeRange(float(codes[0]), float(codes[-1]), float(scene.fps))
+    rows = {p: i for i, p in enumerate(scene.agent_paths)}
+    return read(scene.stage, rows, time, agent_ids=scene._agent_static[1])
 
 
 def frustum_lines(cam, aspect: float, depth: float = 2.5) -> np.ndarray:
@@ -141,13 +116,13 @@ class Overlays:
                 s = frustum_lines(self.scene.camera(path, time), aspect)
                 segs.append(s)
                 cols.append(np.tile(_FRUSTUM, (len(s), 1)))
-        to_canonical = self.scene.frame.to_canonical
         for ev in self.events:
-            if not ev.start <= time <= max(ev.end, ev.start):
+            i = ev.sample(time)
+            if i < 0:
                 continue
-            c = ev.center(time, to_canonical)
+            c = ev.center[i].copy()
             c[2] = max(c[2], 0.0) + 0.05
-            col = _EVENT.get(ev.kind, (1.0, 1.0, 1.0, 1.0))
+            col = _EVENT.get(model.EVENT_KINDS[ev.kind], (1.0, 1.0, 1.0, 1.0))
             s = np.concatenate([ring(c, 1.0), ring(c, 1.15), [c, c + [0, 0, 2.5]]])
             segs.append(s)
             cols.append(np.tile(col, (len(s), 1)))

@@ -1,0 +1,213 @@
+"""CrowdEvent prims and camera agents read once into tables.
+
+Every part that needs events (ground truth, the preview's markers, ``inspect``,
+the cameras) or camera agents reads them here, in canonical units (Z up,
+metres), as :class:`usdcrowd.model.EventTable` and
+:class:`usdcrowd.model.CameraAgentTable`.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+
+import numpy as np
+
+from .. import model, schema
+from ..errors import ScenarioError
+from .stageio import stage_frame, time_range
+
+# Layers the simulation writes (usd.shot's crowd layer and its parts): events
+# defined there were detected; events defined anywhere else were authored.
+_GENERATED_LAYER = re.compile(r"^crowd(\.part\d+)?\.usd[ac]?$")
+
+
+def _is_authored(prim) -> bool:
+    """True when the prim is defined (``def``) in a layer that is not a generated crowd layer."""
+    from pxr import Sdf
+
+    for spec in prim.GetPrimStack():
+        if spec.specifier != Sdf.SpecifierDef:
+            continue
+        layer = spec.layer
+        name = os.path.basename(layer.realPath or layer.identifier)
+        if not _GENERATED_LAYER.match(name):
+            return True
+    return False
+
+
+def _agent_ids(stage, agent_rows: dict[str, int]) -> np.ndarray:
+    """(n,) int64 crowd:agentId of each row, -1 where the stage has no such agent."""
+    n = max(agent_rows.values(), default=-1) + 1
+    ids = np.full(n, -1, np.int64)
+    for path, row in agent_rows.items():
+        prim = stage.GetPrimAtPath(path)
+        attr = prim.GetAttribute("crowd:agentId") if prim else None
+        v = attr.Get() if attr else None
+        if v is not None:
+            ids[row] = int(v)
+    return ids
+
+
+def _sampled(attr, times: np.ndarray, default) -> list:
+    """Values of ``attr`` at ``times`` (one read when it is not time-sampled)."""
+    if not attr or not attr.HasValue():
+        return [default] * len(times)
+    if attr.GetNumTimeSamples() == 0:
+        return [attr.Get()] * len(times)
+    return [attr.Get(float(t)) for t in times]
+
+
+def read_events(stage, agent_rows: dict[str, int], time: model.TimeRange,
+                agent_ids: np.ndarray | None = None) -> model.EventTable:
+    """Every CrowdEvent prim of a stage, sampled at the shot's frames.
+
+    Parameters
+    ----------
+    stage : Usd.Stage
+    agent_rows : dict[str, int]
+        Agent prim path -> row (of the caller's agent arrays). Members that
+        are not in it are ignored.
+    time : TimeRange
+        The shot's frames: events are clamped to it and sampled at each of
+        its time codes from their start to their end.
+    agent_ids : (n,) int, optional
+        crowd:agentId of each row, to map ``crowd:memberIds``; default: read
+        from the agents' prims on the stage (agents that are not on the
+        stage, such as clones before simulation, then match no id).
+
+    Returns
+    -------
+    EventTable
+        Authored events first (stage order), then the ones the simulation
+        detected (defined in crowd.usdc or its parts), sorted by path. An
+        event wholly outside ``time`` keeps its row, with ``start > end``
+        and no samples.
+
+    Notes
+    -----
+    ``crowd:memberIds`` (time-sampled agent ids), when authored, says who
+    takes part at each frame; ids outside ``crowd:members`` add to the
+    members. Without it every member takes part from start to end.
+    ``crowd:center`` and ``crowd:radius`` are converted from stage units.
+
+    Raises
+    ------
+    ScenarioError
+        For a crowd:kind outside EVENT_KINDS.
+    """
+    from pxr import Usd
+
+    frame = stage_frame(stage)
+    ids = np.asarray(agent_ids, dtype=np.int64) if agent_ids is not None else _agent_ids(stage, agent_rows)
+    id_row = {int(a): r for r, a in enumerate(ids) if a >= 0}
+    codes = time.codes
+    authored, detected = [], []
+    for prim in Usd.PrimRange(stage.GetPseudoRoot()):
+        if prim.GetTypeName() != schema.EVENT:
+            continue
+        path = str(prim.GetPath())
+        kind = str(prim.GetAttribute("crowd:kind").Get())
+        if kind not in model.EVENT_KINDS:
+            raise ScenarioError(f"unknown event kind {kind!r} (one of {', '.join(model.EVENT_KINDS)})",
+                                file=stage.GetRootLayer().identifier, prim=path, attribute="crowd:kind")
+        start = max(float(prim.GetAttribute("crowd:startTime").Get()), time.start)
+        end = min(float(prim.GetAttribute("crowd:endTime").Get()), time.end)
+        times = codes[(codes >= start - 1e-6) & (codes <= end + 1e-6)]
+
+        rel = prim.GetRelationship("crowd:members")
+        rows = {agent_rows[str(p)] for p in (rel.GetTargets() if rel else []) if str(p) in agent_rows}
+        ids_attr = prim.GetAttribute("crowd:memberIds")
+        per_frame = None
+        if ids_attr and ids_attr.HasAuthoredValue():
+            per_frame = [{id_row[int(a)] for a in (v or []) if int(a) in id_row}
+                         for v in _sampled(ids_attr, times, [])]
+            rows = rows.union(*per_frame)
+        members = np.array(sorted(rows), dtype=np.int32)
+        if per_frame is None:
+            active = np.ones((len(times), len(members)), dtype=bool)
+        else:
+            col = {r: j for j, r in enumerate(members)}
+            active = np.zeros((len(times), len(members)), dtype=bool)
+            for i, present in enumerate(per_frame):
+                active[i, [col[r] for r in present]] = True
+
+        center = np.array(_sampled(prim.GetAttribute("crowd:center"), times, (0.0, 0.0, 0.0)),
+                          dtype=np.float64).reshape(-1, 3)
+        radius = np.array(_sampled(prim.GetAttribute("crowd:radius"), times, 1.0), dtype=np.float64)
+        ev = model.Event(path, model.code(model.EVENT_KINDS, kind), start, end, members, times, active,
+                         frame.points_to_canonical(center), frame.length_to_canonical(radius),
+                         authored=_is_authored(prim))
+        (authored if ev.authored else detected).append(ev)
+    return model.EventTable(authored + sorted(detected, key=lambda e: e.path))
+
+
+def read_camera_agents(stage, time: float | None = None) -> model.CameraAgentTable:
+    """Every camera with CameraAgentAPI, its initial state in canonical units.
+
+    Parameters
+    ----------
+    stage : Usd.Stage
+    time : float, optional
+        Time code of the initial transform and lens; default: the first
+        frame of the stage's time range.
+
+    Returns
+    -------
+    CameraAgentTable
+        In stage order. Unauthored values take the schema's fallbacks;
+        angles are turned from the schema's degrees into radians. Speeds,
+        forces, distances and elevations are metres as the schema states
+        (not stage units); the transform and the clipping range are turned
+        from stage units into metres, and the transform's scale is removed
+        (lenses do not scale with units), as ShotScene does.
+    """
+    from pxr import Usd, UsdGeom
+
+    frame = stage_frame(stage)
+    t = time_range(stage).start if time is None else float(time)
+    cache = UsdGeom.XformCache(Usd.TimeCode(t))
+    rows = []
+    for prim in Usd.PrimRange(stage.GetPseudoRoot()):
+        if not (prim.IsA(UsdGeom.Camera) and prim.HasAPI(schema.CAMERA_AGENT_API)):
+            continue
+        cam = UsdGeom.Camera(prim)
+        m = np.array(cache.GetLocalToWorldTransform(prim), dtype=np.float64) @ frame.to_canonical
+        m[:3, :3] /= np.linalg.norm(m[:3, :3], axis=1, keepdims=True)
+        near, far = cam.GetClippingRangeAttr().Get(t)
+
+        def get(name):
+            return prim.GetAttribute(f"crowd:camera:{name}").Get()
+
+        mode = str(get("mode"))
+        if mode not in model.CAMERA_MODES:
+            raise ScenarioError(f"unknown camera mode {mode!r} (one of {', '.join(model.CAMERA_MODES)})",
+                                file=stage.GetRootLayer().identifier, prim=str(prim.GetPath()),
+                                attribute="crowd:camera:mode")
+        target = prim.GetRelationship("crowd:camera:target")
+        targets = target.GetTargets() if target else []
+        rows.append(dict(
+            path=str(prim.GetPath()), cam_to_world=m,
+            focal_length=float(cam.GetFocalLengthAttr().Get(t)),
+            horizontal_aperture=float(cam.GetHorizontalApertureAttr().Get(t)),
+            vertical_aperture=float(cam.GetVerticalApertureAttr().Get(t)),
+            near=float(frame.length_to_canonical(near)), far=float(frame.length_to_canonical(far)),
+            mode=model.code(model.CAMERA_MODES, mode), max_speed=float(get("maxSpeed")),
+            max_force=float(get("maxForce")), max_angular_speed=math.radians(get("maxAngularSpeed")),
+            arrival_distance=float(get("arrivalDistance")),
+            aim_threshold=math.radians(get("aimAngleThreshold")),
+            separation_distance=float(get("separationDistance")), view_angle=float(get("viewAngle")),
+            elevation=tuple(float(v) for v in get("elevationRange")),
+            target=str(targets[0]) if targets else None))
+    if not rows:
+        return model.CameraAgentTable.empty()
+
+    def col(name, dtype=np.float64):
+        return np.array([r[name] for r in rows], dtype=dtype)
+
+    return model.CameraAgentTable(
+        [r["path"] for r in rows], col("cam_to_world"), col("focal_length"), col("horizontal_aperture"),
+        col("vertical_aperture"), col("near"), col("far"), col("mode", np.int8), col("max_speed"),
+        col("max_force"), col("max_angular_speed"), col("arrival_distance"), col("aim_threshold"),
+        col("separation_distance"), col("view_angle"), col("elevation"), [r["target"] for r in rows])
