@@ -24,7 +24,9 @@ test: $(STAMP)
 test-fast: $(STAMP)
 	$(PY) -m pytest -q -m "not slow"
 
+## The benchmarks install what they compare against (the bench extra: JuPedSim).
 bench: $(STAMP)
+	$(PY) -m pip install -q -e ".[bench]"
 	$(PY) tools/bench.py
 
 schemas: $(STAMP)

@@ -114,3 +114,38 @@ def trajectory_map(scenario: model.Scenario, positions: np.ndarray, out_png: str
     with atomic_path(out_png) as tmp:
         img.save(tmp, format="PNG")
     return os.fspath(out_png)
+
+
+def coverage_plot(series: dict, column: str, n_cameras: int, out_png: str | os.PathLike, fps: float) -> str:
+    """Seed 000's Figures 12 to 15: a per-frame share over time, autonomous above static.
+
+    Parameters
+    ----------
+    series : dict[str, CoverageSeries]
+        ``{"autonomous": ..., "static": ...}``.
+    column : str
+        "active_share" (active score / all seen, Figures 12 and 13) or
+        "viewed_share" (active characters viewed / all active, 14 and 15).
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    label = {"active_share": "active / (active + idle) score", "viewed_share": "active characters viewed"}[column]
+    fig, axes = plt.subplots(2, 1, figsize=(8, 5), sharex=True, constrained_layout=True)
+    for ax, (kind, s) in zip(axes, series.items()):
+        y = getattr(s, column)
+        t = (s.times - s.times[0]) / fps
+        ax.fill_between(t, 0, np.nan_to_num(y), color="0.35", step="mid", label="active")
+        ax.fill_between(t, np.nan_to_num(y), 1, color="0.85", step="mid", label="idle" if column == "active_share"
+                        else "not viewed")
+        ax.set_ylim(0, 1)
+        ax.set_ylabel("share")
+        ax.set_title(f"{n_cameras} {kind} cameras: {label} (mean {np.nanmean(y):.2f})", fontsize=10)
+    axes[-1].set_xlabel("seconds")
+    axes[0].legend(loc="upper right", fontsize=8)
+    with atomic_path(out_png) as tmp:
+        fig.savefig(tmp, format="png", dpi=100)
+    plt.close(fig)
+    return os.fspath(out_png)

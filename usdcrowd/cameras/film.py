@@ -13,7 +13,8 @@ from .steering import CameraAgents
 def film(positions: np.ndarray, times: np.ndarray, fps: float, cameras: model.CameraAgentTable,
          events: model.EventTable, obstacles: model.Obstacles | None = None,
          agent_rows: dict[str, int] | None = None, visible: np.ndarray | None = None,
-         params: CameraParams | None = None, seed: int = 0, progress=None) -> list[model.CameraTrack]:
+         params: CameraParams | None = None, seed: int = 0, progress=None,
+         bounds: np.ndarray | None = None) -> list[model.CameraTrack]:
     """Run the camera agents through a shot.
 
     Parameters
@@ -33,6 +34,8 @@ def film(positions: np.ndarray, times: np.ndarray, fps: float, cameras: model.Ca
         Agents that are rendered (containment looks at these).
     progress : callable(int), optional
         Called with the number of frames done.
+    bounds : (2, 2) float, optional
+        Area the cameras stay inside (the scenario's walkable bounds).
 
     Returns
     -------
@@ -40,10 +43,11 @@ def film(positions: np.ndarray, times: np.ndarray, fps: float, cameras: model.Ca
         One per camera, with per-frame mode and tracked event.
     """
     params = params or CameraParams()
-    agents = CameraAgents(cameras, events, obstacles or model.Obstacles.empty(), agent_rows, params, seed)
     t, n = positions.shape[:2]
     c = len(cameras)
     vis = np.ones(n, bool) if visible is None or not np.any(visible) else np.asarray(visible, bool)
+    agents = CameraAgents(cameras, events, obstacles or model.Obstacles.empty(), agent_rows, params, seed, bounds,
+                          vis, fps)
     mats = np.zeros((t, c, 4, 4))
     state = np.zeros((t, c), np.int8)
     tracked = []

@@ -66,11 +66,19 @@ def static_cameras(positions: np.ndarray, count: int, times: np.ndarray, root: s
 
 
 def generated_agents(count: int, centre: np.ndarray, radius: float, root: str = "/World",
-                     start: int = 1) -> model.CameraAgentTable:
-    """``count`` camera agents with the schema's default limits, on a ring around the crowd."""
+                     start: int = 1, bounds: np.ndarray | None = None) -> model.CameraAgentTable:
+    """``count`` camera agents with the schema's default limits, on a ring around the crowd.
+
+    With ``bounds`` ((2, 2) walkable area), the ring is pulled in to start inside it.
+    """
     d = AGENT_DEFAULTS
     lo, hi = d["elevation"]
     mats = ring(centre, radius + 5.0, 0.5 * (lo + hi), count)
+    if bounds is not None:
+        b = np.asarray(bounds, dtype=np.float64)
+        eye = mats[:, 3, :3].copy()
+        eye[:, :2] = np.clip(eye[:, :2], b[0] + 1.0, np.maximum(b[0] + 1.0, b[1] - 1.0))
+        mats = look_at(eye, np.tile([centre[0], centre[1], 1.0], (count, 1)))
     full = lambda v: np.full(count, float(v))
     return model.CameraAgentTable(
         [f"{root}/Cameras/Agent{k + start:02d}" for k in range(count)], mats, full(FOCAL_LENGTH),

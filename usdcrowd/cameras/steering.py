@@ -71,11 +71,20 @@ class CameraAgents:
     params : CameraParams, optional
     seed : int
         Seeds the wandering.
+    bounds : (2, 2) float, optional
+        [[xmin, ymin], [xmax, ymax]] the cameras stay inside (the scenario's
+        walkable area: a museum's cameras stay indoors).
+    visible : (n,) bool, optional
+        Characters that are rendered; scouts look only at these.
+    fps : float
+        Frames per second of the shot (time codes to seconds).
     """
 
     def __init__(self, table: model.CameraAgentTable, events: model.EventTable, obstacles: model.Obstacles,
-                 agent_rows: dict[str, int] | None = None, params: CameraParams | None = None, seed: int = 0):
+                 agent_rows: dict[str, int] | None = None, params: CameraParams | None = None, seed: int = 0,
+                 bounds: np.ndarray | None = None, visible: np.ndarray | None = None, fps: float = 24.0):
         self.table = table
+        self.fps = float(fps)
         self.params = params or CameraParams()
         c = len(table)
         self.p = table.cam_to_world[:, 3, :3].astype(np.float64).copy()
@@ -90,6 +99,11 @@ class CameraAgents:
         self.rng = np.random.default_rng(seed)
         fwd = axes(self.q)[0] if c else np.zeros((0, 3))
         self.wander = np.arctan2(fwd[:, 1], fwd[:, 0]) if c else np.zeros(0)
+        # The character each scouting camera looks at, and until when.
+        self.focus = np.zeros(c, np.int64)
+        self.focus_until = np.full(c, -np.inf)
+        self.visible_rows = None if visible is None else np.flatnonzero(visible)
+        self.bounds = None if bounds is None else np.asarray(bounds, dtype=np.float64)
         self.events = list(events)
         self.n_shot_events = len(self.events)
         # Authored targets: an event of the shot, or an agent followed as a one-member event.
@@ -213,9 +227,11 @@ class CameraAgents:
             self.wander[scouting] += self.rng.normal(0.0, prm.wander_jitter * np.sqrt(dt), len(scouting))
             force[scouting] += prm.w_wander * forces.wandering(self.v[scouting], self.wander[scouting],
                                                                vmax[scouting], prm.wander_speed)
-            heading = np.stack([np.cos(self.wander[scouting]), np.sin(self.wander[scouting]),
-                                np.zeros(len(scouting))], 1)
-            look[scouting] = self.p[scouting] * [1, 1, 0] + heading * prm.wander_look_distance + [0, 0, prm.look_height]
+            # Wandering torque: aim along a wandering direction. The direction
+            # wanders from one character to another (re-drawn every scout_dwell
+            # seconds, nearer ones likelier), so scouts search the crowd, not the sky.
+            self._refocus(scouting, time, positions, dt)
+            look[scouting] = positions[self.focus[scouting]] + [0.0, 0.0, prm.look_height]
         force += prm.w_elevation * forces.elevation(self.p, self.v, height, vmax)
         force += prm.w_obstacle * forces.obstacle_avoidance(
             self.p, self.v, fwd, right, look, vmax, self.tan_x, self.obstacles.tree, self.obstacles.xyz,
@@ -243,10 +259,31 @@ class CameraAgents:
         self.w = _clamp(self.w + prm.angular_gain * tau * dt, t.max_angular_speed)
         self.q = _level(integrate(self.q, self.w, dt))
 
+    def _refocus(self, cams: np.ndarray, time: float, positions: np.ndarray, dt: float) -> None:
+        """Draw a new character to look at for scouts whose dwell is over."""
+        due = cams[self.focus_until[cams] <= time]
+        if len(due) == 0:
+            return
+        rows = self.visible_rows if self.visible_rows is not None and len(self.visible_rows) else np.arange(
+            len(positions))
+        prm = self.params
+        # A handful of candidates per camera: O(cameras), whatever the crowd's size.
+        cand = rows[self.rng.integers(0, len(rows), (len(due), 16))]
+        d = np.linalg.norm(positions[cand, :2] - self.p[due, None, :2], axis=2)
+        w = np.where(d < prm.scout_range, 1.0 / (d + 2.0), 1e-6)
+        pick = (w.cumsum(1) / w.sum(1, keepdims=True) > self.rng.random((len(due), 1))).argmax(1)
+        self.focus[due] = cand[np.arange(len(due)), pick]
+        self.focus_until[due] = time + prm.scout_dwell * self.fps * self.rng.uniform(0.5, 1.5, len(due))
+
     def _constrain(self) -> None:
         """Keep cameras inside their elevation range and out of scenery (pushed to its outline)."""
         t = self.table
         self.p[:, 2] = np.clip(self.p[:, 2], np.maximum(t.elevation[:, 0], 0.3), t.elevation[:, 1])
+        if self.bounds is not None:
+            lo, hi = self.bounds[0] + 0.5, self.bounds[1] - 0.5
+            out = (self.p[:, :2] < lo) | (self.p[:, :2] > hi)
+            self.p[:, :2] = np.clip(self.p[:, :2], lo, np.maximum(lo, hi))
+            self.v[:, :2][out] = 0.0
         obs = self.obstacles
         if obs.tree is None:
             return

@@ -80,6 +80,7 @@ def write_camera_tracks(out_dir: str | os.PathLike, tracks: list[model.CameraTra
                     _agent_values(spec, track.agent)
             focal = Sdf.AttributeSpec(spec, "focalLength", T.Float)
             fl = [float(f) for f in track.focal_length]
+            focal.default = fl[0]           # what readers that ask without a time get
             for i in _changes(fl):
                 layer.SetTimeSample(focal.path, float(track.times[i]), fl[i])
             op = Sdf.AttributeSpec(spec, "xformOp:transform", T.Matrix4d)

@@ -217,3 +217,37 @@ def render_shot(shot_path, out_dir, *, camera=None, resolution=(640, 360), frame
                               sheet=out / "preview_sheet.png", progress=progress)
     finally:
         r.release()
+
+
+def camera_gallery(shot_path, out_png, cameras: list[str], times: np.ndarray, resolution=(480, 270),
+                   progress: bool = True) -> str:
+    """A contact sheet with one row per camera and one column per time code.
+
+    Each tile is labelled with the camera's name, the frame and, for camera
+    agents, what the camera was doing (``crowd:camera:state`` and the event
+    it tracked).
+    """
+    from tqdm import tqdm
+
+    from .renderer import PreviewRenderer
+
+    r = PreviewRenderer(shot_path, *resolution)
+    try:
+        thumbs, labels = [], []
+        with tqdm(total=len(cameras) * len(times), desc="gallery", unit="frame", disable=not progress,
+                  leave=False) as bar:
+            for cam in cameras:
+                prim = r.scene.stage.GetPrimAtPath(cam)
+                state = prim.GetAttribute("crowd:camera:state") if prim else None
+                tracked = prim.GetAttribute("crowd:camera:trackedEvent") if prim else None
+                for t in times:
+                    thumbs.append(r.render(float(t), cam).color)
+                    label = f"{cam.rsplit('/', 1)[-1]} {t:g}"
+                    if state and state.HasValue():
+                        event = (tracked.Get(float(t)) or "").rsplit("/", 1)[-1] if tracked else ""
+                        label += f" {state.Get(float(t))}" + (f" {event}" if event else "")
+                    labels.append(label)
+                    bar.update(1)
+    finally:
+        r.release()
+    return write_png(contact_sheet(thumbs, labels, columns=len(times), thumb_width=resolution[0]), out_png)
