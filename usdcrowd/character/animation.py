@@ -57,6 +57,7 @@ BREATH = _D(np.array([1.5, 0.5, 0.8, 0.5, 0.5]))  # torso pitch oscillation
 HEAD_NOD = _D(np.array([0.0, 1.5, 2.5, 1.0, 1.0]))  # residual head bob, twice per cycle
 HEAD_SWAY = _D(np.array([3.0, 0.0, 0.0, 0.0, 0.0]))  # idle glance left/right
 BOB = np.array([0.003, 0.025, 0.05, 0.015, 0.015])  # pelvis rise, metres
+STRIDE_SCALE_RANGE = (0.6, 1.25)  # amplitude scale of slow and fast strides, relative to REF_SPEED
 
 _X, _Y, _Z = np.eye(3)
 
@@ -89,7 +90,7 @@ def classify(velocity: np.ndarray, heading: np.ndarray) -> np.ndarray:
 
 def _stride_scale(speed, cls):
     """Amplitude / stride-length scale: longer, bigger steps when faster."""
-    return np.clip(np.asarray(speed) / REF_SPEED[cls], 0.6, 1.25)
+    return np.clip(np.asarray(speed) / REF_SPEED[cls], *STRIDE_SCALE_RANGE)
 
 
 def advance_phase(speed: np.ndarray, anim_class: np.ndarray, dt: float,
