@@ -6,9 +6,11 @@
     python tools/bench.py sim             # crowd simulation steps/s (and JuPedSim)
     python tools/bench.py preview         # OpenGL preview fps, 1,000 and 10,000 characters
     python tools/bench.py render          # Mitsuba s/frame and ground-truth overhead
+    python tools/bench.py cameras         # camera agents + event detection steps/s (30 x 100, 100 x 10,000)
 
 Each measured run happens in a child process so that its peak memory is its own.
-Targets (2-core machine): author 10,000 x 300 in <= 20 s and <= 4 GiB.
+Targets (2-core machine): author 10,000 x 300 in <= 20 s and <= 4 GiB; 100
+camera agents with 10,000 characters (event detection included) >= 30 steps/s.
 """
 
 from __future__ import annotations
@@ -104,7 +106,7 @@ def bench_section(name: str, **kw) -> None:
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("section", nargs="?", default="all", choices=["all", "author", "sim", "preview", "render"])
+    p.add_argument("section", nargs="?", default="all", choices=["all", "author", "sim", "cameras", "preview", "render"])
     p.add_argument("--agents", type=int, default=10_000)
     p.add_argument("--frames", type=int, default=300)
     p.add_argument("--sizes", default="1000,10000,100000", help="agent counts of the sim section")
@@ -114,7 +116,7 @@ def main(argv=None) -> int:
         bench_author(args.agents, args.frames)
     if args.section in ("all", "sim"):
         bench_section("sim", sizes=tuple(int(s) for s in args.sizes.split(",")))
-    for name in ("preview", "render"):
+    for name in ("cameras", "preview", "render"):
         if args.section in ("all", name):
             bench_section(name)
     return 0

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -31,6 +31,8 @@ class ShotResult:
     n_agents: int
     n_frames: int
     seed: int
+    camera_paths: list = field(default_factory=list)
+    n_events: int = 0
 
 
 def _progress(total: int, desc: str, enabled: bool):
@@ -41,7 +43,7 @@ def _progress(total: int, desc: str, enabled: bool):
 
 def simulate_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike, seed: int | None = None,
                   frames: tuple[float, float] | None = None, progress: bool = True,
-                  chunk_frames: int = 48) -> ShotResult:
+                  chunk_frames: int = 48, camera_count: int | None = None) -> ShotResult:
     """Simulate a scenario and write shot.usda, crowd.usdc and cameras.usda in ``out_dir``.
 
     Parameters
@@ -56,31 +58,37 @@ def simulate_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike, 
         Overrides the stage's time range.
     chunk_frames : int
         Frames simulated and authored at a time (memory stays linear in it).
+    camera_count : int, optional
+        Camera agents to run: the scenario's first N and generated ones
+        beyond. Default: the ones the scenario authors.
     """
     def crowd(scenario):
         from .sim import SimSettings, simulate_chunks
 
         return simulate_chunks(scenario, SimSettings(chunk_frames=chunk_frames))
 
-    return author_shot(scenario_path, out_dir, crowd, seed=seed, frames=frames, progress=progress)
+    return author_shot(scenario_path, out_dir, crowd, seed=seed, frames=frames, progress=progress,
+                       camera_count=camera_count)
 
 
 def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
                 crowd_source: Callable[[model.Scenario], Iterable[model.CrowdFrames]],
                 seed: int | None = None, frames: tuple[float, float] | None = None,
-                progress: bool = True) -> ShotResult:
+                progress: bool = True, camera_count: int | None = None) -> ShotResult:
     """Read a scenario, take its crowd from ``crowd_source`` and write the shot.
 
     ``crowd_source(scenario)`` yields consecutive :class:`CrowdFrames` chunks
     covering the scenario's time range: the simulation, or any other source
     of trajectories (recorded tracks, tests).
     """
-    from pxr import UsdLux
+    from pxr import Sdf, UsdLux
 
+    from .events import EventDetector
     from .plots import trajectory_map
     from .scenario import load_scenario, open_stage, stage_frame
-    from .usd import CROWD, CrowdLayerWriter, write_cameras, write_shot
-    from .usd.shot import CROWD_CAMERA
+    from .usd import CROWD, CrowdLayerWriter, write_shot
+    from .usd.cameras import write_camera_tracks
+    from .usd.events import author_events
 
     scenario_path = os.fspath(scenario_path)
     out_dir = Path(out_dir)
@@ -99,19 +107,30 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     visible = scenario.agents.visible
     if not visible.any():
         visible = np.ones_like(visible)
-    centres, spreads, tracks = [], [], []
+    detector = EventDetector(scenario.agents.character_type, scenario.agents.visible, scenario.time.fps,
+                             scope=f"/{default_prim}/Events" if default_prim else "/Events")
+    collected = _Collected()
     # The trajectory map draws at most this many agents at about 200 instants.
     plotted = np.sort(np.random.default_rng(0).permutation(len(scenario.agents))[:PLOT_MAX_AGENTS])
     stride = max(1, scenario.time.n_frames // 200)
     cameras = plot = None
     try:
         _author_frames(writer, crowd_source(scenario), scenario, visible, plotted, stride, progress,
-                       centres, spreads, tracks)
+                       collected, detector)
+        events = model.EventTable(list(scenario.events) + list(detector.finish()))
+        with Sdf.ChangeBlock():
+            n_events = author_events(writer.layer, events, scenario.agents.path, scenario.agents.agent_id, sframe)
         # The part writers save while the cameras and the picture are made.
         writer.start_saving()
-        cameras = write_cameras(out_dir, np.concatenate(centres), np.concatenate(spreads), scenario.time.codes,
-                                sframe, default_prim, scenario.time)
-        plot = trajectory_map(_subset(scenario, plotted), np.concatenate(tracks), out_dir / "trajectories.png",
+        positions = np.concatenate(collected.positions)
+        tracks = film_cameras(scenario, positions, events, default_prim, progress,
+                              np.concatenate(collected.centres), np.concatenate(collected.spreads),
+                              count=camera_count)
+        cameras = write_camera_tracks(out_dir, tracks, sframe, default_prim, scenario.time,
+                                      defined={p for p in scenario.cameras.path},
+                                      extra={"seed": int(scenario.seed), "events": len(events)})
+        plot = trajectory_map(_subset(scenario, plotted), np.concatenate(collected.tracks),
+                              out_dir / "trajectories.png",
                               title=f"{Path(scenario_path).name}: {len(scenario.agents)} agents, "
                                     f"{scenario.time.n_frames} frames, seed {scenario.seed}")
         crowd = writer.save()
@@ -124,22 +143,77 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     # Last: the shot is the entry point, and exists only once everything it sublayers does.
     shot = write_shot(out_dir, scenario_path, scenario.time, sframe, default_prim, scenario.seed,
                       add_lights=not has_lights)
-    camera = f"/{default_prim}/{CROWD_CAMERA}" if default_prim else f"/{CROWD_CAMERA}"
-    return ShotResult(shot, crowd, cameras, camera, plot, len(scenario.agents), scenario.time.n_frames, scenario.seed)
+    camera = tracks[0].path
+    return ShotResult(shot, crowd, cameras, camera, plot, len(scenario.agents), scenario.time.n_frames,
+                      scenario.seed, [t.path for t in tracks], n_events)
 
 
-def _author_frames(writer, chunks, scenario, visible, plotted, stride, progress, centres, spreads, tracks) -> None:
-    """Author (and animate) every chunk; collect what the camera and the picture need."""
+@dataclass
+class _Collected:
+    """What the cameras and the picture need from the simulated chunks."""
+
+    positions: list = field(default_factory=list)
+    centres: list = field(default_factory=list)
+    spreads: list = field(default_factory=list)
+    tracks: list = field(default_factory=list)
+
+
+def film_cameras(scenario: model.Scenario, positions: np.ndarray, events: model.EventTable, default_prim: str,
+                 progress: bool, centres: np.ndarray, spreads: np.ndarray, count: int | None = None,
+                 static: int = 0, seed: int | None = None) -> list[model.CameraTrack]:
+    """The shot's cameras: the overview, the camera agents (the scenario's, or ``count``), static ones.
+
+    Parameters
+    ----------
+    positions : (t, n, 3) float
+        The crowd over the shot.
+    centres, spreads : (t, 3), (t,) float
+        Centroid and spread of the visible crowd per frame (the overview camera).
+    count : int, optional
+        Number of camera agents: the scenario's first ``count`` and generated
+        ones beyond them. Default: the scenario's.
+    static : int
+        Static cameras at strategic positions (seed 000's baseline).
+    """
+    from .cameras import film, generated_agents, overview_track, static_cameras
+    from .cameras.placement import concat_agents, crowd_extent, take_agents
+
+    root = f"/{default_prim}" if default_prim else ""
+    times = scenario.time.codes
+    tracks = [overview_track(centres, spreads, times, scenario.time.fps, f"{root}/Cameras/CrowdCam")]
+    agents = scenario.cameras
+    if count is not None:
+        if count <= len(agents):
+            agents = take_agents(agents, np.arange(count))
+        else:
+            centre, radius = crowd_extent(positions[:: max(1, len(positions) // 50)])
+            agents = concat_agents(agents, generated_agents(count - len(agents), centre, radius, root,
+                                                            start=len(agents) + 1, bounds=scenario.bounds))
+    if len(agents):
+        rows = {p: i for i, p in enumerate(scenario.agents.path)}
+        with _progress(len(times), "cameras", progress) as bar:
+            tracks += film(positions, times, scenario.time.fps, agents, events, scenario.obstacles, rows,
+                           scenario.agents.visible, seed=scenario.seed if seed is None else seed,
+                           progress=bar.update, bounds=scenario.bounds)
+    if static:
+        tracks += static_cameras(positions[:: max(1, len(positions) // 50)], static, times, root)
+    return tracks
+
+
+def _author_frames(writer, chunks, scenario, visible, plotted, stride, progress, collected, detector) -> None:
+    """Author (and animate) every chunk; collect what the cameras, the events and the picture need."""
     done = 0
     with _progress(scenario.time.n_frames, "simulate", progress) as bar:
         for chunk in chunks:
             writer.write_chunk(chunk)
+            detector.feed(chunk)
+            collected.positions.append(chunk.position.astype(np.float32))
             pos = chunk.position[:, visible].astype(np.float64)
             c = pos.mean(axis=1)
-            centres.append(c)
-            spreads.append(np.linalg.norm(pos - c[:, None], axis=2).max(axis=1))
+            collected.centres.append(c)
+            collected.spreads.append(np.linalg.norm(pos - c[:, None], axis=2).max(axis=1))
             keep = (done + np.arange(len(chunk.times))) % stride == 0
-            tracks.append(chunk.position[keep][:, plotted])
+            collected.tracks.append(chunk.position[keep][:, plotted])
             done += len(chunk.times)
             bar.update(len(chunk.times))
 

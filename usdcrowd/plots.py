@@ -134,12 +134,13 @@ def coverage_plot(series: dict, column: str, n_cameras: int, out_png: str | os.P
 
     label = {"active_share": "active / (active + idle) score", "viewed_share": "active characters viewed"}[column]
     fig, axes = plt.subplots(2, 1, figsize=(8, 5), sharex=True, constrained_layout=True)
+    names = ("active", "idle") if column == "active_share" else ("viewed", "not viewed")
     for ax, (kind, s) in zip(axes, series.items()):
         y = getattr(s, column)
         t = (s.times - s.times[0]) / fps
-        ax.fill_between(t, 0, np.nan_to_num(y), color="0.35", step="mid", label="active")
-        ax.fill_between(t, np.nan_to_num(y), 1, color="0.85", step="mid", label="idle" if column == "active_share"
-                        else "not viewed")
+        defined = np.isfinite(y)            # frames with nothing seen (or nobody active) stay blank
+        ax.fill_between(t, 0, np.where(defined, y, 0), where=defined, color="0.35", step="mid", label=names[0])
+        ax.fill_between(t, np.where(defined, y, 0), 1, where=defined, color="0.85", step="mid", label=names[1])
         ax.set_ylim(0, 1)
         ax.set_ylabel("share")
         ax.set_title(f"{n_cameras} {kind} cameras: {label} (mean {np.nanmean(y):.2f})", fontsize=10)

@@ -78,6 +78,10 @@ class CameraView:
         Lens values as authored (their unit cancels out in the field of view).
     near, far : float
         Clipping range in metres.
+    agent_state : str or None
+        For camera agents: "scouting" or "tracking" at this time.
+    tracked_event : str or None
+        For camera agents: the CrowdEvent tracked ("" while scouting).
     """
 
     path: str
@@ -88,6 +92,8 @@ class CameraView:
     vertical_aperture: float
     near: float
     far: float
+    agent_state: str | None = None
+    tracked_event: str | None = None
 
     @property
     def world_to_cam(self) -> np.ndarray:
@@ -166,4 +172,6 @@ def camera_record(cam: CameraView, width: int, height: int) -> dict:
         "focal_length": cam.focal_length, "horizontal_aperture": cam.horizontal_aperture,
         "vertical_aperture": cam.vertical_aperture, "fov_x_deg": cam.fov_x(),
         "clipping_range": [cam.near, cam.far],
+        # What the camera was doing and why (seed 000's camera agents; None for other cameras).
+        "agent_state": cam.agent_state, "tracked_event": cam.tracked_event,
     }

@@ -72,16 +72,20 @@ def obstacle_avoidance(position: np.ndarray, velocity: np.ndarray, forward: np.n
 
     Returns
     -------
-    (c, 3) float64
+    force : (c, 3) float64
         F_obs, horizontal.
+    clear_height : (c,) float64
+        Height of the tallest obstacle in the way (0 where none): where the
+        camera may rise above it, the crane does (see CameraAgents.step).
     """
     out = np.zeros_like(position)
+    clear = np.zeros(len(position))
     if obstacle_tree is None or len(position) == 0:
-        return out
+        return out, clear
     lists = obstacle_tree.query_ball_point(position[:, :2], r=search)
     ci = np.repeat(np.arange(len(position)), [len(x) for x in lists])
     if len(ci) == 0:
-        return out
+        return out, clear
     oi = np.concatenate([np.asarray(x, dtype=np.int64) for x in lists])
     d = obstacle_xyz[oi] - position[ci]
     z = np.einsum("ij,ij->i", d, forward[ci])
@@ -96,7 +100,8 @@ def obstacle_avoidance(position: np.ndarray, velocity: np.ndarray, forward: np.n
     f = u - velocity[ci[hit]]
     f[:, 2] = 0.0
     np.add.at(out, ci[hit], f)
-    return out
+    np.maximum.at(clear, ci[hit], 2.0 * obstacle_xyz[oi[hit], 2])
+    return out, clear
 
 
 def separation(position: np.ndarray, velocity: np.ndarray, forward: np.ndarray, right: np.ndarray,

@@ -6,9 +6,11 @@
 - Viewed ratio (section 5.4): active characters seen by at least one camera
   of the group against active characters seen by none.
 
-"Seen" is geometric: the character's chest inside the camera's frustum and
-within ``max_distance``; occlusion by scenery or other people is not
-counted (the paper does not say it was).
+"Seen" is geometric: the character's chest inside the camera's frustum,
+within ``max_distance``, and at least ``min_pixels`` tall in a frame of
+``image_width`` pixels (a person a few pixels high is not filmed, only in
+the picture). Occlusion by scenery or other people is not counted (the paper
+does not say it was).
 """
 
 from __future__ import annotations
@@ -22,6 +24,8 @@ from .. import model
 from .frustum import half_tangents, points_in_frustum
 
 CHEST_HEIGHT = 1.1
+# A person is about this tall (the legibility test below).
+PERSON_HEIGHT = 1.7
 
 
 @dataclass
@@ -101,7 +105,8 @@ def active_mask(events: model.EventTable, times: np.ndarray, n_agents: int) -> n
 
 
 def coverage(tracks: list[model.CameraTrack], positions: np.ndarray, active: np.ndarray,
-             visible: np.ndarray | None = None, max_distance: float = 100.0) -> CoverageSeries:
+             visible: np.ndarray | None = None, max_distance: float = 100.0, min_pixels: float = 24.0,
+             image_width: int = 640) -> CoverageSeries:
     """Algorithm 7 and the viewed ratio for a group of cameras.
 
     Parameters
@@ -116,6 +121,11 @@ def coverage(tracks: list[model.CameraTrack], positions: np.ndarray, active: np.
         Characters that are rendered (invisible leaders are never seen).
     max_distance : float
         Metres; characters further away count as not seen.
+    min_pixels : float
+        A character is seen only if at least this many pixels tall in an
+        image ``image_width`` wide (0: no limit).
+    image_width : int
+        Pixels across the horizontal aperture.
     """
     t, n = positions.shape[:2]
     vis = np.ones(n, bool) if visible is None else np.asarray(visible, bool)
@@ -125,6 +135,8 @@ def coverage(tracks: list[model.CameraTrack], positions: np.ndarray, active: np.
     tan_y = np.array([half_tangents(tr.focal_length[0], tr.horizontal_aperture, tr.vertical_aperture)[1]
                       for tr in tracks])
     near = np.array([tr.near for tr in tracks])
+    # Focal length in pixels: a person PERSON_HEIGHT tall at depth z is f_px * h / z pixels tall.
+    f_px = image_width * 0.5 / tan_x
     s_act = np.zeros(t)
     s_idle = np.zeros(t)
     n_act = active[:, vis].sum(axis=1)
@@ -141,6 +153,8 @@ def coverage(tracks: list[model.CameraTrack], positions: np.ndarray, active: np.
         who = np.concatenate([np.asarray(x, dtype=np.int64) for x in lists])
         inside, dist = points_in_frustum(chest[who], eye[cam], -mats[k, cam, 2, :3], mats[k, cam, 0, :3],
                                          mats[k, cam, 1, :3], tan_x[cam], tan_y[cam], near[cam], max_distance)
+        depth = np.einsum("ij,ij->i", chest[who] - eye[cam], -mats[k, cam, 2, :3])
+        inside &= f_px[cam] * PERSON_HEIGHT >= min_pixels * np.maximum(depth, 1e-9)
         cam, who, dist = cam[inside], who[inside], dist[inside]
         act = active[k, rows[who]]
         w = 1.0 / np.maximum(dist, 1e-3)

@@ -232,10 +232,14 @@ class CameraAgents:
             # seconds, nearer ones likelier), so scouts search the crowd, not the sky.
             self._refocus(scouting, time, positions, dt)
             look[scouting] = positions[self.focus[scouting]] + [0.0, 0.0, prm.look_height]
-        force += prm.w_elevation * forces.elevation(self.p, self.v, height, vmax)
-        force += prm.w_obstacle * forces.obstacle_avoidance(
+        f_obs, blocking = forces.obstacle_avoidance(
             self.p, self.v, fwd, right, look, vmax, self.tan_x, self.obstacles.tree, self.obstacles.xyz,
             self.obstacles.radius, prm.obstacle_range)
+        force += prm.w_obstacle * f_obs
+        # Beyond Algorithm 3's sidestep: where the elevation range allows, crane up over what is in the way.
+        over = blocking + prm.obstacle_clearance + 1.0
+        height = np.where((blocking > 0) & (over <= t.elevation[:, 1]), np.maximum(height, over), height)
+        force += prm.w_elevation * forces.elevation(self.p, self.v, height, vmax)
         tree = cKDTree(self.p)
         sep_pairs = tree.query_pairs(float(t.separation_distance.max()), output_type="ndarray")
         force += prm.w_separation * forces.separation(self.p, self.v, fwd, right, vmax, t.separation_distance,

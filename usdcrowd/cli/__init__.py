@@ -12,9 +12,9 @@ import sys
 
 from .. import __version__
 from ..errors import UsdcrowdError
-from . import demo, inspect_cmd, new, preview, render, simulate, validate
+from . import cameras, demo, inspect_cmd, metrics, new, preview, render, simulate, validate
 
-COMMANDS = (new, inspect_cmd, validate, simulate, preview, render, demo)
+COMMANDS = (new, inspect_cmd, validate, simulate, cameras, metrics, preview, render, demo)
 EXIT_USER_ERROR = 2
 
 

@@ -16,6 +16,7 @@ def add_parser(sub):
     p.add_argument("-o", "--output", default="out/demo", help="output folder (default: out/demo)")
     p.add_argument("--template", default="museum", help="example scene to use (default: museum)")
     p.add_argument("--agents", type=int, default=None, help="number of agents (default: the template's)")
+    p.add_argument("--cameras", type=int, default=3, help="steering camera agents to run (default 3)")
     add_seed(p)
     add_progress(p)
     p.set_defaults(run=run)
@@ -37,8 +38,11 @@ def run(args) -> int:
             print(p)
         return 1
     print("[2] validate  scenario: 0 errors")
-    r = simulate_shot(info["path"], out / "shot", seed=args.seed, progress=args.progress)
-    print(f"[3] simulate  {r.shot} ({r.n_agents} agents x {r.n_frames} frames)")
+    r = simulate_shot(info["path"], out / "shot", seed=args.seed, progress=args.progress,
+                      camera_count=args.cameras)
+    agents = [p for p in r.camera_paths if "/Agent" in p]
+    print(f"[3] simulate  {r.shot} ({r.n_agents} agents x {r.n_frames} frames, {r.n_events} events, "
+          f"{len(agents)} camera agents)")
     errors = [p for p in validate(r.shot) if p.severity == "error"]
     for p in errors:
         print(p)
@@ -89,10 +93,18 @@ def _preview(r, out: Path, progress: bool) -> dict:
     try:
         from ..render.preview import demo_outputs
 
+        from ..render.preview.output import camera_gallery
+
         frames = np.arange(1, r.n_frames + 1, 2, dtype=np.float64)
-        paths = demo_outputs(r.shot, out / "preview", camera=r.camera, frames=frames, progress=progress)
+        # The first camera agent, if any: the preview shows what it chose to film.
+        camera = next((p for p in r.camera_paths if "/Agent" in p), r.camera)
+        paths = demo_outputs(r.shot, out / "preview", camera=camera, frames=frames, progress=progress)
+        gallery = camera_gallery(r.shot, out / "preview" / "gallery.png", r.camera_paths,
+                                 np.unique(np.linspace(1, r.n_frames, 5).round()), resolution=(320, 180),
+                                 progress=progress)
     except UsdcrowdError as exc:          # no OpenGL here: say so, the rest of the demo stands
         print(f"[5] preview   skipped: {exc}")
         return {}
-    print(f"[5] preview   {paths['mp4']} ({len(frames)} frames from {r.camera})")
-    return {"preview": paths["mp4"], "sheet": paths["contact_sheet"]}
+    print(f"[5] preview   {paths['mp4']} ({len(frames)} frames from {camera}); gallery of "
+          f"{len(r.camera_paths)} cameras")
+    return {"preview": paths["mp4"], "sheet": paths["contact_sheet"], "gallery": gallery}

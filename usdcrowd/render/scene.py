@@ -140,9 +140,13 @@ class ShotScene:
         m[:3, :3] /= np.linalg.norm(m[:3, :3], axis=1, keepdims=True)
         near, far = cam.GetClippingRangeAttr().Get(time)
         mpu = self.frame.meters_per_unit
+        state = prim.GetAttribute("crowd:camera:state")
+        tracked = prim.GetAttribute("crowd:camera:trackedEvent")
         return CameraView(str(prim.GetPath()), float(time), m, float(cam.GetFocalLengthAttr().Get(time)),
                           float(cam.GetHorizontalApertureAttr().Get(time)),
-                          float(cam.GetVerticalApertureAttr().Get(time)), near * mpu, far * mpu)
+                          float(cam.GetVerticalApertureAttr().Get(time)), near * mpu, far * mpu,
+                          str(state.Get(time)) if state and state.HasValue() else None,
+                          str(tracked.Get(time) or "") if tracked and tracked.HasValue() else None)
 
     # --------------------------------------------------------------- scenery
     @cached_property

@@ -18,9 +18,10 @@ from .. import model, schema
 from ..errors import ScenarioError
 from .stageio import stage_frame, time_range
 
-# Layers the simulation writes (usd.shot's crowd layer and its parts): events
-# defined there were detected; events defined anywhere else were authored.
-_GENERATED_LAYER = re.compile(r"^crowd(\.part\d+)?\.usd[ac]?$")
+# Layers usdcrowd generates (the crowd layer and its parts; cameras.usda, where
+# `usdcrowd cameras` puts events it had to detect): events defined there were
+# detected; events defined anywhere else were authored.
+_GENERATED_LAYER = re.compile(r"^(crowd(\.part\d+)?|cameras)\.usd[ac]?$")
 
 
 def _is_authored(prim) -> bool:

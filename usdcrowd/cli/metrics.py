@@ -1,0 +1,44 @@
+"""usdcrowd metrics SHOT -o DIR [--counts 4,8] [--seed S]"""
+
+from __future__ import annotations
+
+import argparse
+
+from .args import add_progress, add_seed
+
+
+def _counts(text: str) -> tuple[int, ...]:
+    try:
+        values = tuple(int(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if not values or min(values) < 1:
+        raise argparse.ArgumentTypeError(f"expected camera counts like 4,8, got {text!r}")
+    return values
+
+
+def add_parser(sub):
+    p = sub.add_parser("metrics", help="seed 000's evaluation: autonomous vs static cameras on a shot",
+                       description="Film the shot with N autonomous camera agents and N static cameras for "
+                                   "each N, and measure the activity metric (Algorithm 7) and the share of "
+                                   "active characters viewed; writes CSVs and plots like seed 000's "
+                                   "Figures 12 to 15.")
+    p.add_argument("shot", help="the shot stage (shot.usda)")
+    p.add_argument("-o", "--output", required=True, help="output folder for CSVs and plots")
+    p.add_argument("--counts", type=_counts, default=(4, 8), metavar="N,M", help="camera counts (default 4,8)")
+    add_seed(p)
+    add_progress(p)
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    from ..filming import evaluate_shot
+
+    results = evaluate_shot(args.shot, args.output, counts=args.counts, seed=args.seed, progress=args.progress)
+    print(f"wrote {args.output}: summary.csv, activity_N / viewed_N .csv and .png")
+    print(f"  {'cameras':>7} {'kind':<11} {'active share':>12} {'active/idle':>11} {'viewed share':>12}")
+    for n, r in results.items():
+        for kind, s in r.items():
+            print(f"  {n:>7} {kind:<11} {s['mean_active_share']:>12.3f} {s['mean_active_idle_ratio']:>11.3f} "
+                  f"{s['mean_viewed_share']:>12.3f}")
+    return 0

@@ -1,0 +1,187 @@
+"""Re-filming and evaluating an existing shot, without re-simulating the crowd.
+
+``usdcrowd cameras`` and ``usdcrowd metrics`` run here: the crowd comes back
+from the shot's crowd layer (:func:`usdcrowd.scenario.crowd.read_crowd`),
+the events from its CrowdEvent prims (detected again only if the crowd
+layer has none), the scenery and the authored camera agents from the
+scenario the shot refers to.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from . import model
+from .errors import StageError
+
+
+@dataclass
+class ShotCrowd:
+    """An existing shot read back for the cameras."""
+
+    shot: str
+    out_dir: Path
+    scenario: model.Scenario
+    positions: np.ndarray          # (t, n, 3) float32, scenario rows
+    events: model.EventTable
+    detected_now: bool             # events were missing from the crowd layer and were detected here
+    default_prim: str
+    frame: object                  # StageFrame
+
+
+def load_shot(shot_path: str | os.PathLike, seed: int | None = None, progress: bool = True) -> ShotCrowd:
+    """Read a shot's crowd, events, scenery and camera agents.
+
+    Raises
+    ------
+    StageError
+        If the shot names no scenario, or its crowd layer holds no agents.
+    """
+    from .events import EventDetector
+    from .scenario import load_scenario, open_stage, stage_frame
+    from .scenario.crowd import read_crowd
+    from .scenario.events import read_events
+    from .scenario.stageio import time_range
+    from .usd import CAMERAS
+
+    shot_path = os.fspath(shot_path)
+    stage = open_stage(shot_path)
+    data = dict(stage.GetRootLayer().customLayerData.get("usdcrowd", {}))
+    ref = data.get("scenario")
+    if not ref:
+        raise StageError("not a usdcrowd shot: customLayerData has no usdcrowd.scenario", file=shot_path)
+    scenario_path = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(shot_path)), ref))
+    scenario = load_scenario(scenario_path, seed=seed if seed is not None else data.get("seed"))
+    scenario.time = time_range(stage)
+    frames, info = read_crowd(stage)
+    rows = {p: i for i, p in enumerate(scenario.agents.path)}
+    order = np.array([rows.get(p, -1) for p in info.path])
+    if len(order) == 0 or (order < 0).any():
+        missing = [p for p, r in zip(info.path, order) if r < 0][:1]
+        raise StageError(f"the shot's crowd does not match its scenario (agent {missing[0] if missing else '?'} "
+                         f"unknown)" if missing else "the shot's crowd layer holds no agents", file=shot_path)
+    frames = _reorder(frames, order, len(scenario.agents))
+    positions = frames.position.astype(np.float32)
+    # Events as the crowd layer and the scenario hold them, without the cameras layer being replaced.
+    for layer in stage.GetLayerStack(includeSessionLayers=False):
+        if os.path.basename(layer.realPath or "") == CAMERAS:
+            stage.MuteLayer(layer.identifier)
+    events = read_events(stage, rows, scenario.time)
+    detected_now = not any(not e.authored for e in events)
+    if detected_now:
+        root = stage.GetDefaultPrim()
+        det = EventDetector(scenario.agents.character_type, scenario.agents.visible, scenario.time.fps,
+                            scope=f"{root.GetPath()}/Events" if root else "/Events")
+        det.feed(frames)
+        events = model.EventTable([e for e in events if e.authored] + list(det.finish()))
+    default_prim = stage.GetDefaultPrim().GetName() if stage.GetDefaultPrim() else ""
+    return ShotCrowd(shot_path, Path(shot_path).parent, scenario, positions, events, detected_now, default_prim,
+                     stage_frame(stage))
+
+
+def _reorder(frames: model.CrowdFrames, order: np.ndarray, n: int) -> model.CrowdFrames:
+    """The frames with their per-agent arrays moved to scenario rows ``order``."""
+    def move(a):
+        out = np.zeros((a.shape[0], n) + a.shape[2:], a.dtype)
+        out[:, order] = a
+        return out
+
+    path_method = np.zeros(n, np.int8)
+    path_method[order] = frames.path_method
+    return model.CrowdFrames(frames.times, move(frames.position), move(frames.heading), move(frames.velocity),
+                             move(frames.behavior), move(frames.anim_class), move(frames.anim_phase),
+                             move(frames.health), move(frames.look_at), path_method)
+
+
+def crowd_summary(positions: np.ndarray, visible: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(t, 3) centroid and (t,) spread of the visible crowd per frame (the overview camera)."""
+    vis = visible if visible.any() else np.ones_like(visible)
+    pos = positions[:, vis].astype(np.float64)
+    c = pos.mean(axis=1)
+    return c, np.linalg.norm(pos - c[:, None], axis=2).max(axis=1)
+
+
+def refilm_shot(shot_path: str | os.PathLike, count: int | None = None, static: int = 0,
+                seed: int | None = None, progress: bool = True) -> tuple[str, list[model.CameraTrack], ShotCrowd]:
+    """Run the cameras again on an existing shot and replace its cameras.usda atomically.
+
+    The crowd layer, the scenario and any stronger layer are not touched.
+    Events are detected (and written beside the cameras) only when the crowd
+    layer has none.
+    """
+    from .pipeline import film_cameras
+    from .usd.cameras import write_camera_tracks
+    from .usd.events import author_events
+
+    sc = load_shot(shot_path, progress=progress)
+    centres, spreads = crowd_summary(sc.positions, sc.scenario.agents.visible)
+    tracks = film_cameras(sc.scenario, sc.positions, sc.events, sc.default_prim, progress, centres, spreads,
+                          count=count, static=static, seed=seed)
+    writer = None
+    if sc.detected_now:
+        def writer(layer):
+            author_events(layer, sc.events, sc.scenario.agents.path, sc.scenario.agents.agent_id, sc.frame)
+    path = write_camera_tracks(sc.out_dir, tracks, sc.frame, sc.default_prim, sc.scenario.time,
+                               defined=set(sc.scenario.cameras.path),
+                               extra={"seed": int(sc.scenario.seed if seed is None else seed),
+                                      "events": len(sc.events)}, events_writer=writer)
+    return path, tracks, sc
+
+
+# ------------------------------------------------------------------ metrics
+def evaluate_shot(shot_path: str | os.PathLike, out_dir: str | os.PathLike, counts=(4, 8), seed: int | None = None,
+                  progress: bool = True) -> dict:
+    """Seed 000's evaluation (sections 5.3 and 5.4) on a shot: N autonomous vs N static cameras.
+
+    Writes one CSV per figure (per-frame series), summary.csv, and the plots
+    ``activity_N.png`` (Figures 12 and 13) and ``viewed_N.png`` (14 and 15).
+
+    Returns
+    -------
+    dict
+        ``{N: {"autonomous": summary, "static": summary}}``.
+    """
+    from .atomic import atomic_path
+    from .cameras.metrics import active_mask, coverage
+    from .pipeline import film_cameras
+    from .plots import coverage_plot
+
+    sc = load_shot(shot_path, progress=progress)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    active = active_mask(sc.events, sc.scenario.time.codes, len(sc.scenario.agents))
+    centres, spreads = crowd_summary(sc.positions, sc.scenario.agents.visible)
+    results = {}
+    for n in counts:
+        tracks = film_cameras(sc.scenario, sc.positions, sc.events, sc.default_prim, progress, centres, spreads,
+                              count=n, static=n, seed=seed)
+        auto = [t for t in tracks if t.state is not None]
+        stat = [t for t in tracks if t.state is None and "/Static" in t.path]
+        series = {"autonomous": coverage(auto, sc.positions, active, sc.scenario.agents.visible),
+                  "static": coverage(stat, sc.positions, active, sc.scenario.agents.visible)}
+        results[n] = {k: s.summary() for k, s in series.items()}
+        for name, column in (("activity", "active_share"), ("viewed", "viewed_share")):
+            with atomic_path(out / f"{name}_{n}.csv") as tmp, open(tmp, "w", newline="") as fh:
+                w = csv.writer(fh)
+                w.writerow(["time", "autonomous_score_active", "autonomous_score_idle", "autonomous_active",
+                            "autonomous_active_viewed", "static_score_active", "static_score_idle",
+                            "static_active", "static_active_viewed"])
+                a, s = series["autonomous"], series["static"]
+                for k in range(len(a.times)):
+                    w.writerow([f"{a.times[k]:g}", f"{a.score_active[k]:.6g}", f"{a.score_idle[k]:.6g}",
+                                int(a.n_active[k]), int(a.n_active_viewed[k]), f"{s.score_active[k]:.6g}",
+                                f"{s.score_idle[k]:.6g}", int(s.n_active[k]), int(s.n_active_viewed[k])])
+            coverage_plot(series, column, n, out / f"{name}_{n}.png", sc.scenario.time.fps)
+    with atomic_path(out / "summary.csv") as tmp, open(tmp, "w", newline="") as fh:
+        w = csv.writer(fh)
+        keys = list(next(iter(next(iter(results.values())).values())).keys())
+        w.writerow(["cameras", "kind"] + keys)
+        for n, r in results.items():
+            for kind, s in r.items():
+                w.writerow([n, kind] + [f"{s[k]:.6g}" for k in keys])
+    return results
