@@ -1,6 +1,8 @@
 """Authoring results as USD: the only writer of generated layers."""
 
 from .crowd_layer import CrowdLayerWriter
-from .shot import CAMERAS, CROWD, SHOT, write_cameras, write_shot
+from .cameras import CAMERAS, write_camera_tracks
+from .events import author_events
+from .shot import CROWD, SHOT, write_shot
 
-__all__ = ["CAMERAS", "CROWD", "SHOT", "CrowdLayerWriter", "write_cameras", "write_shot"]
+__all__ = ["CAMERAS", "CROWD", "SHOT", "CrowdLayerWriter", "author_events", "write_camera_tracks", "write_shot"]
