@@ -616,3 +616,30 @@ def test_find_groups_far_flung_crowd(rng):
     for p in (EventParams(levels=1, member_levels=1), EventParams(member_levels=4)):
         lab = find_groups(np.concatenate([a, b]), np.concatenate([va, vb]), ct, p)
         assert np.all(lab[:20] == 0) and np.all(lab[20:] == 1)
+
+
+def test_an_explosion_layer_is_an_event_of_everyone_within_reach():
+    from usdcrowd.events.scenario import REACH, layer_events
+
+    t, n = 60, 10
+    times = np.arange(1.0, t + 1.0)
+    pos = np.zeros((t, n, 3))
+    pos[:, :5, 0] = np.arange(5.0)                  # near the origin
+    pos[:, 5:9, 0] = 100.0                          # far away
+    pos[:, 9, 0] = np.linspace(40.0, 0.0, t)        # walks in: within 2 x 8 m from x <= 16
+    visible = np.ones(n, bool)
+    visible[4] = False                              # an invisible leader takes part in nothing
+    blast = model.BehaviorField("/World/BehaviorLayers/Blast", model.code(model.LAYER_MEANINGS, "damage"),
+                                model.code(model.LAYER_GENERATORS, "explosion"), None, np.zeros(2), np.ones(2),
+                                origin=np.zeros(3), radius=8.0, start_time=11.0)
+    (ev,) = layer_events([blast], pos, times, visible, "/World/Events")
+    assert ev.path == "/World/Events/Explosion_Blast" and model.EVENT_KINDS[ev.kind] == "explosion"
+    assert ev.start == 11.0 and ev.end == 60.0
+    assert ev.members.tolist() == [0, 1, 2, 3, 9]
+    walker = ev.active[:, -1]
+    inside = np.linalg.norm(pos[10:, 9, :2], axis=1) <= REACH * 8.0
+    np.testing.assert_array_equal(walker, inside)
+    np.testing.assert_allclose(ev.radius, REACH * 8.0)
+    far = model.BehaviorField("/L/Far", blast.meaning, blast.generator, None, np.zeros(2), np.ones(2),
+                              origin=np.array([500.0, 0, 0]), radius=8.0, start_time=1.0)
+    assert layer_events([far], pos, times, visible) == []

@@ -43,6 +43,7 @@ def load_shot(shot_path: str | os.PathLike, seed: int | None = None, progress: b
         If the shot names no scenario, or its crowd layer holds no agents.
     """
     from .events import EventDetector
+    from .events.scenario import layer_events
     from .scenario import load_scenario, open_stage, stage_frame
     from .scenario.crowd import read_crowd
     from .scenario.events import read_events
@@ -78,7 +79,8 @@ def load_shot(shot_path: str | os.PathLike, seed: int | None = None, progress: b
         det = EventDetector(scenario.agents.character_type, scenario.agents.visible, scenario.time.fps,
                             scope=f"{root.GetPath()}/Events" if root else "/Events")
         det.feed(frames)
-        events = model.EventTable([e for e in events if e.authored] + list(det.finish()))
+        events = model.EventTable([e for e in events if e.authored] + list(det.finish()) + layer_events(
+            scenario.fields, positions, scenario.time.codes, scenario.agents.visible, det.scope))
     default_prim = stage.GetDefaultPrim().GetName() if stage.GetDefaultPrim() else ""
     return ShotCrowd(shot_path, Path(shot_path).parent, scenario, positions, events, detected_now, default_prim,
                      stage_frame(stage))

@@ -84,6 +84,7 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     from pxr import Sdf, UsdLux
 
     from .events import EventDetector
+    from .events.scenario import layer_events
     from .plots import trajectory_map
     from .scenario import load_scenario, open_stage, stage_frame
     from .usd import CROWD, CrowdLayerWriter, write_shot
@@ -117,12 +118,13 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     try:
         _author_frames(writer, crowd_source(scenario), scenario, visible, plotted, stride, progress,
                        collected, detector)
-        events = model.EventTable(list(scenario.events) + list(detector.finish()))
+        positions = np.concatenate(collected.positions)
+        events = model.EventTable(list(scenario.events) + list(detector.finish()) + layer_events(
+            scenario.fields, positions, scenario.time.codes, scenario.agents.visible, detector.scope))
         with Sdf.ChangeBlock():
             n_events = author_events(writer.layer, events, scenario.agents.path, scenario.agents.agent_id, sframe)
         # The part writers save while the cameras and the picture are made.
         writer.start_saving()
-        positions = np.concatenate(collected.positions)
         tracks = film_cameras(scenario, positions, events, default_prim, progress,
                               np.concatenate(collected.centres), np.concatenate(collected.spreads),
                               count=camera_count)
