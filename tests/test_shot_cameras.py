@@ -260,3 +260,60 @@ def test_frame_json_records_the_camera_state_and_each_agents_events(harbour_shot
     for agent in record["agents"]:
         assert {e["path"] for e in agent["events"]} == expected.get(agent["track_id"], set())
     assert any(agent["events"] for agent in record["agents"])
+
+
+def test_harbour_camera_agents_move_smoothly_frame_their_event_and_stay_out_of_scenery(harbour_shot):
+    """Section 6 of the steering-camera issue, measured on the shot with the renderer's own reader."""
+    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario import load_scenario
+
+    scene = ShotScene(harbour_shot / "shot.usda")
+    stage, times, dt = scene.stage, scene.time_codes, 1.0 / scene.fps
+    poses = [scene.agents(t) for t in times]
+    row = {int(i): k for k, i in enumerate(poses[0].agent_ids)}
+    obstacles = load_scenario(harbour_shot.parent / "harbour.usda").obstacles
+    cams = [p for p in stage.Traverse() if p.GetAttribute("crowd:camera:state").HasValue()]
+    assert len(cams) == 3
+    for cam in cams:
+        state, tracked = cam.GetAttribute("crowd:camera:state"), cam.GetAttribute("crowd:camera:trackedEvent")
+        views = [scene.camera(str(cam.GetPath()), t) for t in times]
+        eye = np.array([v.position for v in views])
+        fwd = np.array([-v.cam_to_world[2, :3] for v in views])
+        max_force = cam.GetAttribute("crowd:camera:maxForce").Get()
+        max_rate = np.radians(cam.GetAttribute("crowd:camera:maxAngularSpeed").Get())
+        velocity = np.diff(eye, axis=0) / dt
+        # Stated bounds: acceleration within maxForce; angular speed within maxAngularSpeed and, from
+        # frame to frame, changing by at most half of it (gain 4/s over two substeps of 1/48 s).
+        assert np.linalg.norm(np.diff(velocity, axis=0), axis=1).max() / dt <= max_force * 1.01
+        rate = np.arccos(np.clip(np.einsum("ij,ij->i", fwd[1:], fwd[:-1]), -1, 1)) / dt
+        assert rate.max() <= max_rate * 1.01
+        assert np.abs(np.diff(rate)).max() <= 0.5 * max_rate
+        # Above the ground, never inside scenery lower than the camera.
+        assert eye[:, 2].min() >= 0.3
+        for poly, height in zip(obstacles.polygons, obstacles.height):
+            edges = np.roll(poly, -1, axis=0) - poly
+            rel = eye[:, None, :2] - poly[None]
+            inside = ((edges[None, :, 0] * rel[..., 1] - edges[None, :, 1] * rel[..., 0]) > 0).all(axis=1)
+            assert not (inside & (eye[:, 2] < height)).any(), cam.GetPath()
+        # The tracked event's visible members are all in the picture in >= 90 % of tracking frames,
+        # counted from 2 s after the camera took the event (it has to turn and move to it first).
+        framed = []
+        since = None
+        for k, t in enumerate(times):
+            if state.Get(t) != "tracking":
+                since = None
+                continue
+            since = t if since is None or tracked.Get(t) != tracked.Get(t - 1) else since
+            if t - since < 2.0 * scene.fps:
+                continue
+            event = stage.GetPrimAtPath(tracked.Get(t))
+            ids = event.GetAttribute("crowd:memberIds")
+            who = ([row[i] for i in ids.Get(t)] if ids.HasAuthoredValue() else
+                   [row[stage.GetPrimAtPath(m).GetAttribute("crowd:agentId").Get()]
+                    for m in event.GetRelationship("crowd:members").GetTargets()])
+            who = [w for w in who if poses[k].visible[w]]
+            if who:
+                uv, z = views[k].project(poses[k].joints_world[who, 0, 3, :3], 640, 360)
+                framed.append(((z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] < 640) & (uv[:, 1] >= 0)
+                               & (uv[:, 1] < 360)).all())
+        assert len(framed) > 60 and np.mean(framed) >= 0.9, (cam.GetPath(), np.mean(framed))
