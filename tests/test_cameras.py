@@ -248,3 +248,20 @@ def test_framing_force_brings_the_camera_onto_the_constant_angle_arc():
     assert abs(seen - alpha) < 0.05 * alpha
     start = framing.subtended_angle(np.array([[5.0, -40.0]]), pos[0, :1, :2], pos[0, 1:, :2])[0]
     assert start < 0.5 * alpha                     # it had to come much closer
+
+
+def test_a_camera_sharing_its_event_leaves_it_for_one_nobody_follows():
+    t = 24 * 8
+    times = np.arange(1, t + 1, dtype=np.float64)
+    pos = np.zeros((t, 4, 3))
+    pos[:, 0, :2], pos[:, 1, :2] = [-1.0, 20.0], [0.0, 20.0]
+    pos[:, 2, :2], pos[:, 3, :2] = [1.5, 21.0], [2.5, 21.0]
+    e1 = make_event("/E/First", INTERACTION, pos, [0, 1], 0, t - 1, times)
+    e2 = make_event("/E/Later", INTERACTION, pos, [2, 3], 100, t - 1, times)       # from 4.2 s on
+    cams = generated_agents(2, np.zeros(3), 1.0)
+    cams.cam_to_world[:] = look_at(np.array([[-1.0, 0.0, 2.0], [1.0, 0.0, 2.0]]), np.array([[0.0, 20.0, 1.0]] * 2))
+    tracks = film(pos, times, FPS, cams, model.EventTable([e1]), seed=2)
+    assert tracks[0].tracked[-1] == tracks[1].tracked[-1] == "/E/First"            # nothing else to film
+    tracks = film(pos, times, FPS, cams, model.EventTable([e1, e2]), seed=2)
+    assert tracks[0].tracked[90] == tracks[1].tracked[90] == "/E/First"
+    assert sorted([tracks[0].tracked[-1], tracks[1].tracked[-1]]) == ["/E/First", "/E/Later"]

@@ -35,7 +35,7 @@ def arrival(position: np.ndarray, target: np.ndarray, velocity: np.ndarray, max_
 
 
 def framing_target(camera_xy: np.ndarray, a: np.ndarray, b: np.ndarray, alpha: np.ndarray, beta: np.ndarray,
-                   min_width: float) -> np.ndarray:
+                   min_width) -> np.ndarray:
     """(c, 2) nearest viewpoint that frames A and B under ``alpha`` (see :mod:`.framing`)."""
     poly = framing.viewpoint_range(a, b, camera_xy, alpha, beta, min_width)
     return framing.closest_on_polyline(poly, camera_xy)

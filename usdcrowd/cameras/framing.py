@@ -32,7 +32,7 @@ def extreme_pair(camera_xy: np.ndarray, points_xy: np.ndarray) -> tuple[np.ndarr
 
 
 def viewpoint_range(a: np.ndarray, b: np.ndarray, camera_xy: np.ndarray, alpha, beta,
-                    min_width: float = 0.6) -> np.ndarray:
+                    min_width=0.6) -> np.ndarray:
     """Closed polyline of viewpoints that frame A and B under ``alpha``.
 
     Parameters
@@ -44,9 +44,9 @@ def viewpoint_range(a: np.ndarray, b: np.ndarray, camera_xy: np.ndarray, alpha, 
         them across the line of sight).
     alpha, beta : (c,) float
         Viewing angle and the Bezier cut-off, radians; beta > alpha.
-    min_width : float
+    min_width : float or (c,) float
         AB is widened to at least this (one character is framed as a body
-        width, not a point).
+        width, not a point; an event as its area).
 
     Returns
     -------

@@ -66,8 +66,8 @@ class CameraParams:
     contain_margin : float
         Metres beyond the crowd's extent where containment starts pulling back.
     min_track_seconds : float
-        A camera keeps a new event at least this long before it may switch
-        (only if the event still runs).
+        A camera that shares its event with others may leave it for one that
+        nobody follows once it has tracked it this long.
     """
 
     substeps: int = 2

@@ -102,6 +102,7 @@ class CameraAgents:
         # The character each scouting camera looks at, and until when.
         self.focus = np.zeros(c, np.int64)
         self.focus_until = np.full(c, -np.inf)
+        self.visible = None if visible is None else np.asarray(visible, bool)
         self.visible_rows = None if visible is None else np.flatnonzero(visible)
         self.bounds = None if bounds is None else np.asarray(bounds, dtype=np.float64)
         self.events = list(events)
@@ -134,9 +135,17 @@ class CameraAgents:
                 and len(e.members_at(time))]
 
     def _event_state(self, k: int, time: float, positions: np.ndarray):
-        """Active members' positions (j, 3) and the event's radius at ``time``."""
+        """Active members' positions (j, 3) and the event's radius at ``time``.
+
+        Members nobody can see (invisible leaders) are left out while a
+        visible one takes part.
+        """
         e = self.events[k]
-        pts = positions[e.members_at(time)]
+        rows = e.members_at(time)
+        if self.visible is not None:
+            shown = rows[self.visible[rows]]
+            rows = shown if len(shown) else rows
+        pts = positions[rows]
         i = e.sample(time)
         return pts, float(e.radius[i]) if i >= 0 and len(e.radius) else 1.0
 
@@ -149,7 +158,12 @@ class CameraAgents:
         pinned = self.pinned >= 0
         on = pinned & np.isin(self.pinned, list(alive)) & (self.tracked < 0)
         self.mode[on], self.tracked[on], self.since[on] = TRACKING, self.pinned[on], time
-        free = np.flatnonzero((self.mode == SCOUTING) & ~pinned)
+        followers = np.bincount(self.tracked[self.tracked >= 0], minlength=len(self.events))
+        # Free to pick: scouts, and trackers that have held a shared event long
+        # enough (they may leave it for one nobody follows).
+        shared = (self.tracked >= 0) & (followers[np.maximum(self.tracked, 0)] > 1) & (
+            time - self.since >= self.params.min_track_seconds * self.fps)
+        free = np.flatnonzero(((self.mode == SCOUTING) | shared) & ~pinned)
         if len(free) == 0 or not running:
             return
         centres = np.array([self._event_state(k, time, positions)[0].mean(axis=0) for k in running])
@@ -162,15 +176,18 @@ class CameraAgents:
         dist = np.linalg.norm(d, axis=2)
         seen = (z > 0.5) & (dist < self.params.scout_range) & (np.abs(x) <= self.tan_x[free, None] * z) & (
             np.abs(y) <= self.tan_y[free, None] * z)
-        followers = np.bincount(self.tracked[self.tracked >= 0], minlength=len(self.events))
         run = np.asarray(running)
         for row, cam in enumerate(free):
             cand = np.flatnonzero(seen[row])
+            if self.tracked[cam] >= 0:
+                cand = cand[followers[run[cand]] == 0]          # only for an event nobody follows
             if len(cand) == 0:
                 continue
             # Events no other camera follows first, then the nearest.
             score = followers[run[cand]] * 1e6 + dist[row, cand]
             k = run[cand[np.argmin(score)]]
+            if self.tracked[cam] >= 0:
+                followers[self.tracked[cam]] -= 1
             self.mode[cam], self.tracked[cam], self.since[cam] = TRACKING, k, time
             followers[k] += 1
 
@@ -215,8 +232,10 @@ class CameraAgents:
                 a[j], b[j] = _extremes(self.p[cam, :2], pts[:, :2])
                 look[cam] = pts.mean(axis=0) + np.array([0.0, 0.0, prm.look_height])
                 n_members[j], radius[j] = len(pts), r
+            # An event's area is framed too: one visible member of a wide authored event is not a close-up.
+            width = np.maximum(prm.min_frame_width, radius)
             goal = forces.framing_target(self.p[tracking, :2], a, b, self.alpha[tracking], self.beta[tracking],
-                                         prm.min_frame_width)
+                                         width)
             goal3 = np.column_stack([goal, self.p[tracking, 2]])
             f = forces.arrival(self.p[tracking], goal3, self.v[tracking] * [1, 1, 0], vmax[tracking],
                                t.arrival_distance[tracking])
