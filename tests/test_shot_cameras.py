@@ -317,3 +317,10 @@ def test_harbour_camera_agents_move_smoothly_frame_their_event_and_stay_out_of_s
                 framed.append(((z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] < 640) & (uv[:, 1] >= 0)
                                & (uv[:, 1] < 360)).all())
         assert len(framed) > 60 and np.mean(framed) >= 0.9, (cam.GetPath(), np.mean(framed))
+
+
+def test_cameras_on_a_scenario_is_a_one_line_error(capsys):
+    code = _run("cameras", HARBOUR, "--no-progress")
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert "harbour.usda" in err and "not a usdcrowd shot" in err
