@@ -124,6 +124,9 @@ class AgentTable:
         Start position, metres.
     start_heading : (n,) float64
         Start yaw, radians.
+    trades : (n,) bool
+        Market trading (crowd:trades): wanderers stop to trade with resting
+        agents of another top-level group. None: nobody trades.
     """
 
     path: list[str]
@@ -144,6 +147,7 @@ class AgentTable:
     color: np.ndarray
     start: np.ndarray
     start_heading: np.ndarray
+    trades: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.path)

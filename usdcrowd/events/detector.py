@@ -55,6 +55,7 @@ class EventDetector:
         self._groups = GroupTracker(self.character_type, self.fps, self.params)
         self.frames_fed = 0
         self._last_time = -np.inf
+        self._last_position = None
         self._finished = False
 
     @property
@@ -67,9 +68,17 @@ class EventDetector:
         Parameters
         ----------
         chunk : CrowdFrames
-            ``position`` (t, n, 3), ``heading`` (t, n), ``velocity`` (t, n, 2),
-            ``health`` (t, n) and ``times`` (t,), following the frames fed
-            before.
+            ``position`` (t, n, 3), ``heading`` (t, n), ``health`` (t, n) and
+            ``times`` (t,), following the frames fed before.
+
+        Notes
+        -----
+        Velocities are the positions' backward differences times fps (the
+        shot's first frame: the forward difference, or zero in a one-frame
+        chunk), not ``chunk.velocity``: that is exactly what can be recovered
+        from a written shot (:func:`usdcrowd.scenario.crowd.read_crowd`), so
+        detecting on a shot read back gives the events detected while it was
+        simulated.
         """
         if self._finished:
             raise RuntimeError("EventDetector.feed after finish()")
@@ -78,9 +87,10 @@ class EventDetector:
         times = np.asarray(chunk.times, np.float64)
         if len(times) and (times[0] <= self._last_time or np.any(np.diff(times) <= 0)):
             raise ValueError("chunks must arrive in time order")
+        velocity = self._velocity(np.asarray(chunk.position, np.float64)[..., :2])
         for i in range(len(times)):
             pos = chunk.position[i]
-            vel = np.asarray(chunk.velocity[i], np.float64)
+            vel = velocity[i]
             # The dead, and rows with no valid state, take part in nothing.
             ok = self.visible & np.isfinite(pos).all(axis=1) & np.isfinite(vel).all(axis=1)
             if chunk.health is not None:
@@ -92,6 +102,18 @@ class EventDetector:
             self.frames_fed += 1
         if len(times):
             self._last_time = float(times[-1])
+
+    def _velocity(self, xy: np.ndarray) -> np.ndarray:
+        """(t, n, 2) velocities of a chunk's positions (see :meth:`feed`)."""
+        prev = self._last_position
+        self._last_position = xy[-1].copy() if len(xy) else prev
+        if len(xy) == 0:
+            return np.zeros((0,) + xy.shape[1:])
+        before = np.concatenate([xy[:1] if prev is None else prev[None], xy[:-1]], axis=0)
+        v = (xy - before) * self.fps
+        if prev is None:
+            v[0] = (xy[1] - xy[0]) * self.fps if len(xy) > 1 else 0.0
+        return v
 
     def finish(self) -> EventTable:
         """End the running events and return every event kept.

@@ -47,7 +47,7 @@ _PALETTE = np.array([
 # Attributes shared by CrowdGroup and CrowdAgentAPI and inherited downward.
 INHERITED = (
     "characterType", "personality", "behavior", "condition", "fearResponse",
-    "visitProfile", "visitBudget", "maxSlope", "behaviorMapInfluence",
+    "visitProfile", "visitBudget", "maxSlope", "behaviorMapInfluence", "trades",
     "speedRange", "heightRange", "color", "spawnCenter", "spawnRadius", "goal",
 )
 
@@ -181,6 +181,7 @@ def resolve_group_members(seed: int, group: GroupSpec, group_values: dict,
 
     out["max_slope"] = numeric("maxSlope")
     out["map_influence"] = numeric("behaviorMapInfluence")
+    out["trades"] = np.array([bool(value(i, "trades") or False) for i in range(n)], dtype=bool)
 
     # Continuous draws, one per clone run, in a fixed order for reproducibility.
     n_runs = max(expand) + 1 if n else 0

@@ -75,9 +75,11 @@ class _Reader:
             if not attr or not attr.HasAuthoredValue():
                 continue
             value = attr.Get()
-            if hasattr(value, "__len__") and not isinstance(value, str):
+            if isinstance(value, bool):
+                pass
+            elif hasattr(value, "__len__") and not isinstance(value, str):
                 value = tuple(float(v) for v in value)
-            elif not isinstance(value, (int, float)) or isinstance(value, bool):
+            elif not isinstance(value, (int, float)):
                 value = str(value)          # tokens
             if name in _POINTS:
                 value = tuple(self.frame.points_to_canonical(np.array(value)))
@@ -329,7 +331,8 @@ def _resolve(r: _Reader, seed, groups, agents):
         path=[a.path for a in rows], agent_id=ids.astype(np.int32), group=group, leader=leader, role=role,
         **{k: cat.get(k, np.zeros(0)) for k in (
             "character_type", "personality", "behavior", "condition", "fear_response", "visit_profile",
-            "speed", "height", "max_slope", "map_influence", "color", "start", "start_heading")})
+            "speed", "height", "max_slope", "map_influence", "color", "start", "start_heading")},
+        trades=cat.get("trades", np.zeros(0, bool)))
     goals = np.array([values[i].get("goal", (np.nan,) * 3) for i in range(len(groups))], dtype=np.float64).reshape(-1, 3)
     budgets = np.array([values[i].get("visitBudget", 300.0) for i in range(len(groups))], dtype=np.float64)
     group_table = model.GroupTable([g.path for g in groups], np.array([g.parent for g in groups], dtype=np.int32),

@@ -144,3 +144,10 @@ DETOUR_TIME = 1.5  # s a chosen detour direction is kept
 # --- animation (fallback only; usdcrowd.character.animation is preferred) --
 IDLE_SPEED = 0.15  # m/s
 RUN_SPEED = 2.4  # m/s
+
+# Market trading (crowd:trades; seed 000's Weld Quay residents).
+TRADE_NOTICE = 5.0  # m: a trading wanderer goes to a seller this close
+TRADE_DISTANCE = 1.2  # m: and stops this far from them
+TRADE_SECONDS = (4.0, 8.0)  # s: how long a trade lasts once face to face, drawn uniformly
+TRADE_APPROACH = 6.0  # s: a buyer who has not reached the seller by then gives up
+TRADE_COOLDOWN = 20.0  # s: before either trades again

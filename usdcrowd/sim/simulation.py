@@ -43,6 +43,7 @@ from .interest import InterestFields
 from .neighbors import NeighborList
 from .paths import BEZIER, GRADIENT, BezierPaths, SlopeSteering, Terrain, choose_path_method, enforce_slope
 from .steering import arrive, clip_norm, containment, separation, steer, unit, wander
+from .trade import Trading, top_groups
 from .validate import validate
 
 _B = {b: np.int8(code(BEHAVIORS, b)) for b in BEHAVIORS}
@@ -128,7 +129,7 @@ class Simulation:
         seed = scenario.seed if s.seed is None else s.seed
         # Independent streams so that adding draws in one part does not shift
         # another's.
-        r_init, r_paths, r_interest, r_maps, r_step, r_slope = np.random.default_rng(seed).spawn(6)
+        r_init, r_paths, r_interest, r_maps, r_step, r_slope, r_trade = np.random.default_rng(seed).spawn(7)
         self.rng = r_step
         a = scenario.agents
         n = self.n = len(a)
@@ -186,6 +187,9 @@ class Simulation:
         self.rest_rows = np.where(nav & ~visit & (beh == _B["rest"]))[0]
         goers = nav & ~visit & has_goal & (beh != _B["rest"])
         self.wanderers = np.where(nav & ~visit & ~goers & (beh != _B["rest"]))[0]
+        trades = np.zeros(n, bool) if a.trades is None else np.asarray(a.trades, bool)
+        self.trading = Trading(self.wanderers, self.rest_rows, trades, top_groups(a, scenario.groups), r_trade) \
+            if trades.any() else None
         self.path_method = choose_path_method(scenario, self.terrain)
         pm = self.path_method
         self.bez_rows = np.where(goers & (pm == BEZIER))[0]
@@ -334,6 +338,8 @@ class Simulation:
             it.v[:, r] = wander(self.heading[r], wa, noise, self.dt,
                                 speed[r] * pace[r] * np.float32(P.WANDER_SPEED_FACTOR))
             self.wander_angle[r] = wa
+        if self.trading is not None and self.trading.active:
+            self.trading.apply(it, pos, self.time, speed)
         if self.interest is not None:
             r = self.visitors
             u, ipace, dom = self.interest.step(pos, self.dt, self.time)

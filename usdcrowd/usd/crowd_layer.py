@@ -173,6 +173,8 @@ class _AgentPart:
         _attr(spec, "crowd:fearResponse", T.Token, model.FEAR_RESPONSES[a.fear_response[i]], U)
         _attr(spec, "crowd:maxSlope", T.Float, float(a.max_slope[i]), U)
         _attr(spec, "crowd:behaviorMapInfluence", T.Float, float(a.map_influence[i]), U)
+        if a.trades is not None and a.trades[i]:
+            _attr(spec, "crowd:trades", T.Bool, True, U)
         _attr(spec, "crowd:color", T.Color3f, Gf.Vec3f(*a.color[i].tolist()), U)
         _attr(spec, "crowd:speed", T.Float, float(a.speed[i]), U)
         _attr(spec, "crowd:height", T.Float, float(a.height[i]), U)
