@@ -265,3 +265,13 @@ def test_a_camera_sharing_its_event_leaves_it_for_one_nobody_follows():
     tracks = film(pos, times, FPS, cams, model.EventTable([e1, e2]), seed=2)
     assert tracks[0].tracked[90] == tracks[1].tracked[90] == "/E/First"
     assert sorted([tracks[0].tracked[-1], tracks[1].tracked[-1]]) == ["/E/First", "/E/Later"]
+
+
+def test_cameras_run_with_no_event_and_with_no_character(platoon_scene):
+    pos, times, _ = platoon_scene
+    cams = generated_agents(3, np.zeros(3), 25.0)
+    quiet = film(pos[:48], times[:48], FPS, cams, model.EventTable(), seed=1)
+    assert all((tr.state == model.code(model.CAMERA_MODES, "scouting")).all() for tr in quiet)
+    assert all(np.isfinite(tr.cam_to_world).all() for tr in quiet)
+    empty = film(np.zeros((12, 0, 3)), times[:12], FPS, cams, model.EventTable(), seed=1)
+    assert all(np.isfinite(tr.cam_to_world).all() for tr in empty)

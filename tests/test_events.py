@@ -486,6 +486,7 @@ def test_chunked_feeding_gives_same_events(rng):
     assert len(whole) >= 7
     assert_same_events(whole, run(xy, heading, velocity=vel, chunk=48))
     assert_same_events(whole, run(xy, heading, velocity=vel, chunk=7))
+    assert_same_events(whole, run(xy, heading, velocity=vel, chunk=1))      # a one-frame first chunk too
     # Deterministic: the same input again gives the same events.
     assert_same_events(whole, run(xy, heading, velocity=vel, chunk=1000))
 
@@ -643,3 +644,16 @@ def test_an_explosion_layer_is_an_event_of_everyone_within_reach():
     far = model.BehaviorField("/L/Far", blast.meaning, blast.generator, None, np.zeros(2), np.ones(2),
                               origin=np.array([500.0, 0, 0]), radius=8.0, start_time=1.0)
     assert layer_events([far], pos, times, visible) == []
+
+
+def test_layer_events_of_two_layers_with_one_name_get_distinct_paths():
+    from usdcrowd.events.scenario import layer_events
+
+    pos = np.zeros((5, 2, 3))
+    times = np.arange(1.0, 6.0)
+    make = lambda parent: model.BehaviorField(f"/World/{parent}/Blast", model.code(model.LAYER_MEANINGS, "damage"),
+                                              model.code(model.LAYER_GENERATORS, "explosion"), None, np.zeros(2),
+                                              np.ones(2), origin=np.zeros(3), radius=3.0, start_time=1.0)
+    paths = [e.path for e in layer_events([make("A"), make("B"), make("C")], pos, times, np.ones(2, bool))]
+    assert paths == ["/World/Events/Explosion_Blast", "/World/Events/Explosion_Blast_2",
+                     "/World/Events/Explosion_Blast_3"]

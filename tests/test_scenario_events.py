@@ -145,6 +145,7 @@ def test_time_sampled_member_ids_give_the_active_mask(write_stage):
 def test_events_from_the_crowd_layer_are_detected_and_come_after_authored_ones(write_stage, tmp_path):
     scenario = write_stage(MEMBERS_STAGE, name="scenario.usda")
     crowd = Sdf.Layer.CreateNew(str(tmp_path / "crowd.usdc"))
+    crowd.customLayerData = {"usdcrowd": {"generator": "usdcrowd simulate"}}      # what marks it generated
     for path, type_name in (("/World/Events", "Scope"), ("/World/Events/Detected_0001", "CrowdEvent")):
         spec = Sdf.CreatePrimInLayer(crowd, path)
         spec.specifier, spec.typeName = Sdf.SpecifierDef, type_name
@@ -156,6 +157,11 @@ def test_events_from_the_crowd_layer_are_detected_and_come_after_authored_ones(w
     table = read_events(stage, _rows(stage), model.TimeRange(1.0, 12.0, 24.0))
     assert table.paths == ["/World/Chat", "/World/Static", "/World/Events/Detected_0001"]
     assert [e.authored for e in table] == [True, True, False]
+    # A user's own layer called crowd.usdc (no usdcrowd generator) holds authored events.
+    crowd.customLayerData = {}
+    crowd.Save()
+    stage = Usd.Stage.Open(shot.identifier)
+    assert all(e.authored for e in read_events(stage, _rows(stage), model.TimeRange(1.0, 12.0, 24.0)))
 
 
 def test_y_up_centimetre_stage_gives_canonical_metres(write_stage):

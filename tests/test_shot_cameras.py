@@ -70,7 +70,7 @@ def test_cameras_layer_holds_the_authored_camera_agents_with_state_read_by_plain
     """)
     for name in ("ScoutWest", "ScoutEast", "Pier"):
         cam = got[name]
-        assert cam["type"] == "Camera" and cam["samples"] == 240 and cam["order"] == ["xformOp:transform"]
+        assert cam["type"] == "Camera" and cam["samples"] == 240 and cam["order"] == ["!resetXformStack!", "xformOp:transform"]
         assert "CameraAgentAPI" in cam["api"]
         assert set(cam["state"]) <= {"scouting", "tracking"}
     # The Pier camera's target is the boat's arrival (frames 60-840): it waits, then tracks it.
@@ -324,3 +324,41 @@ def test_cameras_on_a_scenario_is_a_one_line_error(capsys):
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1
     assert "harbour.usda" in err and "not a usdcrowd shot" in err
+
+
+@pytest.mark.parametrize("up, mpu", [("Z", 1.0), ("Y", 0.01)])
+def test_camera_tracks_are_world_poses_in_the_stages_units_under_a_moved_parent(tmp_path, up, mpu):
+    """A camera agent under a transformed rig, on a Y-up centimetre stage too: plain USD puts it where we said."""
+    from pxr import Gf, Sdf, Usd, UsdGeom
+
+    from usdcrowd.scenario.stageio import StageFrame
+    from usdcrowd.usd.cameras import write_camera_tracks
+
+    frame = StageFrame(up, mpu)
+    scenario = tmp_path / "scenario.usda"
+    stage = Usd.Stage.CreateNew(str(scenario))
+    UsdGeom.SetStageUpAxis(stage, up)
+    UsdGeom.SetStageMetersPerUnit(stage, mpu)
+    world = UsdGeom.Xform.Define(stage, "/World")
+    stage.SetDefaultPrim(world.GetPrim())
+    rig = UsdGeom.Xform.Define(stage, "/World/Rig")
+    rig.AddTranslateOp().Set(Gf.Vec3d(100.0, 20.0, 5.0))
+    rig.AddRotateZOp().Set(30.0)
+    cam = UsdGeom.Camera.Define(stage, "/World/Rig/Cam")
+    cam.CreateFocalLengthAttr(50.0)
+    stage.GetRootLayer().Save()
+    times = np.array([1.0, 2.0])
+    pose = look_at(np.array([[3.0, -10.0, 2.5], [4.0, -9.0, 3.0]]), np.zeros((2, 3)))
+    track = model.CameraTrack("/World/Rig/Cam", times, pose, np.full(2, 35.0), 36.0, 20.25, 0.1, 500.0)
+    write_camera_tracks(tmp_path, [track], frame, "World", model.TimeRange(1, 2, 24), defined={"/World/Rig/Cam"})
+    shot = Sdf.Layer.CreateNew(str(tmp_path / "shot.usda"))
+    shot.subLayerPaths = ["./cameras.usda", "./scenario.usda"]
+    shot.Save()
+    composed = Usd.Stage.Open(str(tmp_path / "shot.usda"))
+    prim = composed.GetPrimAtPath("/World/Rig/Cam")
+    for k, t in enumerate(times):
+        m = np.array(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(t))
+        np.testing.assert_allclose(m[:3, :3] @ frame.to_canonical[:3, :3] / mpu, pose[k, :3, :3], atol=1e-9)
+        np.testing.assert_allclose(frame.points_to_canonical(m[3, :3]), pose[k, 3, :3], atol=1e-9)
+        np.testing.assert_allclose(np.linalg.norm(m[:3, :3], axis=1), 1.0, atol=1e-12)   # not scaled
+    assert UsdGeom.Camera(prim).GetFocalLengthAttr().Get(1.0) == 50.0                      # the user's lens

@@ -66,11 +66,16 @@ def load_shot(shot_path: str | os.PathLike, seed: int | None = None, progress: b
         missing = [p for p, r in zip(info.path, order) if r < 0][:1]
         raise StageError(f"the shot's crowd does not match its scenario (agent {missing[0] if missing else '?'} "
                          f"unknown)" if missing else "the shot's crowd layer holds no agents", file=shot_path)
+    if len(set(order.tolist())) != len(scenario.agents):
+        absent = sorted(set(rows) - set(info.path))[:1]
+        raise StageError(f"the shot's crowd does not match its scenario (agent {absent[0] if absent else '?'} "
+                         f"is not in the shot; simulate again)", file=shot_path)
     frames = _reorder(frames, order, len(scenario.agents))
     positions = frames.position.astype(np.float32)
     # Events as the crowd layer and the scenario hold them, without the cameras layer being replaced.
     for layer in stage.GetLayerStack(includeSessionLayers=False):
-        if os.path.basename(layer.realPath or "") == CAMERAS:
+        data = dict(layer.customLayerData.get("usdcrowd", {})) if layer.customLayerData else {}
+        if data.get("generator") == "usdcrowd cameras":
             stage.MuteLayer(layer.identifier)
     events = read_events(stage, rows, scenario.time)
     detected_now = not any(not e.authored for e in events)

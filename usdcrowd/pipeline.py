@@ -57,7 +57,9 @@ def simulate_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike, 
     frames : (start, end), optional
         Overrides the stage's time range.
     chunk_frames : int
-        Frames simulated and authored at a time (memory stays linear in it).
+        Frames simulated and authored at a time. The crowd layer's memory
+        stays linear in it; the cameras, which run once the crowd is known,
+        keep every frame's positions (t x n x 3 float32).
     camera_count : int, optional
         Camera agents to run: the scenario's first N and generated ones
         beyond. Default: the ones the scenario authors.
@@ -87,6 +89,7 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     from .events.scenario import layer_events
     from .plots import trajectory_map
     from .scenario import load_scenario, open_stage, stage_frame
+    from .scenario.events import read_events
     from .usd import CROWD, CrowdLayerWriter, write_shot
     from .usd.cameras import write_camera_tracks
     from .usd.events import author_events
@@ -97,6 +100,9 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     scenario = load_scenario(scenario_path, seed=seed, stage=stage)
     if frames is not None:
         scenario.time = model.TimeRange(float(frames[0]), float(frames[1]), scenario.time.fps)
+        # The authored events, sampled (and clamped) over the frames simulated.
+        scenario.events = read_events(stage, {p: i for i, p in enumerate(scenario.agents.path)}, scenario.time,
+                                      agent_ids=scenario.agents.agent_id)
     sframe = stage_frame(stage)
     default_prim = stage.GetDefaultPrim().GetName() if stage.GetDefaultPrim() else ""
     authored = {p for p in scenario.agents.path if stage.GetPrimAtPath(p)}
@@ -198,7 +204,8 @@ def film_cameras(scenario: model.Scenario, positions: np.ndarray, events: model.
                            scenario.agents.visible, seed=scenario.seed if seed is None else seed,
                            progress=bar.update, bounds=scenario.bounds)
     if static:
-        tracks += static_cameras(positions[:: max(1, len(positions) // 50)], static, times, root)
+        tracks += static_cameras(positions[:: max(1, len(positions) // 50)], static, times, root,
+                                 bounds=scenario.bounds, seed=scenario.seed if seed is None else seed)
     return tracks
 
 

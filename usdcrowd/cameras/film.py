@@ -56,7 +56,7 @@ def film(positions: np.ndarray, times: np.ndarray, fps: float, cameras: model.Ca
         pos = np.asarray(positions[k], dtype=np.float64)
         centre, radius = crowd_extent(pos[vis])
         agents.update_modes(float(times[k]), pos)
-        if k > 0:               # the first frame shows the authored pose
+        if k > 0:               # the first frame shows the authored pose (levelled)
             for _ in range(params.substeps):
                 agents.step(float(times[k]), pos, centre, radius, dt)
         mats[k] = agents.cam_to_world()

@@ -58,7 +58,9 @@ def obstacle_avoidance(position: np.ndarray, velocity: np.ndarray, forward: np.n
     Parameters
     ----------
     position, velocity, forward, right, target : (c, 3) float
-        ``target`` is k, the centre of the event's characters.
+        ``target`` is k, the centre of the event's characters (for a scouting
+        camera, which has no event, the character it looks at: scouts also
+        keep their view clear).
     tan_x : (c,) float
         Half horizontal field-of-view tangent.
     obstacle_tree : cKDTree or None
@@ -92,7 +94,9 @@ def obstacle_avoidance(position: np.ndarray, velocity: np.ndarray, forward: np.n
     x = np.einsum("ij,ij->i", d, right[ci])
     # In the frustum (seen from above, widened by the obstacle's radius) ...
     in_view = (z > 0) & (np.abs(x) <= tan_x[ci] * z + obstacle_radius[oi])
-    # ... and closer to the camera than the target is, along the view.
+    # ... and closer to the camera than the target is, along the view. The paper
+    # prints (p - k) . l on the right, which is negative whenever the target is in
+    # front and would never fire; (k - p) . l is what its text describes.
     closer = z < np.einsum("ij,ij->i", target[ci] - position[ci], forward[ci])
     hit = in_view & closer
     side = np.where(x[hit] > 0, -1.0, 1.0)                 # on the right: go left

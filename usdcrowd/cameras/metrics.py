@@ -129,6 +129,10 @@ def coverage(tracks: list[model.CameraTrack], positions: np.ndarray, active: np.
     """
     t, n = positions.shape[:2]
     vis = np.ones(n, bool) if visible is None else np.asarray(visible, bool)
+    if not tracks:
+        zero = np.zeros(t)
+        return CoverageSeries(np.arange(t, dtype=np.float64), zero, zero.copy(),
+                              active[:, vis].sum(axis=1), np.zeros(t, np.int64))
     mats = np.stack([tr.cam_to_world for tr in tracks], 1)          # (t, c, 4, 4)
     tan_x = np.array([half_tangents(tr.focal_length[0], tr.horizontal_aperture, tr.vertical_aperture)[0]
                       for tr in tracks])

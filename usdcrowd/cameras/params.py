@@ -44,6 +44,9 @@ class CameraParams:
         Metres above the ground the cameras aim at (chest height).
     scout_range : float
         Metres: a scouting camera notices events up to this far in its frustum.
+    avoid_near : float
+        Metres: overlaps of frusta closer than this to either camera do not
+        count (Algorithm 6's near plane).
     avoid_range : float
         Metres: frusta are tested for overlap (Algorithm 6) up to this far;
         cameras further apart than twice this are never paired.
@@ -88,6 +91,7 @@ class CameraParams:
     crane_gain: float = 0.6
     look_height: float = 1.1
     scout_range: float = 60.0
+    avoid_near: float = 1.0
     avoid_range: float = 25.0
     obstacle_range: float = 40.0
     obstacle_min_height: float = 1.2

@@ -39,12 +39,16 @@ def ring(centre: np.ndarray, radius: float, height: float, count: int, phase: fl
 
 
 def static_cameras(positions: np.ndarray, count: int, times: np.ndarray, root: str = "/World",
-                   height: float = 7.0, margin: float = 8.0) -> list[model.CameraTrack]:
-    """Static cameras at strategic positions: a ring just outside everywhere the crowd goes.
+                   height: float = 7.0, bounds: np.ndarray | None = None, seed: int = 0) -> list[model.CameraTrack]:
+    """Static cameras at strategic positions: each frames one of the places the crowd uses most.
 
-    This is the baseline of seed 000's evaluation: the cameras are placed
-    knowing the crowd's whole extent over the shot, so they never lose sight
-    of it (knowledge the autonomous cameras do not have).
+    The baseline of seed 000's evaluation, placed knowing where the crowd
+    goes over the whole shot (knowledge the autonomous cameras do not have):
+    the crowd's positions over the shot are split into ``count`` clusters
+    (k-means), and each camera stands outward of its cluster (away from the
+    crowd's centre) at the distance where the cluster's extent fills 90 % of
+    its horizontal field of view, ``height`` metres up, looking at the
+    cluster's centre.
 
     Parameters
     ----------
@@ -53,13 +57,37 @@ def static_cameras(positions: np.ndarray, count: int, times: np.ndarray, root: s
     count : int
     times : (t,) float
         Time codes of the shot.
+    bounds : (2, 2) float, optional
+        Walkable area the cameras stand in (indoors they stay inside).
+    seed : int
+        Seeds k-means.
     """
-    centre, radius = crowd_extent(positions)
-    # Half the horizontal field of view fits the crowd's diameter at the ring's distance.
-    mats = ring(centre, radius + margin, height, count, phase=np.pi / max(count, 1) - np.pi / 2)
+    from scipy.cluster.vq import kmeans2
+
+    p = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    p = p[np.isfinite(p).all(axis=1)][:, :2]
+    if len(p) == 0 or count == 0:
+        return []
+    centre = np.median(p, axis=0)
+    k = min(count, len(np.unique(p, axis=0)))
+    means, label = kmeans2(p, k, seed=np.random.default_rng(seed), minit="++")
+    half_fov = np.arctan(0.5 * H_APERTURE / FOCAL_LENGTH)
     out = []
-    for k, m in enumerate(mats):
-        out.append(model.CameraTrack(f"{root}/Cameras/Static{k + 1:02d}", np.asarray(times, dtype=np.float64),
+    for j in range(count):
+        c = means[j % k]
+        mine = p[label == j % k]
+        r = max(3.0, float(np.quantile(np.linalg.norm(mine - c, axis=1), 0.9))) if len(mine) else 3.0
+        away = c - centre
+        turn = 2 * np.pi * j / count
+        if np.linalg.norm(away) < 1.0 or j >= k:          # a central cluster (or a repeat): any side
+            away = np.array([np.cos(turn), np.sin(turn)])
+        away /= np.linalg.norm(away)
+        eye = np.append(c + away * r / np.tan(0.9 * half_fov), height)
+        if bounds is not None:
+            b = np.asarray(bounds, dtype=np.float64)
+            eye[:2] = np.clip(eye[:2], b[0] + 1.0, np.maximum(b[0] + 1.0, b[1] - 1.0))
+        m = look_at(eye, np.append(c, 1.0))[0]
+        out.append(model.CameraTrack(f"{root}/Cameras/Static{j + 1:02d}", np.asarray(times, dtype=np.float64),
                                      np.repeat(m[None], len(times), axis=0), np.full(len(times), FOCAL_LENGTH),
                                      H_APERTURE, V_APERTURE, 0.1, 1000.0))
     return out

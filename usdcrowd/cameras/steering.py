@@ -10,7 +10,9 @@ Modes: a scouting camera wanders and pans; when a running event's centre
 enters its frustum it starts tracking it, preferring events no other camera
 follows. A tracking camera whose event ends scouts again. A camera whose
 ``crowd:camera:target`` is authored tracks only that event (or agent) while
-it runs.
+it runs, and scouts before and after. Every camera starts scouting (an
+authored ``crowd:camera:mode`` of tracking means nothing without a target),
+from its authored pose with the roll removed and the pitch limited.
 """
 
 from __future__ import annotations
@@ -131,8 +133,15 @@ class CameraAgents:
 
     # ------------------------------------------------------------------ modes
     def _running(self, time: float) -> list[int]:
-        return [k for k, e in enumerate(self.events) if e.start - 1e-6 <= time <= e.end + 1e-6
-                and len(e.members_at(time))]
+        """Events under way at ``time`` with someone taking part (someone visible, if visibility is known)."""
+        out = []
+        for k, e in enumerate(self.events):
+            if not e.start - 1e-6 <= time <= e.end + 1e-6:
+                continue
+            rows = e.members_at(time)
+            if len(rows) and (self.visible is None or self.visible[rows].any() or k in self.pinned):
+                out.append(k)
+        return out
 
     def _event_state(self, k: int, time: float, positions: np.ndarray):
         """Active members' positions (j, 3) and the event's radius at ``time``.
@@ -158,7 +167,7 @@ class CameraAgents:
         pinned = self.pinned >= 0
         on = pinned & np.isin(self.pinned, list(alive)) & (self.tracked < 0)
         self.mode[on], self.tracked[on], self.since[on] = TRACKING, self.pinned[on], time
-        followers = np.bincount(self.tracked[self.tracked >= 0], minlength=len(self.events))
+        followers = np.bincount(self.tracked[self.tracked >= 0], minlength=max(len(self.events), 1))
         # Free to pick: scouts, and trackers that have held a shared event long
         # enough (they may leave it for one nobody follows).
         shared = (self.tracked >= 0) & (followers[np.maximum(self.tracked, 0)] > 1) & (
@@ -249,8 +258,9 @@ class CameraAgents:
             # Wandering torque: aim along a wandering direction. The direction
             # wanders from one character to another (re-drawn every scout_dwell
             # seconds, nearer ones likelier), so scouts search the crowd, not the sky.
-            self._refocus(scouting, time, positions, dt)
-            look[scouting] = positions[self.focus[scouting]] + [0.0, 0.0, prm.look_height]
+            if len(positions):
+                self._refocus(scouting, time, positions, dt)
+                look[scouting] = positions[self.focus[scouting]] + [0.0, 0.0, prm.look_height]
         f_obs, blocking = forces.obstacle_avoidance(
             self.p, self.v, fwd, right, look, vmax, self.tan_x, self.obstacles.tree, self.obstacles.xyz,
             self.obstacles.radius, prm.obstacle_range)
@@ -277,8 +287,11 @@ class CameraAgents:
         if len(scouting):
             tau[scouting] *= prm.w_wander_torque / max(prm.w_aim, 1e-9)
         avoid_pairs = tree.query_pairs(2.0 * prm.avoid_range, output_type="ndarray")
+        # Algorithm 6 tests the frusta between near and far planes; clipping ranges
+        # (0.1 to 1000 m) would make every pair collide, so a shared view counts
+        # from avoid_near to avoid_range.
         tau += prm.w_avoid * torques.avoidance(self.p, fwd, right, self.half_x, self.w, t.max_angular_speed,
-                                               avoid_pairs, 1.0, prm.avoid_range)
+                                               avoid_pairs, prm.avoid_near, prm.avoid_range)
         self.w = _clamp(self.w + prm.angular_gain * tau * dt, t.max_angular_speed)
         self.q = _level(integrate(self.q, self.w, dt))
 
@@ -289,6 +302,8 @@ class CameraAgents:
             return
         rows = self.visible_rows if self.visible_rows is not None and len(self.visible_rows) else np.arange(
             len(positions))
+        if len(rows) == 0:
+            return                     # nobody to look at: the aim stays ahead
         prm = self.params
         # A handful of candidates per camera: O(cameras), whatever the crowd's size.
         cand = rows[self.rng.integers(0, len(rows), (len(due), 16))]

@@ -73,9 +73,8 @@ class EventDetector:
 
         Notes
         -----
-        Velocities are the positions' backward differences times fps (the
-        shot's first frame: the forward difference, or zero in a one-frame
-        chunk), not ``chunk.velocity``: that is exactly what can be recovered
+        Velocities are the positions' backward differences times fps (zero at
+        the first frame fed, however the frames are cut), not ``chunk.velocity``: that is exactly what can be recovered
         from a written shot (:func:`usdcrowd.scenario.crowd.read_crowd`), so
         detecting on a shot read back gives the events detected while it was
         simulated.
@@ -112,7 +111,7 @@ class EventDetector:
         before = np.concatenate([xy[:1] if prev is None else prev[None], xy[:-1]], axis=0)
         v = (xy - before) * self.fps
         if prev is None:
-            v[0] = (xy[1] - xy[0]) * self.fps if len(xy) > 1 else 0.0
+            v[0] = 0.0
         return v
 
     def finish(self) -> EventTable:

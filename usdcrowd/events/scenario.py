@@ -40,6 +40,7 @@ def layer_events(fields: list[model.BehaviorField], positions: np.ndarray, times
         One per generated layer that anyone comes near, in layer order.
     """
     out = []
+    used: set[str] = set()
     times = np.asarray(times, dtype=np.float64)
     vis = np.flatnonzero(visible)
     for f in fields:
@@ -60,8 +61,13 @@ def layer_events(fields: list[model.BehaviorField], positions: np.ndarray, times
         ever = near.any(axis=0)
         members = vis[ever].astype(np.int32)
         m = last - first + 1
-        name = f.path.rstrip("/").rsplit("/", 1)[-1]
-        out.append(model.Event(f"{scope}/{_KIND[generator].capitalize()}_{name}",
+        base = name = f"{scope}/{_KIND[generator].capitalize()}_{f.path.rstrip('/').rsplit('/', 1)[-1]}"
+        k = 1
+        while name in used:                    # two layers with one leaf name under different parents
+            k += 1
+            name = f"{base}_{k}"
+        used.add(name)
+        out.append(model.Event(name,
                                model.code(model.EVENT_KINDS, _KIND[generator]), float(times[first]),
                                float(times[last]), members, times[first:last + 1].copy(), near[:, ever],
                                np.tile(np.asarray(f.origin, dtype=np.float64), (m, 1)), np.full(m, r)))

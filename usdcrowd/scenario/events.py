@@ -9,8 +9,6 @@ metres), as :class:`usdcrowd.model.EventTable` and
 from __future__ import annotations
 
 import math
-import os
-import re
 
 import numpy as np
 
@@ -18,22 +16,26 @@ from .. import model, schema
 from ..errors import ScenarioError
 from .stageio import stage_frame, time_range
 
-# Layers usdcrowd generates (the crowd layer and its parts; cameras.usda, where
-# `usdcrowd cameras` puts events it had to detect): events defined there were
-# detected; events defined anywhere else were authored.
-_GENERATED_LAYER = re.compile(r"^(crowd(\.part\d+)?|cameras)\.usd[ac]?$")
+def is_generated_layer(layer) -> bool:
+    """True for a layer usdcrowd generated (the crowd layer and its parts, cameras.usda).
+
+    Told by the ``customLayerData["usdcrowd"]["generator"]`` usdcrowd writes,
+    not by the file's name: a user's own sublayer may be called cameras.usda.
+    """
+    data = layer.customLayerData.get("usdcrowd") if layer.customLayerData else None
+    return bool(data) and bool(data.get("generator"))
 
 
 def _is_authored(prim) -> bool:
-    """True when the prim is defined (``def``) in a layer that is not a generated crowd layer."""
+    """True when the prim is defined (``def``) in a layer usdcrowd did not generate.
+
+    Events defined in generated layers were detected (cameras.usda holds those
+    `usdcrowd cameras` had to detect); any other was authored.
+    """
     from pxr import Sdf
 
     for spec in prim.GetPrimStack():
-        if spec.specifier != Sdf.SpecifierDef:
-            continue
-        layer = spec.layer
-        name = os.path.basename(layer.realPath or layer.identifier)
-        if not _GENERATED_LAYER.match(name):
+        if spec.specifier == Sdf.SpecifierDef and not is_generated_layer(spec.layer):
             return True
     return False
 

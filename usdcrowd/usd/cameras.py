@@ -5,6 +5,13 @@ their transform op order is replaced by one time-sampled
 ``xformOp:transform``, and the authored lens and CameraAgentAPI values stay
 where the user wrote them. Generated cameras are defined here, with
 CameraAgentAPI applied when they are agents.
+
+Every transform is a world pose: the op order starts with
+``!resetXformStack!``, so a transformed parent (a camera rig, a DCC
+stage's root) does not move the camera a second time. Its rotation rows are
+of unit length in the stage's units (no metersPerUnit scale), so a viewer
+that inverts the whole matrix gets camera-space depths in stage units, which
+is what ``clippingRange`` is in.
 """
 
 from __future__ import annotations
@@ -78,16 +85,17 @@ def write_camera_tracks(out_dir: str | os.PathLike, tracks: list[model.CameraTra
                 if track.agent is not None:
                     spec.SetInfo("apiSchemas", Sdf.TokenListOp.Create(prependedItems=["CameraAgentAPI"]))
                     _agent_values(spec, track.agent)
-            focal = Sdf.AttributeSpec(spec, "focalLength", T.Float)
             fl = [float(f) for f in track.focal_length]
-            focal.default = fl[0]           # what readers that ask without a time get
-            for i in _changes(fl):
-                layer.SetTimeSample(focal.path, float(track.times[i]), fl[i])
+            if track.path not in defined or len(set(fl)) > 1:     # the user's own lens stays theirs
+                focal = Sdf.AttributeSpec(spec, "focalLength", T.Float)
+                focal.default = fl[0]           # what readers that ask without a time get
+                for i in _changes(fl):
+                    layer.SetTimeSample(focal.path, float(track.times[i]), fl[i])
             op = Sdf.AttributeSpec(spec, "xformOp:transform", T.Matrix4d)
-            mats = np.asarray(track.cam_to_world, dtype=np.float64) @ frame.from_canonical
-            for t, m in zip(track.times, mats):
+            for t, m in zip(track.times, stage_poses(track.cam_to_world, frame)):
                 layer.SetTimeSample(op.path, float(t), Gf.Matrix4d(m.tolist()))
-            _set(spec, "xformOpOrder", T.TokenArray, Vt.TokenArray(["xformOp:transform"]), uniform=True)
+            _set(spec, "xformOpOrder", T.TokenArray, Vt.TokenArray(["!resetXformStack!", "xformOp:transform"]),
+                 uniform=True)
             if track.state is not None:
                 st = Sdf.AttributeSpec(spec, STATE, T.Token)
                 names = [model.CAMERA_MODES[int(s)] for s in track.state]
@@ -102,6 +110,17 @@ def write_camera_tracks(out_dir: str | os.PathLike, tracks: list[model.CameraTra
         if not layer.Export(os.fspath(tmp)):
             raise OSError(f"could not write {final}")
     return final
+
+
+def stage_poses(cam_to_world: np.ndarray, frame: StageFrame) -> np.ndarray:
+    """(t, 4, 4) canonical camera-to-world matrices as world poses in the stage's axes and units.
+
+    The rotation rows stay of unit length (a camera is not scaled); only the
+    position changes unit.
+    """
+    m = np.asarray(cam_to_world, dtype=np.float64) @ frame.from_canonical
+    m[:, :3, :3] /= np.linalg.norm(m[:, :3, :3], axis=2, keepdims=True)
+    return m
 
 
 def _agent_values(spec, agent: dict) -> None:

@@ -88,6 +88,8 @@ def _layer_metadata(layer, scenario: model.Scenario, frame: StageFrame, default_
     layer.timeCodesPerSecond = layer.framesPerSecond = scenario.time.fps
     layer.pseudoRoot.SetInfo("upAxis", frame.up_axis)
     layer.pseudoRoot.SetInfo("metersPerUnit", frame.meters_per_unit)
+    # Readers tell generated layers by this (scenario.events.is_generated_layer).
+    layer.customLayerData = {"usdcrowd": {"generator": "usdcrowd simulate", "version": __version__}}
 
 
 def _write_prototypes(layer) -> None:

@@ -41,8 +41,7 @@ def author_events(layer, events: model.EventTable, agent_paths: list[str], agent
         _uniform(spec, "crowd:startTime", T.Double, float(e.start))
         _uniform(spec, "crowd:endTime", T.Double, float(e.end))
         rel = Sdf.RelationshipSpec(spec, "crowd:members", custom=False)
-        for row in e.members:
-            rel.targetPathList.Append(Sdf.Path(agent_paths[int(row)]))
+        rel.targetPathList.explicitItems = [Sdf.Path(agent_paths[int(row)]) for row in e.members]
         member_ids = Sdf.AttributeSpec(spec, "crowd:memberIds", T.IntArray)
         prev = None
         for i, t in enumerate(e.times):
