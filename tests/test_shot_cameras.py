@@ -362,3 +362,13 @@ def test_camera_tracks_are_world_poses_in_the_stages_units_under_a_moved_parent(
         np.testing.assert_allclose(frame.points_to_canonical(m[3, :3]), pose[k, 3, :3], atol=1e-9)
         np.testing.assert_allclose(np.linalg.norm(m[:3, :3], axis=1), 1.0, atol=1e-12)   # not scaled
     assert UsdGeom.Camera(prim).GetFocalLengthAttr().Get(1.0) == 50.0                      # the user's lens
+
+
+def test_simulate_without_event_detection_keeps_only_the_authored_events(tmp_path):
+    from pxr import Usd
+
+    out = tmp_path / "shot"
+    assert _run("simulate", HARBOUR, "-o", out, "--frames", "1:72", "--no-events", "--no-progress") == 0
+    stage = Usd.Stage.Open(str(out / "shot.usda"))
+    events = [p.GetName() for p in stage.Traverse() if p.GetTypeName() == "CrowdEvent"]
+    assert events == ["BoatArrival"]

@@ -39,7 +39,7 @@ def _peak_mib() -> float:
     return (own + children) / 1024.0
 
 
-def author_once(agents: int, frames: int) -> dict:
+def author_once(agents: int, frames: int, events: bool = False) -> dict:
     """Author ``agents`` x ``frames`` of walking crowd as a shot; returns timings."""
     import usdcrowd  # noqa: F401
     from frames_factory import straight_walk
@@ -62,7 +62,8 @@ def author_once(agents: int, frames: int) -> dict:
                                         whole.health[sl], whole.look_at[sl], whole.path_method)
 
         t0 = time.perf_counter()
-        result = author_shot(scenario, Path(tmp) / "shot", source, frames=(1, frames), progress=False)
+        result = author_shot(scenario, Path(tmp) / "shot", source, frames=(1, frames), progress=False,
+                             events=events)
         seconds = time.perf_counter() - t0
         size = sum(f.stat().st_size for f in (Path(tmp) / "shot").iterdir())
         samples = 2 * result.n_agents * result.n_frames
@@ -89,6 +90,9 @@ def bench_author(agents: int, frames: int) -> None:
     if agents == 10_000 and frames == 300:
         print(f"   target <= {AUTHOR_TARGET_S:.0f} s: {r['seconds'] / AUTHOR_TARGET_S:.2f}x of budget; "
               f"<= {AUTHOR_TARGET_GIB:.0f} GiB: {r['peak_mib'] / 1024 / AUTHOR_TARGET_GIB:.2f}x of budget")
+    e = _child("author", agents=agents, frames=frames, events=True)
+    print(f"   with event detection (simulate's default): {e['seconds']:.2f} s "
+          f"({e['seconds'] / r['seconds']:.2f}x), peak {e['peak_mib']:,} MiB")
 
 
 def bench_section(name: str, **kw) -> None:

@@ -43,7 +43,7 @@ def _progress(total: int, desc: str, enabled: bool):
 
 def simulate_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike, seed: int | None = None,
                   frames: tuple[float, float] | None = None, progress: bool = True,
-                  chunk_frames: int = 48, camera_count: int | None = None) -> ShotResult:
+                  chunk_frames: int = 48, camera_count: int | None = None, events: bool = True) -> ShotResult:
     """Simulate a scenario and write shot.usda, crowd.usdc and cameras.usda in ``out_dir``.
 
     Parameters
@@ -63,6 +63,9 @@ def simulate_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike, 
     camera_count : int, optional
         Camera agents to run: the scenario's first N and generated ones
         beyond. Default: the ones the scenario authors.
+    events : bool
+        Detect events (False: only the authored ones; camera agents then
+        scout unless they track those).
     """
     def crowd(scenario):
         from .sim import SimSettings, simulate_chunks
@@ -70,13 +73,13 @@ def simulate_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike, 
         return simulate_chunks(scenario, SimSettings(chunk_frames=chunk_frames))
 
     return author_shot(scenario_path, out_dir, crowd, seed=seed, frames=frames, progress=progress,
-                       camera_count=camera_count)
+                       camera_count=camera_count, events=events)
 
 
 def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
                 crowd_source: Callable[[model.Scenario], Iterable[model.CrowdFrames]],
                 seed: int | None = None, frames: tuple[float, float] | None = None,
-                progress: bool = True, camera_count: int | None = None) -> ShotResult:
+                progress: bool = True, camera_count: int | None = None, events: bool = True) -> ShotResult:
     """Read a scenario, take its crowd from ``crowd_source`` and write the shot.
 
     ``crowd_source(scenario)`` yields consecutive :class:`CrowdFrames` chunks
@@ -123,10 +126,11 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     cameras = plot = None
     try:
         _author_frames(writer, crowd_source(scenario), scenario, visible, plotted, stride, progress,
-                       collected, detector)
+                       collected, detector if events else None)
         positions = np.concatenate(collected.positions)
-        events = model.EventTable(list(scenario.events) + list(detector.finish()) + layer_events(
-            scenario.fields, positions, scenario.time.codes, scenario.agents.visible, detector.scope))
+        detected = list(detector.finish()) + layer_events(
+            scenario.fields, positions, scenario.time.codes, scenario.agents.visible, detector.scope) if events else []
+        events = model.EventTable(list(scenario.events) + detected)
         with Sdf.ChangeBlock():
             n_events = author_events(writer.layer, events, scenario.agents.path, scenario.agents.agent_id, sframe)
         # The part writers save while the cameras and the picture are made.
@@ -215,7 +219,8 @@ def _author_frames(writer, chunks, scenario, visible, plotted, stride, progress,
     with _progress(scenario.time.n_frames, "simulate", progress) as bar:
         for chunk in chunks:
             writer.write_chunk(chunk)
-            detector.feed(chunk)
+            if detector is not None:
+                detector.feed(chunk)
             collected.positions.append(chunk.position.astype(np.float32))
             pos = chunk.position[:, visible].astype(np.float64)
             c = pos.mean(axis=1)

@@ -11,6 +11,9 @@ def add_parser(sub):
                                    "folder. The scenario is referred to, never rewritten.")
     p.add_argument("stage", help="the scenario stage")
     p.add_argument("-o", "--output", required=True, help="output folder for the shot")
+    p.add_argument("--no-events", dest="events", action="store_false",
+                   help="do not detect events (faster for large crowds; camera agents then only scout, "
+                        "or track the scenario's own events)")
     add_seed(p)
     add_frames(p)
     add_progress(p)
@@ -21,7 +24,8 @@ def run(args) -> int:
     from ..pipeline import simulate_shot
 
     frames = (float(args.frames[0]), float(args.frames[-1])) if args.frames is not None else None
-    r = simulate_shot(args.stage, args.output, seed=args.seed, frames=frames, progress=args.progress)
+    r = simulate_shot(args.stage, args.output, seed=args.seed, frames=frames, progress=args.progress,
+                      events=args.events)
     print(f"wrote {r.shot}: {r.n_agents} agents x {r.n_frames} frames, seed {r.seed}")
     print(f"  crowd   {r.crowd}")
     print(f"  cameras {r.cameras}")

@@ -73,8 +73,9 @@ class EventDetector:
 
         Notes
         -----
-        Velocities are the positions' backward differences times fps (zero at
-        the first frame fed, however the frames are cut), not ``chunk.velocity``: that is exactly what can be recovered
+        Velocities are the positions' backward differences times fps (unknown
+        at the first frame fed, where nobody takes part, however the frames are
+        cut), not ``chunk.velocity``: that is exactly what can be recovered
         from a written shot (:func:`usdcrowd.scenario.crowd.read_crowd`), so
         detecting on a shot read back gives the events detected while it was
         simulated.
@@ -111,7 +112,7 @@ class EventDetector:
         before = np.concatenate([xy[:1] if prev is None else prev[None], xy[:-1]], axis=0)
         v = (xy - before) * self.fps
         if prev is None:
-            v[0] = 0.0
+            v[0] = np.nan              # no motion known yet: not "standing still" either
         return v
 
     def finish(self) -> EventTable:
