@@ -372,3 +372,22 @@ def test_simulate_without_event_detection_keeps_only_the_authored_events(tmp_pat
     stage = Usd.Stage.Open(str(out / "shot.usda"))
     events = [p.GetName() for p in stage.Traverse() if p.GetTypeName() == "CrowdEvent"]
     assert events == ["BoatArrival"]
+
+
+@pytest.mark.parametrize("attribute, value", [("crowd:camera:viewAngle", "1.5"), ("crowd:camera:maxSpeed", "0"),
+                                              ("crowd:camera:elevationRange", "(8, 2)"),
+                                              ("crowd:camera:maxAngularSpeed", "nan")])
+def test_a_bad_camera_agent_value_is_a_one_line_error_naming_it(tmp_path, capsys, attribute, value):
+    text = HARBOUR.read_text()
+    kind = "float2" if "Range" in attribute else "float"
+    old = f"uniform {kind} {attribute} = "
+    start = text.index(old)                          # the first camera agent's value (ScoutWest)
+    end = text.index("\n", start)
+    (tmp_path / "maps").symlink_to(HARBOUR.parent / "maps")
+    bad = tmp_path / "harbour.usda"
+    bad.write_text(text[:start] + old + value + text[end:])
+    code = _run("simulate", bad, "-o", tmp_path / "shot", "--frames", "1:24", "--no-progress")
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert "/World/Cameras/ScoutWest" in err and attribute in err and "harbour.usda" in err
+    assert not (tmp_path / "shot" / "shot.usda").exists()

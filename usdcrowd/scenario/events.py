@@ -168,6 +168,8 @@ def read_camera_agents(stage, time: float | None = None) -> model.CameraAgentTab
     """
     from pxr import Usd, UsdGeom
 
+    from .read import range_problem
+
     frame = stage_frame(stage)
     t = time_range(stage).start if time is None else float(time)
     cache = UsdGeom.XformCache(Usd.TimeCode(t))
@@ -180,8 +182,29 @@ def read_camera_agents(stage, time: float | None = None) -> model.CameraAgentTab
         m[:3, :3] /= np.linalg.norm(m[:3, :3], axis=1, keepdims=True)
         near, far = cam.GetClippingRangeAttr().Get(t)
 
+        def fail(message, attribute):
+            raise ScenarioError(message, file=stage.GetRootLayer().identifier, prim=str(prim.GetPath()),
+                                attribute=attribute)
+
         def get(name):
-            return prim.GetAttribute(f"crowd:camera:{name}").Get()
+            value = prim.GetAttribute(f"crowd:camera:{name}").Get()
+            if isinstance(value, str) or value is None:
+                return value
+            values = [value] if isinstance(value, (int, float)) else list(value)
+            if not all(math.isfinite(float(v)) for v in values):
+                fail(f"not a finite number: {value}", f"crowd:camera:{name}")
+            # The same words as `usdcrowd validate` (one problem, one line).
+            problem = range_problem(name if name == "elevationRange" else f"camera:{name}",
+                                    value if isinstance(value, (int, float)) else tuple(values))
+            if problem:
+                fail(problem, f"crowd:camera:{name}")
+            return value
+
+        for lens in ("focalLength", "horizontalAperture", "verticalAperture"):
+            value = prim.GetAttribute(lens).Get(t)
+            if value is None or not math.isfinite(value) or value <= 0:
+                fail(f"a camera agent's lens must be > 0, got {value}", lens)
+        get("elevationRange")
 
         mode = str(get("mode"))
         if mode not in model.CAMERA_MODES:

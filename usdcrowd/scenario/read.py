@@ -41,9 +41,9 @@ def range_problem(name: str, v) -> str | None:
     elif name == "speed" and v < 0:
         return f"negative speed {v}"
     elif name in ("height", "visitBudget", "radius", "viewDuration", "camera:maxSpeed", "camera:maxForce",
-                  "camera:maxAngularSpeed") and v <= 0:
+                  "camera:maxAngularSpeed", "camera:arrivalDistance", "camera:aimAngleThreshold") and v <= 0:
         return f"must be > 0, got {v}"
-    elif name in ("maxSlope", "spawnRadius", "decayRate", "clones", "interest") and v < 0:
+    elif name in ("maxSlope", "spawnRadius", "decayRate", "clones", "interest", "camera:separationDistance") and v < 0:
         return f"must be >= 0, got {v}"
     elif name == "subclones" and v < 1:
         return f"must be >= 1, got {v}"
