@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass
+from itertools import islice
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -178,11 +179,10 @@ class InteractionTracker:
     def _record(self, key: int, start: int, end: int) -> InteractionRecord:
         """Gather the samples of pair ``key`` on frames ``start .. end``."""
         times, centers, radii = [], [], []
-        for f, t, keys, c, r in self.blocks:
-            if f < start:
-                continue
-            if f > end:
-                break
+        # Blocks are consecutive frames (one per frame while any pair runs), so
+        # the pair's frames are a slice: no walk from the oldest running start.
+        first = self.blocks[0][0] if self.blocks else start
+        for f, t, keys, c, r in islice(self.blocks, max(0, start - first), max(0, end - first + 1)):
             i = int(np.searchsorted(keys, key))
             times.append(t)
             centers.append(c[i])
