@@ -76,18 +76,22 @@ def time_range(stage) -> model.TimeRange:
 def open_stage(path: str | os.PathLike):
     """Open a USD stage, turning every way it can fail into one-line errors.
 
+    Every layer the stage is composed from (sublayers, references and
+    payloads, followed down) is checked before USD opens it: it must exist
+    and be a regular file. A FIFO or a device would make USD block forever;
+    a missing layer would only be a warning, and a shot without its crowd
+    layer would render nothing.
+
     Raises
     ------
     StageError
-        Missing file, not a USD file, or a file USD cannot parse.
+        Missing file, not a regular file, not a USD file, a file USD cannot
+        parse, or a layer it needs that is missing or unreadable.
     """
     from pxr import Tf, Usd
 
     path = os.fspath(path)
-    if not os.path.exists(path):
-        raise StageError("no such file", file=path)
-    if os.path.isdir(path):
-        raise StageError("is a folder, not a USD file", file=path)
+    _check_layers(path)
     try:
         stage = Usd.Stage.Open(path)
     except Tf.ErrorException as exc:
@@ -95,3 +99,51 @@ def open_stage(path: str | os.PathLike):
     if stage is None:
         raise StageError("not a readable USD file", file=path)
     return stage
+
+
+def _check_file(path: str, referrer: str | None = None) -> None:
+    """A layer file must exist and be a regular file (one-line errors that name who refers to it)."""
+    import stat
+
+    where = {"file": referrer} if referrer else {"file": path}
+    what = f"refers to {path}, which " if referrer else ""
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        raise StageError(f"{what}does not exist" if referrer else "no such file", **where) from None
+    except OSError as exc:
+        raise StageError(f"{what}cannot be read: {exc.strerror}", **where) from None
+    if stat.S_ISDIR(mode):
+        raise StageError(f"{what}is a folder, not a USD file", **where)
+    if not stat.S_ISREG(mode):
+        raise StageError(f"{what}is not a regular file (a pipe or a device)", **where)
+    if not os.access(path, os.R_OK):
+        raise StageError(f"{what}cannot be read: permission denied", **where)
+
+
+def _check_layers(root: str) -> None:
+    """Check the root layer and every layer it composes, depth first, each once."""
+    from pxr import Sdf, Tf
+
+    _check_file(root)
+    seen, todo = set(), [os.path.abspath(root)]
+    while todo:
+        path = todo.pop()
+        if path in seen:
+            continue
+        seen.add(path)
+        try:
+            layer = Sdf.Layer.FindOrOpen(path)
+        except Tf.ErrorException as exc:
+            raise StageError(f"not a readable USD file: {usd_error_text(exc)}", file=path) from None
+        if layer is None:
+            raise StageError("not a readable USD file", file=path)
+        for asset in layer.GetCompositionAssetDependencies():
+            # Same-layer references (empty), resolver URIs and expressions are the resolver's business.
+            if not asset or "://" in asset or "${" in asset or asset.startswith("`"):
+                continue
+            target = layer.ComputeAbsolutePath(asset)
+            if not os.path.isabs(target):
+                continue
+            _check_file(target, referrer=path)
+            todo.append(target)

@@ -1,0 +1,69 @@
+"""Layers that would hang or silently empty a command: FIFOs, devices, missing sublayers and crowd layers."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+
+import pytest
+
+from usdcrowd.cli import main
+from usdcrowd.resources import data_dir
+
+COMMANDS = {
+    "inspect": [], "validate": [], "simulate": ["-o", "{out}"], "preview": ["-o", "{out}/p.mp4"],
+    "render": ["-o", "{out}"], "cameras": [], "metrics": ["-o", "{out}"],
+}
+
+
+def _run(capsys, command, stage, out):
+    """Run one command in-process; a hang fails the test after 30 s instead of blocking the suite."""
+    argv = [command, str(stage)] + [a.format(out=out) for a in COMMANDS[command]] + (
+        ["--no-progress"] if command not in ("inspect", "validate") else [])
+
+    def _hung(*_):
+        raise TimeoutError(f"usdcrowd {command} hung on {stage}")
+
+    old = signal.signal(signal.SIGALRM, _hung)
+    signal.alarm(30)
+    try:
+        code = main(argv)
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)
+    err = capsys.readouterr().err
+    return code, err
+
+
+@pytest.fixture
+def layers(tmp_path):
+    """A FIFO stage, a stage whose sublayer is a FIFO, and one whose sublayer is missing."""
+    os.mkfifo(tmp_path / "pipe.usda")
+    (tmp_path / "on_pipe.usda").write_text('#usda 1.0\n(\n    subLayers = [@./pipe.usda@]\n)\n')
+    (tmp_path / "on_missing.usda").write_text('#usda 1.0\n(\n    subLayers = [@./gone.usda@]\n)\n')
+    return tmp_path
+
+
+@pytest.mark.parametrize("command", sorted(COMMANDS))
+def test_a_fifo_stage_or_sublayer_is_refused_at_once_by_every_command(layers, capsys, command):
+    out = layers / f"out_{command}"
+    for stage, words in (("pipe.usda", "not a regular file"), ("on_pipe.usda", "not a regular file"),
+                         ("on_missing.usda", "does not exist")):
+        code, err = _run(capsys, command, layers / stage, out)
+        assert code == 2 and err.count("\n") == 1, (stage, err)
+        assert words in err and stage in err, err
+        assert not out.exists() or not any(out.iterdir())
+
+
+def test_a_shot_without_its_crowd_layer_is_an_error_not_an_empty_render(tmp_path, capsys):
+    scenario = tmp_path / "museum.usda"
+    assert main(["new", "museum", "-o", str(scenario), "--agents", "6"]) == 0
+    shot = tmp_path / "shot"
+    assert main(["simulate", str(scenario), "-o", str(shot), "--frames", "1:12", "--no-progress"]) == 0
+    capsys.readouterr()
+    (shot / "crowd.usdc").unlink()
+    for command in ("render", "preview", "cameras", "inspect"):
+        code, err = _run(capsys, command, shot / "shot.usda", tmp_path / f"out_{command}")
+        assert code == 2 and "crowd.usdc" in err and "does not exist" in err, (command, err)
+    shutil.rmtree(shot)
