@@ -25,3 +25,26 @@ def atomic_path(final: str | os.PathLike):
     finally:
         if tmp.exists():
             tmp.unlink()
+
+
+def output_dir(path: str | os.PathLike) -> Path:
+    """The folder ``path``, created if needed; a one-line error if it cannot be an output folder.
+
+    Raises
+    ------
+    UsdcrowdError
+        ``path`` exists and is not a folder (a file, /dev/null), cannot be
+        created, or cannot be written to.
+    """
+    from .errors import UsdcrowdError
+
+    out = Path(path)
+    if out.exists() and not out.is_dir():
+        raise UsdcrowdError("exists and is not a folder: give a folder for the outputs", file=os.fspath(out))
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UsdcrowdError(f"cannot create the output folder: {exc.strerror}", file=os.fspath(out)) from None
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise UsdcrowdError("cannot write to the output folder: permission denied", file=os.fspath(out))
+    return out

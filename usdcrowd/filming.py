@@ -153,14 +153,13 @@ def evaluate_shot(shot_path: str | os.PathLike, out_dir: str | os.PathLike, coun
     dict
         ``{N: {"autonomous": summary, "static": summary}}``.
     """
-    from .atomic import atomic_path
+    from .atomic import atomic_path, output_dir
     from .cameras.metrics import active_mask, coverage
     from .pipeline import film_cameras
     from .plots import coverage_plot
 
     sc = load_shot(shot_path, progress=progress)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_dir(out_dir)
     active = active_mask(sc.events, sc.scenario.time.codes, len(sc.scenario.agents))
     centres, spreads = crowd_summary(sc.positions, sc.scenario.agents.visible)
     results = {}

@@ -88,6 +88,7 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     """
     from pxr import Sdf, UsdLux
 
+    from .atomic import output_dir
     from .events import EventDetector
     from .events.scenario import layer_events
     from .plots import trajectory_map
@@ -110,7 +111,7 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     default_prim = stage.GetDefaultPrim().GetName() if stage.GetDefaultPrim() else ""
     authored = {p for p in scenario.agents.path if stage.GetPrimAtPath(p)}
     has_lights = any(p.HasAPI(UsdLux.LightAPI) for p in stage.Traverse())
-    out_dir.mkdir(parents=True, exist_ok=True)
+    output_dir(out_dir)
     scenario_ref = os.path.relpath(os.path.abspath(scenario_path), out_dir.resolve())
 
     writer = CrowdLayerWriter(out_dir / CROWD, scenario, sframe, default_prim, scenario_ref, authored)

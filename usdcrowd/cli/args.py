@@ -64,11 +64,19 @@ def add_resolution(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--resolution", type=_resolution, metavar="WxH", help="image size, e.g. 640x360")
 
 
+# Largest image side accepted (OpenGL's usual texture limit; 16384 x 16384 float RGBA
+# is already 4 GiB in a renderer's film).
+MAX_RESOLUTION = 16384
+
+
 def _resolution(spec: str) -> tuple[int, int]:
     m = re.match(r"^(\d+)x(\d+)$", spec.strip())
     if not m or int(m.group(1)) < 1 or int(m.group(2)) < 1:
         raise argparse.ArgumentTypeError(f"bad resolution {spec!r}: use WIDTHxHEIGHT, e.g. 640x360")
-    return int(m.group(1)), int(m.group(2))
+    w, h = int(m.group(1)), int(m.group(2))
+    if max(w, h) > MAX_RESOLUTION:
+        raise argparse.ArgumentTypeError(f"resolution {spec!r} too large: at most {MAX_RESOLUTION} pixels a side")
+    return w, h
 
 
 def add_progress(parser: argparse.ArgumentParser) -> None:

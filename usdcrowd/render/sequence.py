@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import atomic_path
+from ..atomic import atomic_path, output_dir
 from ..errors import UsdcrowdError
 
 MANIFEST = "manifest.json"
@@ -383,7 +383,7 @@ def render_sequence(shot_path, out_dir, camera: str | None = None, frames=None,
     if executor not in ("local", "inline", "ray"):
         raise UsdcrowdError(f"unknown executor {executor!r} (local, inline, ray)")
     settings.variant = _variant.choose_variant(settings.variant)
-    out.mkdir(parents=True, exist_ok=True)
+    output_dir(out)
     header = {"shot": shot_path, "camera": cam_path, "settings": settings.fingerprint()}
     manifest = Manifest(out, header)
     done = [float(t) for t in times if verify_frame(out, t, manifest, settings)]

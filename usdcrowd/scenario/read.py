@@ -33,6 +33,11 @@ _LENGTHS = ("spawnRadius",)
 def range_problem(name: str, v) -> str | None:
     """What is wrong with value ``v`` of crowd:``name`` (the schema's documented
     constraints), or None."""
+    if isinstance(v, str):
+        return None                 # tokens: checked against the schema's allowedTokens (_Reader.check_type)
+    values = v if isinstance(v, (tuple, list)) else (v,)
+    if any(isinstance(x, float) and not math.isfinite(x) for x in values):
+        return f"not a finite number: {v}"
     if name in ("speedRange", "heightRange", "elevationRange"):
         low_ok = v[0] > 0 if name == "heightRange" else v[0] >= 0
         if not low_ok or v[1] < v[0]:
@@ -74,6 +79,7 @@ class _Reader:
             attr = prim.GetAttribute(f"crowd:{name}")
             if not attr or not attr.HasAuthoredValue():
                 continue
+            self.check_type(prim, attr)
             value = attr.Get()
             if isinstance(value, bool):
                 pass
@@ -94,6 +100,22 @@ class _Reader:
         if problem:
             self.fail(problem, prim, f"crowd:{name}")
 
+    def check_type(self, prim, attr):
+        """An attribute authored with another type than the schema's (clones as a string) is refused."""
+        spec = prim.GetPrimDefinition().GetSchemaAttributeSpec(attr.GetName())
+        if spec is None:
+            return
+        # The composed attribute reports the schema's type; what was authored is in its specs.
+        for authored in attr.GetPropertyStack():
+            if authored.typeName != spec.typeName:
+                self.fail(f"authored as {authored.typeName}, the schema's type is {spec.typeName}", prim,
+                          attr.GetName())
+        allowed = spec.GetInfo("allowedTokens") if spec.typeName == "token" else None
+        value = attr.Get()
+        if allowed and value is not None and str(value) not in [str(t) for t in allowed]:
+            # The words `usdcrowd validate` uses for the same problem.
+            self.fail(f"{str(value)!r} is not one of {', '.join(str(t) for t in allowed)}", prim, attr.GetName())
+
     def goal_waypoints(self, prim, start: float):
         """(times, points, goal at ``start``) of a time-sampled crowd:goal, canonical metres; else None."""
         attr = prim.GetAttribute("crowd:goal")
@@ -106,9 +128,14 @@ class _Reader:
         return times, pts, tuple(current)
 
     def get(self, prim, name):
-        """Value (authored or fallback) of crowd:name, range-checked."""
-        value = prim.GetAttribute(f"crowd:{name}").Get()
-        if isinstance(value, (int, float)) and not isinstance(value, bool):
+        """Value (authored or fallback) of crowd:name, type- and range-checked."""
+        attr = prim.GetAttribute(f"crowd:{name}")
+        if attr and attr.HasAuthoredValue():
+            self.check_type(prim, attr)
+        value = attr.Get()
+        if isinstance(value, str):
+            self.check(prim, name, value)
+        elif isinstance(value, (int, float)) and not isinstance(value, bool):
             self.check(prim, name, value)
         elif hasattr(value, "__len__") and not isinstance(value, str) and len(value) in (2, 3):
             self.check(prim, name, tuple(value))

@@ -70,7 +70,15 @@ def time_range(stage) -> model.TimeRange:
     if not stage.HasAuthoredTimeCodeRange():
         return DEFAULT_TIME
     fps = stage.GetTimeCodesPerSecond() or DEFAULT_TIME.fps
-    return model.TimeRange(float(stage.GetStartTimeCode()), float(stage.GetEndTimeCode()), float(fps))
+    start, end = float(stage.GetStartTimeCode()), float(stage.GetEndTimeCode())
+    source = stage.GetRootLayer().identifier
+    if not (np.isfinite(start) and np.isfinite(end)) or end < start:
+        raise StageError(f"endTimeCode {end:g} is before startTimeCode {start:g}" if end < start else
+                         f"time codes must be finite, got {start:g} to {end:g}", file=source,
+                         attribute="endTimeCode")
+    if not (np.isfinite(fps) and fps > 0):
+        raise StageError(f"timeCodesPerSecond must be > 0, got {fps:g}", file=source, attribute="timeCodesPerSecond")
+    return model.TimeRange(start, end, float(fps))
 
 
 def open_stage(path: str | os.PathLike):

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...atomic import atomic_path
+from ...atomic import atomic_path, output_dir
 from ...errors import UsdcrowdError
 
 _PIP_HINT = "install usdcrowd[preview] (pip install 'usdcrowd[preview]')"
@@ -209,7 +209,7 @@ def render_shot(shot_path, out_dir, *, camera=None, resolution=(640, 360), frame
     from .renderer import PreviewRenderer
 
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    output_dir(out)
     r = PreviewRenderer(shot_path, *resolution)
     try:
         times = np.asarray(frames) if frames is not None else r.scene.time_codes[:max_frames]

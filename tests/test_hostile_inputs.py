@@ -1,0 +1,125 @@
+"""Hostile and careless inputs: layers that would hang or silently empty a command, bad values, bad outputs."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+
+import pytest
+
+from usdcrowd.cli import main
+from usdcrowd.resources import data_dir
+
+COMMANDS = {
+    "inspect": [], "validate": [], "simulate": ["-o", "{out}"], "preview": ["-o", "{out}/p.mp4"],
+    "render": ["-o", "{out}"], "cameras": [], "metrics": ["-o", "{out}"],
+}
+
+
+def _run(capsys, command, stage, out):
+    """Run one command in-process; a hang fails the test after 30 s instead of blocking the suite."""
+    argv = [command, str(stage)] + [a.format(out=out) for a in COMMANDS[command]] + (
+        ["--no-progress"] if command not in ("inspect", "validate") else [])
+
+    def _hung(*_):
+        raise TimeoutError(f"usdcrowd {command} hung on {stage}")
+
+    old = signal.signal(signal.SIGALRM, _hung)
+    signal.alarm(30)
+    try:
+        code = main(argv)
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)
+    err = capsys.readouterr().err
+    return code, err
+
+
+@pytest.fixture
+def layers(tmp_path):
+    """A FIFO stage, a stage whose sublayer is a FIFO, and one whose sublayer is missing."""
+    os.mkfifo(tmp_path / "pipe.usda")
+    (tmp_path / "on_pipe.usda").write_text('#usda 1.0\n(\n    subLayers = [@./pipe.usda@]\n)\n')
+    (tmp_path / "on_missing.usda").write_text('#usda 1.0\n(\n    subLayers = [@./gone.usda@]\n)\n')
+    return tmp_path
+
+
+@pytest.mark.parametrize("command", sorted(COMMANDS))
+def test_a_fifo_stage_or_sublayer_is_refused_at_once_by_every_command(layers, capsys, command):
+    out = layers / f"out_{command}"
+    for stage, words in (("pipe.usda", "not a regular file"), ("on_pipe.usda", "not a regular file"),
+                         ("on_missing.usda", "does not exist")):
+        code, err = _run(capsys, command, layers / stage, out)
+        assert code == 2 and err.count("\n") == 1, (stage, err)
+        assert words in err and stage in err, err
+        assert not out.exists() or not any(out.iterdir())
+
+
+def test_a_shot_without_its_crowd_layer_is_an_error_not_an_empty_render(tmp_path, capsys):
+    scenario = tmp_path / "museum.usda"
+    assert main(["new", "museum", "-o", str(scenario), "--agents", "6"]) == 0
+    shot = tmp_path / "shot"
+    assert main(["simulate", str(scenario), "-o", str(shot), "--frames", "1:12", "--no-progress"]) == 0
+    capsys.readouterr()
+    (shot / "crowd.usdc").unlink()
+    for command in ("render", "preview", "cameras", "inspect"):
+        code, err = _run(capsys, command, shot / "shot.usda", tmp_path / f"out_{command}")
+        assert code == 2 and "crowd.usdc" in err and "does not exist" in err, (command, err)
+    shutil.rmtree(shot)
+
+
+@pytest.fixture
+def museum(tmp_path):
+    """A small museum scenario's text and a writer for broken copies of it."""
+    path = tmp_path / "museum.usda"
+    assert main(["new", "museum", "-o", str(path), "--agents", "6"]) == 0
+    text = path.read_text()
+
+    def broken(old_pattern: str, new: str, name: str):
+        import re
+
+        m = re.search(old_pattern, text)
+        assert m, old_pattern
+        bad = tmp_path / name
+        bad.write_text(text[:m.start()] + new + text[m.end():])
+        return bad
+
+    return broken
+
+
+@pytest.mark.parametrize("pattern, new, words, where", [
+    (r'uniform token crowd:behavior = "\w+"', 'uniform token crowd:behavior = "fly"', "'fly' is not one of",
+     "crowd:behavior"),
+    (r"uniform int crowd:clones = \d+", 'uniform string crowd:clones = "3"', "authored as string",
+     "crowd:clones"),
+    (r"endTimeCode = \d+", "endTimeCode = -5", "before startTimeCode", "endTimeCode"),
+    (r"uniform float crowd:height = [\d.]+", "uniform float crowd:height = nan", "not a finite number",
+     "crowd:height"),
+])
+def test_bad_values_are_one_line_errors_in_simulate_and_validate(museum, tmp_path, capsys, pattern, new, words,
+                                                                 where):
+    bad = museum(pattern, new, "bad.usda")
+    capsys.readouterr()
+    out = tmp_path / "shot"
+    assert main(["simulate", str(bad), "-o", str(out), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and words in err and where in err and "bad.usda" in err, err
+    assert not (out / "shot.usda").exists()
+    assert main(["validate", str(bad)]) == 1
+    report = capsys.readouterr().out
+    assert words in report and where in report
+
+
+def test_output_paths_that_are_not_folders_and_huge_images_are_refused(museum, tmp_path, capsys):
+    scenario = museum(r"endTimeCode = \d+", "endTimeCode = 12", "short.usda")
+    (tmp_path / "a_file").write_text("")
+    for out in (tmp_path / "a_file", "/dev/null"):
+        assert main(["simulate", str(scenario), "-o", str(out), "--no-progress"]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "is not a folder" in err
+    assert main(["simulate", str(scenario), "-o", str(tmp_path / "shot"), "--no-progress"]) == 0
+    with pytest.raises(SystemExit) as ex:
+        main(["preview", str(tmp_path / "shot" / "shot.usda"), "--resolution", "100000x100000", "-o",
+              str(tmp_path / "p.mp4")])
+    assert ex.value.code == 2 and "too large" in capsys.readouterr().err
