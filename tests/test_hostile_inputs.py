@@ -123,3 +123,27 @@ def test_output_paths_that_are_not_folders_and_huge_images_are_refused(museum, t
         main(["preview", str(tmp_path / "shot" / "shot.usda"), "--resolution", "100000x100000", "-o",
               str(tmp_path / "p.mp4")])
     assert ex.value.code == 2 and "too large" in capsys.readouterr().err
+
+
+def test_resource_bounds_refuse_early_and_options_raise_them(museum, tmp_path, capsys):
+    big = museum(r"uniform int crowd:clones = \d+", "uniform int crowd:clones = 1000000000", "big.usda")
+    long = museum(r"endTimeCode = \d+", "endTimeCode = 100000000", "long.usda")
+    capsys.readouterr()
+    for argv, words in (
+            (["simulate", str(big), "-o", str(tmp_path / "o1")], "--max-agents"),
+            (["inspect", str(big)], "--max-agents"),
+            (["simulate", str(long), "-o", str(tmp_path / "o2")], "--max-frames"),
+    ):
+        assert main(argv + (["--no-progress"] if argv[0] == "simulate" else [])) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and words in err, err
+    assert main(["validate", str(big)]) == 1 and "--max-agents" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as ex:
+        main(["simulate", str(long), "-o", str(tmp_path / "o3"), "--frames", "1:100000000"])
+    assert ex.value.code == 2 and "at most" in capsys.readouterr().err
+    # The harbour's 256 x 256 px water map, refused under a 1,000-pixel bound, accepted by default.
+    harbour = data_dir("stages") / "harbour.usda"
+    assert main(["inspect", str(harbour), "--max-image-pixels", "1000"]) == 2
+    err = capsys.readouterr().err
+    assert "harbour_water.png" in err and "--max-image-pixels" in err and "crowd:image" in err
+    assert main(["inspect", str(harbour)]) == 0

@@ -43,7 +43,8 @@ def _progress(total: int, desc: str, enabled: bool):
 
 def simulate_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike, seed: int | None = None,
                   frames: tuple[float, float] | None = None, progress: bool = True,
-                  chunk_frames: int = 48, camera_count: int | None = None, events: bool = True) -> ShotResult:
+                  chunk_frames: int = 48, camera_count: int | None = None, events: bool = True,
+                  limits=None) -> ShotResult:
     """Simulate a scenario and write shot.usda, crowd.usdc and cameras.usda in ``out_dir``.
 
     Parameters
@@ -66,6 +67,8 @@ def simulate_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike, 
     events : bool
         Detect events (False: only the authored ones; camera agents then
         scout unless they track those).
+    limits : usdcrowd.limits.Limits, optional
+        Largest agent count, frame count and image accepted (default: the defaults).
     """
     def crowd(scenario):
         from .sim import SimSettings, simulate_chunks
@@ -73,13 +76,14 @@ def simulate_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike, 
         return simulate_chunks(scenario, SimSettings(chunk_frames=chunk_frames))
 
     return author_shot(scenario_path, out_dir, crowd, seed=seed, frames=frames, progress=progress,
-                       camera_count=camera_count, events=events)
+                       camera_count=camera_count, events=events, limits=limits)
 
 
 def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
                 crowd_source: Callable[[model.Scenario], Iterable[model.CrowdFrames]],
                 seed: int | None = None, frames: tuple[float, float] | None = None,
-                progress: bool = True, camera_count: int | None = None, events: bool = True) -> ShotResult:
+                progress: bool = True, camera_count: int | None = None, events: bool = True,
+                limits=None) -> ShotResult:
     """Read a scenario, take its crowd from ``crowd_source`` and write the shot.
 
     ``crowd_source(scenario)`` yields consecutive :class:`CrowdFrames` chunks
@@ -101,9 +105,16 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     scenario_path = os.fspath(scenario_path)
     out_dir = Path(out_dir)
     stage = open_stage(scenario_path)
-    scenario = load_scenario(scenario_path, seed=seed, stage=stage)
+    from .errors import ScenarioError
+    from .limits import DEFAULT
+
+    limits = limits or DEFAULT
+    scenario = load_scenario(scenario_path, seed=seed, stage=stage, limits=limits)
     if frames is not None:
         scenario.time = model.TimeRange(float(frames[0]), float(frames[1]), scenario.time.fps)
+        if scenario.time.n_frames > limits.max_frames:
+            raise ScenarioError(f"{scenario.time.n_frames:,} frames: more than the {limits.max_frames:,} accepted "
+                                f"(raise it with --max-frames)", attribute="--frames")
         # The authored events, sampled (and clamped) over the frames simulated.
         scenario.events = read_events(stage, {p: i for i, p in enumerate(scenario.agents.path)}, scenario.time,
                                       agent_ids=scenario.agents.agent_id)

@@ -15,7 +15,7 @@ import numpy as np
 from . import model, schema
 
 
-def summarize(path: str | os.PathLike, stage=None) -> dict:
+def summarize(path: str | os.PathLike, stage=None, limits=None) -> dict:
     """Collect the summary of a stage as plain JSON-able data."""
     from pxr import UsdGeom, UsdLux
 
@@ -39,7 +39,7 @@ def summarize(path: str | os.PathLike, stage=None) -> dict:
     }
     has_crowd = any(p.GetTypeName() == schema.GROUP or schema.is_agent(p) for p in stage.Traverse())
     if has_crowd:
-        sc = load_scenario(path, stage=stage)
+        sc = load_scenario(path, stage=stage, **({'limits': limits} if limits else {}))
         out["groups"] = _groups(stage, sc)
         out["agents"] = _agents(sc)
         out["behaviorLayers"] = [{

@@ -134,20 +134,20 @@ def schema_problems(stage, source: str) -> list[Problem]:
     return out
 
 
-def scenario_problem(stage, source: str) -> list[Problem]:
+def scenario_problem(stage, source: str, limits=None) -> list[Problem]:
     """The first structural problem the scenario reader finds (empty group, missing image...)."""
     from .scenario import load_scenario
 
     if not any(p.GetTypeName() == schema.GROUP or schema.is_agent(p) for p in stage.Traverse()):
         return []
     try:
-        load_scenario(source, stage=stage)
+        load_scenario(source, stage=stage, **({"limits": limits} if limits else {}))
     except UsdcrowdError as exc:
         return [Problem(exc.file or source, exc.prim or "", exc.attribute or "", exc.message, "usdcrowd")]
     return []
 
 
-def validate(path: str | os.PathLike, stage=None) -> list[Problem]:
+def validate(path: str | os.PathLike, stage=None, limits=None) -> list[Problem]:
     """Every problem found in a stage; errors first. Empty means valid."""
     from .scenario import open_stage
 
@@ -155,5 +155,5 @@ def validate(path: str | os.PathLike, stage=None) -> list[Problem]:
     stage = stage or open_stage(source)
     found = usd_problems(stage, source) + schema_problems(stage, source)
     seen = {(p.prim, p.attribute, p.message) for p in found}
-    found += [p for p in scenario_problem(stage, source) if (p.prim, p.attribute, p.message) not in seen]
+    found += [p for p in scenario_problem(stage, source, limits) if (p.prim, p.attribute, p.message) not in seen]
     return sorted(found, key=lambda p: (p.severity != "error", p.prim, p.attribute))

@@ -8,6 +8,8 @@ import re
 
 import numpy as np
 
+# Frames a --frames spec may name at all (--max-frames then bounds a shot's length).
+MAX_FRAME_SPEC = 10_000_000
 _FRAMES = re.compile(r"^\s*(-?\d+(?:\.\d+)?)\s*(?::\s*(-?\d+(?:\.\d+)?)\s*(?:x\s*(\d+(?:\.\d+)?))?)?\s*$")
 
 
@@ -27,8 +29,11 @@ def parse_frames(spec: str) -> np.ndarray:
     stride = float(m.group(3)) if m.group(3) is not None else 1.0
     if end < start or stride <= 0:
         raise argparse.ArgumentTypeError(f"bad frame spec {spec!r}: need START <= END and STRIDE > 0")
+    count = int((end - start) // stride) + 1
+    if count > MAX_FRAME_SPEC:              # before an array of them is made
+        raise argparse.ArgumentTypeError(f"frame spec {spec!r} names {count:,} frames: at most {MAX_FRAME_SPEC:,}")
     # Inclusive of END only when the stride lands on it (1:48x12 -> 1, 13, 25, 37).
-    return np.arange(start, end + 1e-9, stride)
+    return start + stride * np.arange(count, dtype=np.float64)
 
 
 def int_at_least(minimum: int):
@@ -77,6 +82,25 @@ def _resolution(spec: str) -> tuple[int, int]:
     if max(w, h) > MAX_RESOLUTION:
         raise argparse.ArgumentTypeError(f"resolution {spec!r} too large: at most {MAX_RESOLUTION} pixels a side")
     return w, h
+
+
+def add_limits(parser: argparse.ArgumentParser) -> None:
+    """--max-agents, --max-frames, --max-image-pixels: raise the resource bounds (usdcrowd.limits)."""
+    from ..limits import DEFAULT
+
+    parser.add_argument("--max-agents", type=int_at_least(1), default=DEFAULT.max_agents, metavar="N",
+                        help=f"refuse scenarios with more agents (default {DEFAULT.max_agents:,})")
+    parser.add_argument("--max-frames", type=int_at_least(1), default=DEFAULT.max_frames, metavar="N",
+                        help=f"refuse shots with more frames (default {DEFAULT.max_frames:,})")
+    parser.add_argument("--max-image-pixels", type=int_at_least(1), default=DEFAULT.max_image_pixels, metavar="N",
+                        help=f"refuse larger behavior-map images (default {DEFAULT.max_image_pixels:,})")
+
+
+def limits_of(args):
+    """The Limits the options of :func:`add_limits` ask for."""
+    from ..limits import Limits
+
+    return Limits(args.max_agents, args.max_frames, args.max_image_pixels)
 
 
 def add_progress(parser: argparse.ArgumentParser) -> None:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .args import add_frames, add_progress, add_seed
+from .args import add_frames, add_limits, add_progress, add_seed, limits_of
 
 
 def add_parser(sub):
@@ -16,6 +16,7 @@ def add_parser(sub):
                         "or track the scenario's own events)")
     add_seed(p)
     add_frames(p)
+    add_limits(p)
     add_progress(p)
     p.set_defaults(run=run)
 
@@ -25,7 +26,7 @@ def run(args) -> int:
 
     frames = (float(args.frames[0]), float(args.frames[-1])) if args.frames is not None else None
     r = simulate_shot(args.stage, args.output, seed=args.seed, frames=frames, progress=args.progress,
-                      events=args.events)
+                      events=args.events, limits=limits_of(args))
     print(f"wrote {r.shot}: {r.n_agents} agents x {r.n_frames} frames, seed {r.seed}")
     print(f"  crowd   {r.crowd}")
     print(f"  cameras {r.cameras}")

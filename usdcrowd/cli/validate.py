@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from .args import add_limits, limits_of
+
 
 def add_parser(sub):
     p = sub.add_parser("validate", help="check a stage with USD's validators and the crowd schema rules",
@@ -9,13 +11,14 @@ def add_parser(sub):
                                    "Exit 0 when no error is found, 1 otherwise.")
     p.add_argument("stage", help="a .usda/.usdc/.usd stage")
     p.add_argument("--strict", action="store_true", help="count warnings as errors")
+    add_limits(p)
     p.set_defaults(run=run)
 
 
 def run(args) -> int:
     from ..validation import validate
 
-    problems = validate(args.stage)
+    problems = validate(args.stage, limits=limits_of(args))
     for p in problems:
         print(p)
     errors = [p for p in problems if p.severity == "error" or (args.strict and p.severity == "warning")]

@@ -15,6 +15,8 @@ import numpy as np
 
 from .. import model, schema
 from ..errors import ScenarioError
+from ..limits import DEFAULT as DEFAULT_LIMITS
+from ..limits import Limits
 from .attributes import INHERITED, AgentSpec, GroupSpec, inherited_values, resolve_group_members
 from .events import read_camera_agents, read_events
 from .stageio import StageFrame, open_stage, stage_frame, time_range
@@ -67,6 +69,7 @@ class _Reader:
         from pxr import Usd, UsdGeom
 
         self.xcache = UsdGeom.XformCache(Usd.TimeCode.Default())
+        self.limits = DEFAULT_LIMITS
 
     def fail(self, msg, prim=None, attr=None):
         raise ScenarioError(msg, file=self.source, prim=str(prim.GetPath()) if prim else None, attribute=attr)
@@ -164,7 +167,8 @@ def stored_seed(stage) -> int | None:
     return int(data["seed"]) if "seed" in data else None
 
 
-def load_scenario(path: str | os.PathLike, seed: int | None = None, stage=None) -> model.Scenario:
+def load_scenario(path: str | os.PathLike, seed: int | None = None, stage=None,
+                  limits: Limits = DEFAULT_LIMITS) -> model.Scenario:
     """Read a scenario stage into arrays.
 
     Parameters
@@ -175,6 +179,8 @@ def load_scenario(path: str | os.PathLike, seed: int | None = None, stage=None) 
         Seed of the run; default: the one recorded in the stage, else 0.
     stage : Usd.Stage, optional
         An already opened stage for ``path``.
+    limits : Limits
+        Largest agent count, frame count and behavior-map image accepted.
 
     Raises
     ------
@@ -186,6 +192,11 @@ def load_scenario(path: str | os.PathLike, seed: int | None = None, stage=None) 
     source = os.fspath(path)
     stage = stage or open_stage(source)
     r = _Reader(stage, source)
+    r.limits = limits
+    n_frames = time_range(stage).n_frames
+    if n_frames > limits.max_frames:
+        raise ScenarioError(f"{n_frames:,} frames: more than the {limits.max_frames:,} accepted "
+                            f"(raise it with --max-frames)", file=source, attribute="endTimeCode")
     if seed is None:
         seed = stored_seed(stage) or 0
 
@@ -206,6 +217,10 @@ def load_scenario(path: str | os.PathLike, seed: int | None = None, stage=None) 
             parent = _nearest_group(prim, group_row)
             clones = int(r.get(prim, "clones"))
             subclones = int(r.get(prim, "subclones"))
+            total_clones = sum(g.clones for g in groups) + clones
+            if total_clones > limits.max_agents:        # before anything is allocated for them
+                r.fail(f"{total_clones:,} clones: more than the {limits.max_agents:,} agents accepted "
+                       f"(raise it with --max-agents)", prim, "crowd:clones")
             group_row[path] = len(groups)
             authored = r.authored(prim, INHERITED)
             schedule = r.goal_waypoints(prim, time_range(stage).start)
@@ -447,9 +462,15 @@ def _read_image(r: _Reader, prim, vrange) -> np.ndarray:
     if not resolved or not os.path.isfile(resolved):
         r.fail(f"image @{asset.path}@ not found", prim, "crowd:image")
     try:
-        with Image.open(resolved) as im:
+        with Image.open(resolved) as im:      # lazy: the size is known before any pixel is decoded
+            w, h = im.size
+            if w * h > r.limits.max_image_pixels:
+                r.fail(f"image @{asset.path}@ is {w} x {h}: more than the {r.limits.max_image_pixels:,} pixels "
+                       f"accepted (raise it with --max-image-pixels)", prim, "crowd:image")
             mode = im.mode
             arr = np.asarray(im)
+    except ScenarioError:
+        raise
     except Exception as exc:
         r.fail(f"image @{asset.path}@ cannot be read ({exc.__class__.__name__})", prim, "crowd:image")
     if arr.ndim == 3:
