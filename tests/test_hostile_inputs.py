@@ -147,3 +147,52 @@ def test_resource_bounds_refuse_early_and_options_raise_them(museum, tmp_path, c
     err = capsys.readouterr().err
     assert "harbour_water.png" in err and "--max-image-pixels" in err and "crowd:image" in err
     assert main(["inspect", str(harbour)]) == 0
+
+
+def test_a_rerun_removes_what_an_interrupted_run_left_half_written(museum, tmp_path, capsys):
+    scenario = museum(r"endTimeCode = \d+", "endTimeCode = 6", "short.usda")
+    shot = tmp_path / "shot"
+    (shot / "json").mkdir(parents=True)
+    left = [shot / ".trajectories.partial-0a1b2c3d.png", shot / ".cameras.partial-deadbeef.usda",
+            shot / "json" / ".frame.0002.partial-12345678.json"]
+    for path in left:
+        path.write_bytes(b"")
+    mine = shot / "notes.partial.txt"            # not a name usdcrowd makes: left alone
+    mine.write_text("keep")
+    assert main(["simulate", str(scenario), "-o", str(shot), "--no-progress"]) == 0
+    assert not any(p.exists() for p in left) and mine.read_text() == "keep"
+    assert not list(shot.rglob(".*partial*"))
+
+
+@pytest.mark.parametrize("counts, indices, words, attribute", [
+    ("[4, 4]", "[0, 1, 2, 3]", "the faces use 8 indices", "faceVertexCounts"),
+    ("[4]", "[0, 1, 2, 7]", "index 7 is outside the 4 points", "faceVertexIndices"),
+    ("[2, 2]", "[0, 1, 2, 3]", "a face has 2 vertices", "faceVertexCounts"),
+])
+def test_broken_meshes_are_one_line_errors(tmp_path, capsys, counts, indices, words, attribute):
+    stage = tmp_path / "mesh.usda"
+    stage.write_text(f"""#usda 1.0
+(
+    defaultPrim = "World"
+    startTimeCode = 1
+    endTimeCode = 6
+)
+def Xform "World"
+{{
+    def CrowdGroup "Crowd"
+    {{
+        uniform int crowd:clones = 2
+    }}
+    def Mesh "Wall"
+    {{
+        int[] faceVertexCounts = {counts}
+        int[] faceVertexIndices = {indices}
+        point3f[] points = [(0, 0, 0), (1, 0, 0), (1, 0, 3), (0, 0, 3)]
+    }}
+}}
+""")
+    assert main(["simulate", str(stage), "-o", str(tmp_path / "shot"), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and words in err and f"/World/Wall.{attribute}" in err and "mesh.usda" in err
+    assert main(["validate", str(stage)]) == 1
+    assert words in capsys.readouterr().out

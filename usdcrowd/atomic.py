@@ -4,8 +4,12 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import uuid
 from pathlib import Path
+
+# The temporary names atomic_path makes: ".<stem>.partial-<8 hex><suffix>".
+_PARTIAL = re.compile(r"^\..+\.partial-[0-9a-f]{8}(\.[^/]*)?$")
 
 
 @contextlib.contextmanager
@@ -27,8 +31,31 @@ def atomic_path(final: str | os.PathLike):
             tmp.unlink()
 
 
+def clean_partials(folder: str | os.PathLike, depth: int = 2) -> int:
+    """Remove the temporary files an interrupted run left in ``folder`` (and its subfolders, ``depth`` deep).
+
+    Only names :func:`atomic_path` makes are touched. Returns how many were removed.
+    """
+    removed = 0
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return 0
+    for entry in entries:
+        if entry.is_dir(follow_symlinks=False) and depth > 0:
+            removed += clean_partials(entry.path, depth - 1)
+        elif entry.is_file(follow_symlinks=False) and _PARTIAL.match(entry.name):
+            with contextlib.suppress(OSError):
+                os.unlink(entry.path)
+                removed += 1
+    return removed
+
+
 def output_dir(path: str | os.PathLike) -> Path:
     """The folder ``path``, created if needed; a one-line error if it cannot be an output folder.
+
+    What an interrupted run left there half-written (temporary ``.partial``
+    files) is removed.
 
     Raises
     ------
@@ -47,4 +74,5 @@ def output_dir(path: str | os.PathLike) -> Path:
         raise UsdcrowdError(f"cannot create the output folder: {exc.strerror}", file=os.fspath(out)) from None
     if not os.access(out, os.W_OK | os.X_OK):
         raise UsdcrowdError("cannot write to the output folder: permission denied", file=os.fspath(out))
+    clean_partials(out)
     return out

@@ -45,6 +45,28 @@ def triangulate(counts: np.ndarray, indices: np.ndarray) -> np.ndarray:
     return np.stack([indices[base], indices[base + k + 1], indices[base + k + 2]], 1).astype(np.int32)
 
 
+def _check_topology(prim, points: np.ndarray, counts: np.ndarray, indices: np.ndarray) -> None:
+    """A mesh whose faces cannot be built is the user's mistake: one line naming the prim and attribute."""
+    from .errors import StageError
+
+    def fail(message, attribute):
+        attr = prim.GetAttribute(attribute)
+        stack = attr.GetPropertyStack() if attr else []
+        layer = stack[0].layer.identifier if stack else prim.GetStage().GetRootLayer().identifier
+        raise StageError(message, file=layer, prim=str(prim.GetPath()), attribute=attribute)
+
+    if not np.isfinite(points).all():
+        fail("points must be finite numbers", "points")
+    if len(counts) and counts.min() < 3:
+        fail(f"a face has {int(counts.min())} vertices (at least 3)", "faceVertexCounts")
+    if int(counts.sum()) != len(indices):
+        fail(f"the faces use {int(counts.sum())} indices but faceVertexIndices has {len(indices)}",
+             "faceVertexCounts")
+    if len(indices) and (indices.min() < 0 or indices.max() >= len(points)):
+        bad = int(indices.min() if indices.min() < 0 else indices.max())
+        fail(f"index {bad} is outside the {len(points)} points", "faceVertexIndices")
+
+
 def mesh_of(prim) -> MeshData | None:
     """Triangles of a gprim in its local space (stage units; scaled later by the world matrix)."""
     import trimesh
@@ -55,7 +77,10 @@ def mesh_of(prim) -> MeshData | None:
         points = m.GetPointsAttr().Get()
         if points is None or len(points) == 0:
             return None
-        faces = triangulate(m.GetFaceVertexCountsAttr().Get(), m.GetFaceVertexIndicesAttr().Get())
+        counts = np.asarray(m.GetFaceVertexCountsAttr().Get() or [], dtype=np.int64)
+        indices = np.asarray(m.GetFaceVertexIndicesAttr().Get() or [], dtype=np.int64)
+        _check_topology(prim, np.asarray(points, dtype=np.float64), counts, indices)
+        faces = triangulate(counts, indices)
         if m.GetOrientationAttr().Get() == UsdGeom.Tokens.leftHanded:
             faces = faces[:, ::-1].copy()
         uv = None
