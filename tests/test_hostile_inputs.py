@@ -196,3 +196,12 @@ def Xform "World"
     assert err.count("\n") == 1 and words in err and f"/World/Wall.{attribute}" in err and "mesh.usda" in err
     assert main(["validate", str(stage)]) == 1
     assert words in capsys.readouterr().out
+
+
+def test_a_reference_to_a_missing_prim_is_a_one_line_error_not_a_usd_warning(tmp_path, capfd):
+    (tmp_path / "part.usda").write_text('#usda 1.0\ndef Xform "Here"\n{\n}\n')
+    stage = tmp_path / "ref.usda"
+    stage.write_text('#usda 1.0\ndef Xform "A" (\n    references = @./part.usda@</Nowhere>\n)\n{\n}\n')
+    assert main(["inspect", str(stage)]) == 2
+    err = capfd.readouterr().err
+    assert err.count("\n") == 1 and "cannot be composed" in err and "</Nowhere>" in err, err

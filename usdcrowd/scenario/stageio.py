@@ -6,7 +6,9 @@ turned into usdcrowd's canonical frame (Z up, metres) with :class:`StageFrame`.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -100,13 +102,50 @@ def open_stage(path: str | os.PathLike):
 
     path = os.fspath(path)
     _check_layers(path)
-    try:
-        stage = Usd.Stage.Open(path)
-    except Tf.ErrorException as exc:
-        raise StageError(f"not a readable USD file: {usd_error_text(exc)}", file=path) from None
+    with _captured_stderr() as captured:
+        try:
+            stage = Usd.Stage.Open(path)
+        except Tf.ErrorException as exc:
+            raise StageError(f"not a readable USD file: {usd_error_text(exc)}", file=path) from None
     if stage is None:
         raise StageError("not a readable USD file", file=path)
+    errors = stage.GetCompositionErrors()
+    if errors:
+        # A reference to a prim that is not there, a cycle...: USD only warns, and the
+        # command would go on with part of the scene missing.
+        more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
+        raise StageError(f"cannot be composed: {errors[0]}{more}", file=path)
+    if captured.text:
+        sys.stderr.write(captured.text)        # other warnings still reach the user
     return stage
+
+
+class _Captured:
+    text = ""
+
+
+@contextlib.contextmanager
+def _captured_stderr():
+    """Hold what USD's C++ side writes to stderr while a stage opens (its composition
+    warnings, which are turned into one-line errors) so it can be replayed or dropped."""
+    import tempfile
+
+    captured = _Captured()
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError):         # no real stderr (embedded): nothing to hold
+        yield captured
+        return
+    with tempfile.TemporaryFile(mode="w+b") as tmp:
+        os.dup2(tmp.fileno(), 2)
+        try:
+            yield captured
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            tmp.seek(0)
+            captured.text = tmp.read().decode("utf-8", "replace")
 
 
 def _check_file(path: str, referrer: str | None = None) -> None:
