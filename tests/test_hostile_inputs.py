@@ -205,3 +205,28 @@ def test_a_reference_to_a_missing_prim_is_a_one_line_error_not_a_usd_warning(tmp
     assert main(["inspect", str(stage)]) == 2
     err = capfd.readouterr().err
     assert err.count("\n") == 1 and "cannot be composed" in err and "</Nowhere>" in err, err
+
+
+@pytest.fixture
+def full_disk(tmp_path):
+    """A 600 KiB tmpfs (needs root, as on CI); skipped where it cannot be mounted."""
+    import subprocess
+
+    mount = tmp_path / "full"
+    mount.mkdir()
+    done = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=600k", "tmpfs", str(mount)], capture_output=True)
+    if done.returncode != 0:
+        pytest.skip("cannot mount a small tmpfs here")
+    yield mount
+    subprocess.run(["umount", str(mount)], capture_output=True)
+
+
+def test_a_full_disk_is_one_line_and_leaves_nothing(full_disk, tmp_path, capsys):
+    scenario = tmp_path / "museum.usda"
+    assert main(["new", "museum", "-o", str(scenario), "--agents", "40"]) == 0
+    capsys.readouterr()
+    out = full_disk / "shot"
+    assert main(["simulate", str(scenario), "-o", str(out), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no space left on device" in err and str(out) in err, err
+    assert not out.exists() or not any(out.iterdir())

@@ -26,6 +26,10 @@ def atomic_path(final: str | os.PathLike):
     try:
         yield tmp
         os.replace(tmp, final)
+    except OSError as exc:
+        if exc.filename in (None, os.fspath(tmp)):      # name the file the user asked for, not ours
+            raise OSError(exc.errno, exc.strerror, os.fspath(final)) from None
+        raise
     finally:
         if tmp.exists():
             tmp.unlink()
@@ -76,3 +80,34 @@ def output_dir(path: str | os.PathLike) -> Path:
         raise UsdcrowdError("cannot write to the output folder: permission denied", file=os.fspath(out))
     clean_partials(out)
     return out
+
+
+def export_layer(layer, final: str | os.PathLike) -> str:
+    """Save an Sdf layer to ``final`` atomically; a failed write is one clear error.
+
+    USD reports a failed save (a full disk) as a Tf error carrying thousands
+    of lines; it becomes an OSError (ENOSPC when the disk is full) naming the
+    file, and nothing is left half-written.
+    """
+    import errno
+    import shutil
+
+    from pxr import Tf
+
+    final = os.fspath(final)
+    with atomic_path(final) as tmp:
+        try:
+            ok = layer.Export(os.fspath(tmp))
+        except Tf.ErrorException as exc:
+            ok, detail = False, str(exc).strip().splitlines()
+        else:
+            detail = []
+        if not ok:
+            try:
+                full = shutil.disk_usage(os.path.dirname(os.path.abspath(final))).free < 1 << 20
+            except OSError:
+                full = False
+            if full:
+                raise OSError(errno.ENOSPC, "no space left on device", final)
+            raise OSError(errno.EIO, f"USD could not save the layer{': ' + detail[0] if detail else ''}", final)
+    return final

@@ -8,6 +8,7 @@ prints one line and exits 2; a bug still shows its traceback.
 from __future__ import annotations
 
 import argparse
+import errno
 import sys
 
 from .. import __version__
@@ -16,6 +17,9 @@ from . import cameras, demo, inspect_cmd, metrics, new, preview, render, simulat
 
 COMMANDS = (new, inspect_cmd, validate, simulate, cameras, metrics, preview, render, demo)
 EXIT_USER_ERROR = 2
+# OSErrors that are the environment's (reported in one line), not a bug.
+_ENVIRONMENT_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.ENOENT,
+                       errno.EIO, errno.EMFILE}
 
 
 class _Parser(argparse.ArgumentParser):
@@ -44,6 +48,13 @@ def main(argv: list[str] | None = None) -> int:
         return int(args.run(args) or 0)
     except UsdcrowdError as exc:
         print(f"usdcrowd {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_USER_ERROR
+    except OSError as exc:
+        # The machine, not the code: a full disk, a read-only or vanished folder.
+        if exc.errno not in _ENVIRONMENT_ERRNOS:
+            raise
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"usdcrowd {args.command}: error: {where}{(exc.strerror or str(exc)).lower()}", file=sys.stderr)
         return EXIT_USER_ERROR
     except KeyboardInterrupt:
         print(f"usdcrowd {args.command}: interrupted", file=sys.stderr)

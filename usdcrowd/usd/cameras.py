@@ -21,7 +21,7 @@ import os
 import numpy as np
 
 from .. import __version__, model
-from ..atomic import atomic_path
+from ..atomic import export_layer
 from ..scenario.stageio import StageFrame
 
 CAMERAS = "cameras.usda"
@@ -106,10 +106,7 @@ def write_camera_tracks(out_dir: str | os.PathLike, tracks: list[model.CameraTra
                     layer.SetTimeSample(tr.path, float(track.times[i]), track.tracked[i])
         if events_writer is not None:
             events_writer(layer)
-    with atomic_path(final) as tmp:
-        if not layer.Export(os.fspath(tmp)):
-            raise OSError(f"could not write {final}")
-    return final
+    return export_layer(layer, final)
 
 
 def stage_poses(cam_to_world: np.ndarray, frame: StageFrame) -> np.ndarray:

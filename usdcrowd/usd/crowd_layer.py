@@ -31,7 +31,7 @@ import os
 import numpy as np
 
 from .. import __version__, model
-from ..atomic import atomic_path
+from ..atomic import export_layer
 from ..character import body as body_mod
 from ..character import rig
 from ..character.animation import Animator
@@ -314,13 +314,14 @@ def _part_worker(conn, layer_paths, scenario, frame, row_sets, authored, default
             elif cmd == "finish":
                 for part, path, lo, hi in zip(parts, layer_paths, bounds[:-1], bounds[1:]):
                     part.finish(*(None if x is None else x[lo:hi] for x in payload))
-                    with atomic_path(path) as tmp:
-                        if not part.layer.Export(os.fspath(tmp)):
-                            raise OSError(f"could not write {path}")
+                    export_layer(part.layer, path)
                 conn.send(("ok", None))
                 return
             else:
                 return
+        except OSError as exc:          # a full disk: the coordinator raises it as it is
+            conn.send(("oserror", (exc.errno, exc.strerror, exc.filename)))
+            return
         except Exception as exc:       # report, the coordinator raises
             conn.send(("error", f"{exc.__class__.__name__}: {exc}"))
             return
@@ -428,6 +429,9 @@ class CrowdLayerWriter:
                 except _LOST:
                     raise self._died(proc) from None
                 self._pending[proc.pid] -= 1
+                if status == "oserror":
+                    self.abort()
+                    raise OSError(*detail)
                 if status == "error":
                     self.abort()
                     raise RuntimeError(f"crowd layer part writer failed: {detail}")
@@ -488,10 +492,7 @@ class CrowdLayerWriter:
             self._collect()
             for proc, _ in self._workers:
                 proc.join()
-        with atomic_path(self.final) as tmp:
-            if not self.layer.Export(os.fspath(tmp)):
-                raise OSError(f"could not write {self.final}")
-        return self.final
+        return export_layer(self.layer, self.final)
 
     def abort(self) -> None:
         """Stop the workers and remove any part already written."""

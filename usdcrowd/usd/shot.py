@@ -16,7 +16,7 @@ from __future__ import annotations
 import os
 
 from .. import __version__, model
-from ..atomic import atomic_path
+from ..atomic import export_layer
 from ..scenario.stageio import StageFrame
 from .cameras import CAMERAS
 
@@ -67,9 +67,7 @@ def write_shot(out_dir: str | os.PathLike, scenario_path: str, time: model.TimeR
             sky.specifier, sky.typeName = Sdf.SpecifierDef, "DomeLight"
             _set(sky, "inputs:intensity", Sdf.ValueTypeNames.Float, 0.6)
             _set(sky, "inputs:color", Sdf.ValueTypeNames.Color3f, Gf.Vec3f(0.75, 0.85, 1.0))
-    with atomic_path(final) as tmp:
-        layer.Export(os.fspath(tmp))
-    return final
+    return export_layer(layer, final)
 
 
 def _define_scope(layer, path: str) -> None:
