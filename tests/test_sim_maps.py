@@ -170,3 +170,36 @@ def test_birds_fly_above_ground():
     fr = simulate(S.scenario(at, S.groups([[np.nan] * 3]), frames=96))
     z = fr.position[48:, :, 2]
     assert np.all(z > 1.0) and np.all(z < P.BIRD_ALTITUDE[1] + 1e-3)
+
+
+def test_a_huge_painted_map_is_read_at_the_resolution_the_simulation_uses(write_stage, tmp_path):
+    """4000 x 4000 px over 20 m (5 mm a pixel) is read as 400 x 400 float32, painted values kept."""
+    from PIL import Image
+
+    from usdcrowd.scenario import load_scenario
+    from usdcrowd.scenario.read import MAP_RESOLUTION
+
+    mask = np.zeros((4000, 4000), np.uint8)
+    mask[:, 2000:] = 255                                   # east half forbidden
+    Image.fromarray(mask).save(tmp_path / "huge.png")
+    stage = write_stage(f'''
+def Xform "World"
+{{
+    def CrowdGroup "Crowd"
+    {{
+        uniform int crowd:clones = 2
+    }}
+    def BehaviorLayer "Mask"
+    {{
+        uniform token crowd:meaning = "forbidden"
+        uniform asset crowd:image = @{tmp_path / "huge.png"}@
+        uniform float2 crowd:extentMin = (-10, -10)
+        uniform float2 crowd:extentMax = (10, 10)
+        uniform float2 crowd:valueRange = (0, 1)
+    }}
+}}
+''')
+    field = load_scenario(stage).field("forbidden")
+    assert field.values.shape == (round(20 / MAP_RESOLUTION),) * 2 and field.values.dtype == np.float32
+    assert set(np.unique(field.values)) == {0.0, 1.0}
+    np.testing.assert_array_equal(field.sample(np.array([[-5.0, 0.0], [5.0, 0.0]])), [0.0, 1.0])

@@ -441,7 +441,7 @@ def _behavior_field(r: _Reader, prim) -> model.BehaviorField:
     influence = float(r.get(prim, "influence"))
     values = None
     if generator == "painted":
-        values = _read_image(r, prim, vrange)
+        values = _read_image(r, prim, vrange, hi - lo)
     origin = r.frame.points_to_canonical(np.array(r.get(prim, "origin"), dtype=np.float64))
     radius = float(r.frame.length_to_canonical(r.get(prim, "radius")))
     if meaning == "height" and values is not None:
@@ -451,7 +451,18 @@ def _behavior_field(r: _Reader, prim) -> model.BehaviorField:
                                origin, radius, float(r.get(prim, "startTime")))
 
 
-def _read_image(r: _Reader, prim, vrange) -> np.ndarray:
+# The finest behavior-map detail the simulation can use (its grids are coarser):
+# larger images are read down to this many metres per pixel.
+MAP_RESOLUTION = 0.05
+
+
+def _read_image(r: _Reader, prim, vrange, extent: np.ndarray) -> np.ndarray:
+    """(h, w) float32 values of a painted layer, at most one pixel per MAP_RESOLUTION metres.
+
+    Finer images are resampled to that by nearest pixel (values stay the
+    painted ones: a forbidden mask stays 0 and 1) before they become floats,
+    so a huge image costs its decoding, not four bytes a pixel.
+    """
     from PIL import Image
 
     attr = prim.GetAttribute("crowd:image")
@@ -468,6 +479,9 @@ def _read_image(r: _Reader, prim, vrange) -> np.ndarray:
                 r.fail(f"image @{asset.path}@ is {w} x {h}: more than the {r.limits.max_image_pixels:,} pixels "
                        f"accepted (raise it with --max-image-pixels)", prim, "crowd:image")
             mode = im.mode
+            need = (max(1, int(np.ceil(extent[0] / MAP_RESOLUTION))), max(1, int(np.ceil(extent[1] / MAP_RESOLUTION))))
+            if w > need[0] or h > need[1]:
+                im = im.resize((min(w, need[0]), min(h, need[1])), Image.NEAREST)
             arr = np.asarray(im)
     except ScenarioError:
         raise
