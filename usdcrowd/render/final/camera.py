@@ -26,7 +26,7 @@ def sensor_to_world(cam: CameraView) -> np.ndarray:
     return (_MITSUBA_TO_USD @ cam.cam_to_world).T
 
 
-def sensor_dict(cam: CameraView, width: int, height: int, spp: int, rfilter: str = "gaussian") -> dict:
+def sensor_dict(cam: CameraView, width: int, height: int, spp: int, rfilter: str = "box") -> dict:
     """Mitsuba ``perspective`` sensor for ``cam`` on a ``width`` x ``height`` linear RGB film.
 
     Parameters
@@ -37,7 +37,14 @@ def sensor_dict(cam: CameraView, width: int, height: int, spp: int, rfilter: str
     spp : int
         Samples per pixel of the beauty pass.
     rfilter : str
-        Reconstruction filter of the beauty film ("gaussian", "box", ...).
+        Reconstruction filter of the beauty film ("box", "gaussian", ...). Box
+        by default: each sample lands in its own pixel, so a pixel's samples
+        are summed by one thread in one order and the same command gives the
+        same bytes (a Gaussian filter's overlapping footprints are summed by
+        whichever threads get there first: 10-15 % of pixels differed in
+        their last bits between identical runs); its noise is also
+        uncorrelated between pixels, which a denoiser needs, and it renders
+        about a quarter faster.
     """
     import mitsuba as mi
 
