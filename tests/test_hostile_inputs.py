@@ -36,6 +36,14 @@ def _run(capsys, command, stage, out):
     return code, err
 
 
+def _crowd_stage(path, prims: str):
+    """A 6-frame stage with a 2-agent group and ``prims`` beside it under /World."""
+    path.write_text('#usda 1.0\n(\n    defaultPrim = "World"\n    startTimeCode = 1\n    endTimeCode = 6\n)\n'
+                    'def Xform "World"\n{\n    def CrowdGroup "Crowd"\n    {\n        uniform int crowd:clones = 2\n'
+                    f'    }}\n{prims}\n}}\n')
+    return path
+
+
 @pytest.fixture
 def layers(tmp_path):
     """A FIFO stage, a stage whose sublayer is a FIFO, and one whose sublayer is missing."""
@@ -170,27 +178,13 @@ def test_a_rerun_removes_what_an_interrupted_run_left_half_written(museum, tmp_p
     ("[2, 2]", "[0, 1, 2, 3]", "a face has 2 vertices", "faceVertexCounts"),
 ])
 def test_broken_meshes_are_one_line_errors(tmp_path, capsys, counts, indices, words, attribute):
-    stage = tmp_path / "mesh.usda"
-    stage.write_text(f"""#usda 1.0
-(
-    defaultPrim = "World"
-    startTimeCode = 1
-    endTimeCode = 6
-)
-def Xform "World"
-{{
-    def CrowdGroup "Crowd"
-    {{
-        uniform int crowd:clones = 2
-    }}
+    stage = _crowd_stage(tmp_path / "mesh.usda", f"""
     def Mesh "Wall"
     {{
         int[] faceVertexCounts = {counts}
         int[] faceVertexIndices = {indices}
         point3f[] points = [(0, 0, 0), (1, 0, 0), (1, 0, 3), (0, 0, 3)]
-    }}
-}}
-""")
+    }}""")
     assert main(["simulate", str(stage), "-o", str(tmp_path / "shot"), "--no-progress"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and words in err and f"/World/Wall.{attribute}" in err and "mesh.usda" in err
@@ -230,3 +224,50 @@ def test_a_full_disk_is_one_line_and_leaves_nothing(full_disk, tmp_path, capsys)
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "no space left on device" in err and str(out) in err, err
     assert not out.exists() or not any(out.iterdir())
+
+
+@pytest.mark.parametrize("make, words", [
+    (lambda p: p.write_bytes(b"\x89PNG\r\n\x1a\n" + b"\x00" * 40), "cannot be read"),      # a truncated PNG
+    (lambda p: p.write_text("not an image at all"), "cannot be read"),
+    (lambda p: os.mkfifo(p), "not found"),                                                  # a pipe as image
+    (lambda p: p.mkdir(), "not found"),                                                     # a folder
+    (lambda p: None, "not found"),                                                          # nothing there
+])
+def test_hostile_behavior_map_images_are_one_line_errors(tmp_path, capsys, make, words):
+    image = tmp_path / "map.png"
+    make(image)
+    stage = _crowd_stage(tmp_path / "maps.usda", """
+    def BehaviorLayer "Map"
+    {
+        uniform token crowd:meaning = "forbidden"
+        uniform asset crowd:image = @./map.png@
+        uniform float2 crowd:extentMin = (-10, -10)
+        uniform float2 crowd:extentMax = (10, 10)
+    }""")
+    code, err = _run(capsys, "simulate", stage, tmp_path / "shot")
+    assert code == 2 and err.count("\n") == 1, err
+    assert words in err and "/World/Map.crowd:image" in err and "map.png" in err, err
+    assert not (tmp_path / "shot" / "shot.usda").exists()
+
+
+def test_an_interrupted_simulate_leaves_nothing_and_says_so(tmp_path):
+    """SIGINT half-way through a simulation: exit 130, one line, no shot and no part layers left."""
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    scenario = tmp_path / "museum.usda"
+    assert main(["new", "museum", "-o", str(scenario), "--agents", "2000"]) == 0
+    exe = Path(sys.executable).with_name("usdcrowd")
+    proc = subprocess.Popen([str(exe), "simulate", str(scenario), "-o", str(tmp_path / "shot"), "--no-progress"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 60
+    while not (tmp_path / "shot").exists() and time.time() < deadline:
+        time.sleep(0.05)
+    time.sleep(1.0)                                   # well into the simulation
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and err.strip().endswith("interrupted") and err.strip().count("\n") == 0, err
+    left = [p.name for p in (tmp_path / "shot").iterdir()] if (tmp_path / "shot").exists() else []
+    assert left == [], left

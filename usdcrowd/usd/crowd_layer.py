@@ -290,7 +290,18 @@ _LOST = (BrokenPipeError, ConnectionResetError, EOFError)
 
 
 def _part_worker(conn, layer_paths, scenario, frame, row_sets, authored, default_prim):
-    """A process that owns some part layers: commands arrive over ``conn``."""
+    """A process that owns some part layers: commands arrive over ``conn``.
+
+    When the coordinator is gone (interrupted, failed), the worker ends
+    quietly: the coordinator reports what happened, once.
+    """
+    try:
+        _part_work(conn, layer_paths, scenario, frame, row_sets, authored, default_prim)
+    except _LOST:
+        pass
+
+
+def _part_work(conn, layer_paths, scenario, frame, row_sets, authored, default_prim):
     from pxr import Sdf
 
     from .. import schema
@@ -325,6 +336,29 @@ def _part_worker(conn, layer_paths, scenario, frame, row_sets, authored, default
         except Exception as exc:       # report, the coordinator raises
             conn.send(("error", f"{exc.__class__.__name__}: {exc}"))
             return
+
+
+def _start_ignoring_sigint(proc) -> None:
+    """Start a part writer deaf to Ctrl-C.
+
+    The terminal sends SIGINT to the whole process group; the coordinator, not
+    each worker, decides what to clean up (it terminates them in
+    :meth:`CrowdLayerWriter.abort`), and workers must not print tracebacks.
+    SIGINT is blocked, not ignored, while the worker starts: the worker keeps
+    the blocked mask through exec, and a Ctrl-C that arrives meanwhile stays
+    pending for the coordinator instead of being lost.
+    """
+    import signal
+
+    try:
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    except (AttributeError, ValueError, OSError):     # no POSIX signal masks here
+        proc.start()
+        return
+    try:
+        proc.start()
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
 class CrowdLayerWriter:
@@ -393,7 +427,7 @@ class CrowdLayerWriter:
             proc = ctx.Process(target=_part_worker, daemon=True,
                                args=(there, paths, scenario, frame, row_sets,
                                      {scenario.agents.path[i] for i in rows} & authored, default_prim))
-            proc.start()
+            _start_ignoring_sigint(proc)
             # Only the worker may hold its end: were it also open here, a send to
             # a worker that died would block on a full pipe instead of failing.
             there.close()
