@@ -34,7 +34,8 @@ class ShotCrowd:
     frame: object                  # StageFrame
 
 
-def load_shot(shot_path: str | os.PathLike, seed: int | None = None, progress: bool = True) -> ShotCrowd:
+def load_shot(shot_path: str | os.PathLike, seed: int | None = None, progress: bool = True,
+              limits=None) -> ShotCrowd:
     """Read a shot's crowd, events, scenery and camera agents.
 
     Raises
@@ -57,7 +58,8 @@ def load_shot(shot_path: str | os.PathLike, seed: int | None = None, progress: b
     if not ref:
         raise StageError("not a usdcrowd shot: customLayerData has no usdcrowd.scenario", file=shot_path)
     scenario_path = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(shot_path)), ref))
-    scenario = load_scenario(scenario_path, seed=seed if seed is not None else data.get("seed"))
+    scenario = load_scenario(scenario_path, seed=seed if seed is not None else data.get("seed"),
+                             **({"limits": limits} if limits else {}))
     scenario.time = time_range(stage)
     frames, info = read_crowd(stage)
     rows = {p: i for i, p in enumerate(scenario.agents.path)}
@@ -114,7 +116,7 @@ def crowd_summary(positions: np.ndarray, visible: np.ndarray) -> tuple[np.ndarra
 
 
 def refilm_shot(shot_path: str | os.PathLike, count: int | None = None, static: int = 0,
-                seed: int | None = None, progress: bool = True) -> tuple[str, list[model.CameraTrack], ShotCrowd]:
+                seed: int | None = None, progress: bool = True, limits=None) -> tuple[str, list[model.CameraTrack], ShotCrowd]:
     """Run the cameras again on an existing shot and replace its cameras.usda atomically.
 
     The crowd layer, the scenario and any stronger layer are not touched.
@@ -125,7 +127,7 @@ def refilm_shot(shot_path: str | os.PathLike, count: int | None = None, static: 
     from .usd.cameras import write_camera_tracks
     from .usd.events import author_events
 
-    sc = load_shot(shot_path, progress=progress)
+    sc = load_shot(shot_path, progress=progress, limits=limits)
     centres, spreads = crowd_summary(sc.positions, sc.scenario.agents.visible)
     tracks = film_cameras(sc.scenario, sc.positions, sc.events, sc.default_prim, progress, centres, spreads,
                           count=count, static=static, seed=seed)
@@ -142,7 +144,7 @@ def refilm_shot(shot_path: str | os.PathLike, count: int | None = None, static: 
 
 # ------------------------------------------------------------------ metrics
 def evaluate_shot(shot_path: str | os.PathLike, out_dir: str | os.PathLike, counts=(4, 8), seed: int | None = None,
-                  progress: bool = True) -> dict:
+                  progress: bool = True, limits=None) -> dict:
     """Seed 000's evaluation (sections 5.3 and 5.4) on a shot: N autonomous vs N static cameras.
 
     Writes one CSV per figure (per-frame series), summary.csv, and the plots
@@ -158,7 +160,7 @@ def evaluate_shot(shot_path: str | os.PathLike, out_dir: str | os.PathLike, coun
     from .pipeline import film_cameras
     from .plots import coverage_plot
 
-    sc = load_shot(shot_path, progress=progress)
+    sc = load_shot(shot_path, progress=progress, limits=limits)
     out = output_dir(out_dir)
     active = active_mask(sc.events, sc.scenario.time.codes, len(sc.scenario.agents))
     centres, spreads = crowd_summary(sc.positions, sc.scenario.agents.visible)

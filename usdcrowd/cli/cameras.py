@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .args import add_progress, add_seed, int_at_least
+from .args import add_limits, add_progress, add_seed, int_at_least, limits_of
 
 
 def add_parser(sub):
@@ -16,6 +16,7 @@ def add_parser(sub):
     p.add_argument("--static", type=int_at_least(0), default=0, metavar="N",
                    help="also N static cameras at strategic positions around the crowd")
     add_seed(p)
+    add_limits(p)
     add_progress(p)
     p.set_defaults(run=run)
 
@@ -24,7 +25,7 @@ def run(args) -> int:
     from ..filming import refilm_shot
 
     path, tracks, sc = refilm_shot(args.shot, count=args.count, static=args.static, seed=args.seed,
-                                   progress=args.progress)
+                                   progress=args.progress, limits=limits_of(args))
     agents = [t for t in tracks if t.state is not None]
     print(f"wrote {path}: {len(tracks)} cameras ({len(agents)} agents), {len(sc.events)} events"
           + (" (detected now)" if sc.detected_now else ""))

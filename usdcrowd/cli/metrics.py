@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from .args import add_progress, add_seed
+from .args import add_limits, add_progress, add_seed, limits_of
 
 
 def _counts(text: str) -> tuple[int, ...]:
@@ -27,6 +27,7 @@ def add_parser(sub):
     p.add_argument("-o", "--output", required=True, help="output folder for CSVs and plots")
     p.add_argument("--counts", type=_counts, default=(4, 8), metavar="N,M", help="camera counts (default 4,8)")
     add_seed(p)
+    add_limits(p)
     add_progress(p)
     p.set_defaults(run=run)
 
@@ -34,7 +35,8 @@ def add_parser(sub):
 def run(args) -> int:
     from ..filming import evaluate_shot
 
-    results = evaluate_shot(args.shot, args.output, counts=args.counts, seed=args.seed, progress=args.progress)
+    results = evaluate_shot(args.shot, args.output, counts=args.counts, seed=args.seed, progress=args.progress,
+                            limits=limits_of(args))
     print(f"wrote {args.output}: summary.csv, activity_N / viewed_N .csv and .png")
     print(f"  {'cameras':>7} {'kind':<11} {'active share':>12} {'active/idle':>11} {'viewed share':>12}")
     for n, r in results.items():
