@@ -126,6 +126,7 @@ class CameraAgents:
         self.tracked = np.full(c, -1)
         self.since = np.zeros(c)
         self.obstacles = _ObstacleSet.of(obstacles, self.params.obstacle_min_height)
+        self._tree = None           # this step's kd-tree of camera positions (forces and torques share it)
         self.time = None
 
     def __len__(self) -> int:
@@ -218,17 +219,40 @@ class CameraAgents:
         dt : float
             Seconds.
         """
-        c = len(self)
-        if c == 0:
+        if len(self) == 0:
             return
-        prm, t = self.params, self.table
         fwd, right, _ = axes(self.q)
-        vmax = t.max_speed
+        look, height, force = self._aims(time, positions, fwd, dt)
+        force += self._forces(look, height, fwd, right, crowd_centre, crowd_radius)
+        # Algorithm 1, with Reynolds' limits on force and speed.
+        t = self.table
+        force = _clamp(self.params.force_gain * force, t.max_force)
+        self.v = _clamp(self.v + force * dt, t.max_speed)
+        self.p = self.p + self.v * dt
+        self._constrain()
+        # Algorithm 2: torques -> rotational velocity -> orientation.
+        tau = self._torques(look, fwd, right)
+        self.w = _clamp(self.w + self.params.angular_gain * tau * dt, t.max_angular_speed)
+        self.q = _level(integrate(self.q, self.w, dt))
+
+    def _aims(self, time: float, positions: np.ndarray, fwd: np.ndarray, dt: float):
+        """Where each camera looks, how high it wants to be, and its framing or wandering force.
+
+        Returns
+        -------
+        look : (c, 3) float64
+            Aim points: the tracked event's centre at chest height, or the
+            character a scout looks at.
+        height : (c,) float64
+            Desired heights (crane shots for large events).
+        force : (c, 3) float64
+            The framing force (tracking) or the wandering force (scouting).
+        """
+        prm, t = self.params, self.table
+        c = len(self)
         force = np.zeros((c, 3))
         tracking = np.flatnonzero(self.tracked >= 0)
         scouting = np.flatnonzero(self.tracked < 0)
-
-        # Aim point, framing force and crane height per tracking camera.
         look = self.p + fwd * prm.wander_look_distance
         height = 0.5 * (t.elevation[:, 0] + t.elevation[:, 1])
         if len(tracking):
@@ -246,7 +270,7 @@ class CameraAgents:
             goal = forces.framing_target(self.p[tracking, :2], a, b, self.alpha[tracking], self.beta[tracking],
                                          width)
             goal3 = np.column_stack([goal, self.p[tracking, 2]])
-            f = forces.arrival(self.p[tracking], goal3, self.v[tracking] * [1, 1, 0], vmax[tracking],
+            f = forces.arrival(self.p[tracking], goal3, self.v[tracking] * [1, 1, 0], t.max_speed[tracking],
                                t.arrival_distance[tracking])
             force[tracking] += prm.w_framing * f
             height[tracking] = forces.crane_height(n_members, radius, t.elevation[tracking], prm.crane_members,
@@ -254,46 +278,48 @@ class CameraAgents:
         if len(scouting):
             self.wander[scouting] += self.rng.normal(0.0, prm.wander_jitter * np.sqrt(dt), len(scouting))
             force[scouting] += prm.w_wander * forces.wandering(self.v[scouting], self.wander[scouting],
-                                                               vmax[scouting], prm.wander_speed)
-            # Wandering torque: aim along a wandering direction. The direction
-            # wanders from one character to another (re-drawn every scout_dwell
-            # seconds, nearer ones likelier), so scouts search the crowd, not the sky.
+                                                               t.max_speed[scouting], prm.wander_speed)
+            # Wandering torque's target: the direction wanders from one character to
+            # another (re-drawn every scout_dwell seconds, nearer ones likelier), so
+            # scouts search the crowd, not the sky.
             if len(positions):
                 self._refocus(scouting, time, positions, dt)
                 look[scouting] = positions[self.focus[scouting]] + [0.0, 0.0, prm.look_height]
+        return look, height, force
+
+    def _forces(self, look, height, fwd, right, crowd_centre, crowd_radius) -> np.ndarray:
+        """(c, 3) obstacle avoidance, crane, separation and containment (section 4.3), weighted."""
+        prm, t = self.params, self.table
+        vmax = t.max_speed
         f_obs, blocking = forces.obstacle_avoidance(
             self.p, self.v, fwd, right, look, vmax, self.tan_x, self.obstacles.tree, self.obstacles.xyz,
             self.obstacles.radius, prm.obstacle_range)
-        force += prm.w_obstacle * f_obs
+        force = prm.w_obstacle * f_obs
         # Beyond Algorithm 3's sidestep: where the elevation range allows, crane up over what is in the way.
         over = blocking + prm.obstacle_clearance + 1.0
         height = np.where((blocking > 0) & (over <= t.elevation[:, 1]), np.maximum(height, over), height)
         force += prm.w_elevation * forces.elevation(self.p, self.v, height, vmax)
-        tree = cKDTree(self.p)
-        sep_pairs = tree.query_pairs(float(t.separation_distance.max()), output_type="ndarray")
-        force += prm.w_separation * forces.separation(self.p, self.v, fwd, right, vmax, t.separation_distance,
-                                                      sep_pairs)
+        self._tree = cKDTree(self.p)
+        pairs = self._tree.query_pairs(float(t.separation_distance.max()), output_type="ndarray")
+        force += prm.w_separation * forces.separation(self.p, self.v, fwd, right, vmax, t.separation_distance, pairs)
         force += prm.w_containment * forces.containment(self.p, self.v, crowd_centre,
                                                         crowd_radius + prm.contain_margin, vmax)
-        # Algorithm 1, with Reynolds' limits on force and speed.
-        force = _clamp(prm.force_gain * force, t.max_force)
-        self.v = _clamp(self.v + force * dt, vmax)
-        self.p = self.p + self.v * dt
-        self._constrain()
+        return force
 
-        # Algorithm 2: torques -> rotational velocity -> orientation.
+    def _torques(self, look, fwd, right) -> np.ndarray:
+        """(c, 3) aiming (or wandering) and camera-avoidance torques (section 4.4), weighted."""
+        prm, t = self.params, self.table
         q_desired = _level_towards(look - self.p)
         tau = prm.w_aim * torques.aiming(self.q, q_desired, self.w, t.max_angular_speed, t.aim_threshold)
-        if len(scouting):
-            tau[scouting] *= prm.w_wander_torque / max(prm.w_aim, 1e-9)
-        avoid_pairs = tree.query_pairs(2.0 * prm.avoid_range, output_type="ndarray")
+        scouting = self.tracked < 0
+        tau[scouting] *= prm.w_wander_torque / max(prm.w_aim, 1e-9)
         # Algorithm 6 tests the frusta between near and far planes; clipping ranges
         # (0.1 to 1000 m) would make every pair collide, so a shared view counts
-        # from avoid_near to avoid_range.
+        # from avoid_near to avoid_range. Pairs come from this step's camera kd-tree.
+        pairs = self._tree.query_pairs(2.0 * prm.avoid_range, output_type="ndarray")
         tau += prm.w_avoid * torques.avoidance(self.p, fwd, right, self.half_x, self.w, t.max_angular_speed,
-                                               avoid_pairs, prm.avoid_near, prm.avoid_range)
-        self.w = _clamp(self.w + prm.angular_gain * tau * dt, t.max_angular_speed)
-        self.q = _level(integrate(self.q, self.w, dt))
+                                               pairs, prm.avoid_near, prm.avoid_range)
+        return tau
 
     def _refocus(self, cams: np.ndarray, time: float, positions: np.ndarray, dt: float) -> None:
         """Draw a new character to look at for scouts whose dwell is over."""
