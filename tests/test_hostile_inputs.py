@@ -271,3 +271,37 @@ def test_an_interrupted_simulate_leaves_nothing_and_says_so(tmp_path):
     assert proc.returncode == 130 and err.strip().endswith("interrupted") and err.strip().count("\n") == 0, err
     left = [p.name for p in (tmp_path / "shot").iterdir()] if (tmp_path / "shot").exists() else []
     assert left == [], left
+
+
+@pytest.mark.parametrize("attribute, value, words", [
+    ("focalLength", 0.0, "must be > 0"),
+    ("horizontalAperture", float("nan"), "must be > 0"),
+    ("clippingRange", (10.0, 1.0), "0 < near < far"),
+])
+def test_a_camera_no_renderer_can_use_is_refused_by_preview_render_and_validate(tmp_path, capsys, attribute,
+                                                                               value, words):
+    from pxr import Gf, Sdf
+
+    scenario = tmp_path / "museum.usda"
+    assert main(["new", "museum", "-o", str(scenario), "--agents", "4"]) == 0
+    shot = tmp_path / "shot"
+    assert main(["simulate", str(scenario), "-o", str(shot), "--frames", "1:6", "--no-progress"]) == 0
+    layer = Sdf.Layer.FindOrOpen(str(shot / "cameras.usda"))
+    spec = layer.GetAttributeAtPath(f"/World/Cameras/CrowdCam.{attribute}")
+    if spec is None:
+        type_name = Sdf.ValueTypeNames.Float2 if attribute == "clippingRange" else Sdf.ValueTypeNames.Float
+        spec = Sdf.AttributeSpec(layer.GetPrimAtPath("/World/Cameras/CrowdCam"), attribute, type_name)
+    bad = Gf.Vec2f(*value) if attribute == "clippingRange" else value
+    layer.SetTimeSample(spec.path, 3.0, bad)
+    if attribute != "focalLength":
+        spec.default = bad
+    layer.Save()
+    capsys.readouterr()
+    for command, extra in (("preview", ["-o", str(tmp_path / "p.mp4"), "--frames", "3"]),
+                           ("render", ["-o", str(tmp_path / "r"), "--frames", "3", "--resolution", "32x18",
+                                       "--spp", "1", "--no-progress"])):
+        assert main([command, str(shot / "shot.usda"), "--camera", "/World/Cameras/CrowdCam"] + extra) == 2
+        err = capsys.readouterr().err
+        assert err.strip().count("\n") == 0 and words in err and f"CrowdCam.{attribute}" in err, (command, err)
+    assert main(["validate", str(shot / "shot.usda")]) == 1
+    assert words in capsys.readouterr().out

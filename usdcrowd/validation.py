@@ -7,6 +7,7 @@ the first.
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass
 
@@ -64,6 +65,30 @@ def usd_problems(stage, source: str) -> list[Problem]:
     return out
 
 
+def _lens_problems(prim) -> list[tuple[str, str]]:
+    """Lens values no renderer can use, at the default time and every authored sample."""
+    out = []
+    for name in ("focalLength", "horizontalAperture", "verticalAperture", "clippingRange"):
+        attr = prim.GetAttribute(name)
+        if not attr or not attr.HasAuthoredValue():
+            continue
+        times = [None] + list(attr.GetTimeSamples())
+        for t in times:
+            v = attr.Get() if t is None else attr.Get(t)
+            if v is None:
+                continue
+            when = "" if t is None else f" at time {t:g}"
+            if name == "clippingRange":
+                near, far = float(v[0]), float(v[1])
+                if not (math.isfinite(near) and math.isfinite(far) and 0 < near < far):
+                    out.append((name, f"must be 0 < near < far, got ({near:g}, {far:g}){when}"))
+                    break
+            elif not (math.isfinite(float(v)) and float(v) > 0):
+                out.append((name, f"must be > 0, got {float(v):g}{when}"))
+                break
+    return out
+
+
 def schema_problems(stage, source: str) -> list[Problem]:
     """Crowd-schema rules: allowed tokens, documented ranges, relationships, assets, ids."""
     from pxr import UsdGeom
@@ -77,6 +102,9 @@ def schema_problems(stage, source: str) -> list[Problem]:
         out.append(Problem(source, str(prim.GetPath()), attr, msg, "usdcrowd"))
 
     for prim in stage.Traverse():
+        if prim.IsA(UsdGeom.Camera):
+            for attr_name, msg in _lens_problems(prim):
+                add(prim, attr_name, msg)
         tname = prim.GetTypeName()
         ours = tname in (schema.GROUP, schema.BEHAVIOR_LAYER, schema.INTEREST_POINT, schema.EVENT) \
             or schema.is_agent(prim) or prim.HasAPI(schema.CAMERA_AGENT_API) \

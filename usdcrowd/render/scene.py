@@ -139,12 +139,15 @@ class ShotScene:
         # Remove scale from the camera's frame: lenses do not scale with units.
         m[:3, :3] /= np.linalg.norm(m[:3, :3], axis=1, keepdims=True)
         near, far = cam.GetClippingRangeAttr().Get(time)
+        focal = float(cam.GetFocalLengthAttr().Get(time))
+        h_ap = float(cam.GetHorizontalApertureAttr().Get(time))
+        v_ap = float(cam.GetVerticalApertureAttr().Get(time))
+        _check_lens(prim, time, focal=focal, horizontalAperture=h_ap, verticalAperture=v_ap,
+                    near=float(near), far=float(far), matrix=m)
         mpu = self.frame.meters_per_unit
         state = prim.GetAttribute("crowd:camera:state")
         tracked = prim.GetAttribute("crowd:camera:trackedEvent")
-        return CameraView(str(prim.GetPath()), float(time), m, float(cam.GetFocalLengthAttr().Get(time)),
-                          float(cam.GetHorizontalApertureAttr().Get(time)),
-                          float(cam.GetVerticalApertureAttr().Get(time)), near * mpu, far * mpu,
+        return CameraView(str(prim.GetPath()), float(time), m, focal, h_ap, v_ap, near * mpu, far * mpu,
                           str(state.Get(time)) if state and state.HasValue() else None,
                           str(tracked.Get(time) or "") if tracked and tracked.HasValue() else None)
 
@@ -265,6 +268,27 @@ class _Body:
     faces: np.ndarray           # (f, 3)
     joint_indices: np.ndarray   # (v, k)
     joint_weights: np.ndarray   # (v, k)
+
+
+def _check_lens(prim, time, *, focal, horizontalAperture, verticalAperture, near, far, matrix) -> None:
+    """A camera no renderer can use is the user's mistake: one line naming the layer, the camera and the attribute."""
+    from ..errors import StageError
+
+    def fail(attribute, message):
+        attr = prim.GetAttribute(attribute)
+        stack = attr.GetPropertyStack() if attr else []
+        layer = stack[0].layer.identifier if stack else prim.GetStage().GetRootLayer().identifier
+        raise StageError(f"{message} at time {float(time):g}", file=layer, prim=str(prim.GetPath()),
+                         attribute=attribute)
+
+    for name, value in (("focalLength", focal), ("horizontalAperture", horizontalAperture),
+                        ("verticalAperture", verticalAperture)):
+        if not (np.isfinite(value) and value > 0):
+            fail(name, f"must be > 0, got {value:g}")
+    if not (np.isfinite(near) and np.isfinite(far) and 0 < near < far):
+        fail("clippingRange", f"must be 0 < near < far, got ({near:g}, {far:g})")
+    if not np.isfinite(matrix).all():
+        fail("xformOp:transform", "the camera's transform is not finite")
 
 
 def _ancestors_animated(prim) -> bool:
