@@ -305,3 +305,15 @@ def test_a_camera_no_renderer_can_use_is_refused_by_preview_render_and_validate(
         assert err.strip().count("\n") == 0 and words in err and f"CrowdCam.{attribute}" in err, (command, err)
     assert main(["validate", str(shot / "shot.usda")]) == 1
     assert words in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["new", "museum", "-o", "/dev/null/x.usda"], "is not a folder"),
+    (["new", "museum", "-o", "{tmp}/s.usda", "--agents", "1000000000"], "--max-agents"),
+    (["demo", "-o", "/dev/null", "--no-progress"], "is not a folder"),
+])
+def test_careless_new_and_demo_arguments_are_one_line_errors(tmp_path, capsys, argv, words):
+    assert main([a.format(tmp=tmp_path) for a in argv]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and words in err, err
+    assert not (tmp_path / "s.usda").exists()

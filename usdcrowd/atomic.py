@@ -20,7 +20,14 @@ def atomic_path(final: str | os.PathLike):
     from it). On any exception the temporary file is removed and ``final`` is
     left untouched.
     """
+    import errno
+
     final = Path(final)
+    for folder in (final.parent, *final.parent.parents):
+        if folder.exists():
+            if not folder.is_dir():          # "x.usda" under /dev/null, or under a file
+                raise OSError(errno.ENOTDIR, "is not a folder, so nothing can be written in it", os.fspath(folder))
+            break
     final.parent.mkdir(parents=True, exist_ok=True)
     tmp = final.with_name(f".{final.stem}.partial-{uuid.uuid4().hex[:8]}{final.suffix}")
     try:

@@ -19,7 +19,7 @@ COMMANDS = (new, inspect_cmd, validate, simulate, cameras, metrics, preview, ren
 EXIT_USER_ERROR = 2
 # OSErrors that are the environment's (reported in one line), not a bug.
 _ENVIRONMENT_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.ENOENT,
-                       errno.EIO, errno.EMFILE}
+                       errno.EIO, errno.EMFILE, errno.ENOTDIR, errno.EEXIST, errno.EISDIR}
 
 
 class _Parser(argparse.ArgumentParser):

@@ -28,7 +28,9 @@ def run(args) -> int:
     from ..templates import new_scenario
     from ..validation import validate
 
-    out = Path(args.output)
+    from ..atomic import output_dir
+
+    out = output_dir(args.output)
     t0 = time.perf_counter()
     info = new_scenario(args.template, out / "scenario.usda", args.agents, args.seed)
     print(f"[1] scenario  {info['path']} ({info['agents']} agents, template {args.template})")

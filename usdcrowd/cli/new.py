@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .args import add_seed
+from .args import add_limits, add_seed, limits_of
 
 
 def add_parser(sub):
@@ -14,12 +14,18 @@ def add_parser(sub):
     p.add_argument("-o", "--output", required=True, help="the new stage (.usda, .usdc or .usd)")
     p.add_argument("--agents", type=int, help="total number of agents (clones are rescaled per group)")
     add_seed(p)
+    add_limits(p)
     p.set_defaults(run=run)
 
 
 def run(args) -> int:
+    from ..errors import UsdcrowdError
     from ..templates import new_scenario
 
+    limit = limits_of(args).max_agents
+    if args.agents is not None and args.agents > limit:
+        raise UsdcrowdError(f"{args.agents:,} agents: more than the {limit:,} accepted (raise it with --max-agents)",
+                            attribute="--agents")
     info = new_scenario(args.template, args.output, args.agents, args.seed)
     print(f"wrote {info['path']}: template {args.template}, {info['agents']} agents, seed {info['seed']}")
     for asset in info["assets"]:
