@@ -317,3 +317,26 @@ def test_careless_new_and_demo_arguments_are_one_line_errors(tmp_path, capsys, a
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and words in err, err
     assert not (tmp_path / "s.usda").exists()
+
+
+def test_non_finite_transforms_and_lights_are_one_line_errors(museum, tmp_path, capsys):
+    harbour = (data_dir("stages") / "harbour.usda").read_text()
+    (tmp_path / "maps").symlink_to(data_dir("stages") / "maps")
+    cam = tmp_path / "cam.usda"
+    cam.write_text(harbour.replace("double3 xformOp:translate = (-40, -38, 5)",
+                                   "double3 xformOp:translate = (nan, -38, 5)"))
+    code, err = _run(capsys, "simulate", cam, tmp_path / "o1")
+    assert code == 2 and "ScoutWest.xformOp:translate" in err and "not a finite value" in err, err
+    assert main(["validate", str(cam)]) == 1 and "ScoutWest.xformOp:translate" in capsys.readouterr().out
+
+    lit = museum(r"float inputs:intensity = [\d.]+", "float inputs:intensity = nan", "lit.usda")
+    shot = tmp_path / "shot"
+    assert main(["simulate", str(lit), "-o", str(shot), "--frames", "1:3", "--no-progress"]) == 0
+    capsys.readouterr()
+    for command, out in (("render", tmp_path / "r"), ("preview", tmp_path / "p.mp4")):
+        argv = [command, str(shot / "shot.usda"), "-o", str(out), "--frames", "1"]
+        argv += ["--resolution", "32x18", "--spp", "1", "--no-progress"] if command == "render" else []
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.strip().count("\n") == 0 and "inputs:intensity" in err and "not a finite" in err, (command, err)
+    assert main(["validate", str(lit)]) == 1 and "inputs:intensity" in capsys.readouterr().out

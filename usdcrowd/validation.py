@@ -11,6 +11,8 @@ import math
 import os
 from dataclasses import dataclass
 
+import numpy as np
+
 from . import schema
 from .errors import UsdcrowdError
 
@@ -65,6 +67,32 @@ def usd_problems(stage, source: str) -> list[Problem]:
     return out
 
 
+def _non_finite(prim) -> list[tuple[str, str]]:
+    """Transform ops and light values that are NaN or infinite (default value and authored samples)."""
+    from pxr import UsdGeom, UsdLux
+
+    attrs = []
+    if prim.IsA(UsdGeom.Xformable):
+        attrs += [op.GetAttr() for op in UsdGeom.Xformable(prim).GetOrderedXformOps()]
+    if prim.HasAPI(UsdLux.LightAPI):
+        api = UsdLux.LightAPI(prim)
+        attrs += [api.GetIntensityAttr(), api.GetExposureAttr(), api.GetColorAttr()]
+    out = []
+    for attr in attrs:
+        if not attr or not attr.HasAuthoredValue():
+            continue
+        for t in [None] + list(attr.GetTimeSamples()):
+            v = attr.Get() if t is None else attr.Get(t)
+            try:
+                finite = v is None or bool(np.isfinite(np.asarray(v, dtype=np.float64)).all())
+            except (TypeError, ValueError):
+                finite = True
+            if not finite:
+                out.append((attr.GetName(), f"not a finite value{'' if t is None else f' at time {t:g}'}"))
+                break
+    return out
+
+
 def _lens_problems(prim) -> list[tuple[str, str]]:
     """Lens values no renderer can use, at the default time and every authored sample."""
     out = []
@@ -105,6 +133,8 @@ def schema_problems(stage, source: str) -> list[Problem]:
         if prim.IsA(UsdGeom.Camera):
             for attr_name, msg in _lens_problems(prim):
                 add(prim, attr_name, msg)
+        for attr_name, msg in _non_finite(prim):
+            add(prim, attr_name, msg)
         tname = prim.GetTypeName()
         ours = tname in (schema.GROUP, schema.BEHAVIOR_LAYER, schema.INTEREST_POINT, schema.EVENT) \
             or schema.is_agent(prim) or prim.HasAPI(schema.CAMERA_AGENT_API) \

@@ -356,7 +356,15 @@ def color_temperature_rgb(kelvin: float) -> np.ndarray:
 def _light_of(prim, to_world: np.ndarray, mpu: float) -> Light | None:
     from pxr import UsdLux
 
+    from ..errors import StageError
+
     api = UsdLux.LightAPI(prim)
+    for attr in (api.GetIntensityAttr(), api.GetExposureAttr(), api.GetColorAttr()):
+        value = attr.Get()
+        if value is not None and not np.isfinite(np.asarray(value, dtype=np.float64)).all():
+            stack = attr.GetPropertyStack()
+            raise StageError(f"not a finite value: {value}", file=stack[0].layer.identifier if stack else None,
+                             prim=str(prim.GetPath()), attribute=attr.GetName())
     rgb = np.array(api.GetColorAttr().Get(), dtype=np.float64)
     if api.GetEnableColorTemperatureAttr().Get():
         rgb = rgb * color_temperature_rgb(api.GetColorTemperatureAttr().Get())

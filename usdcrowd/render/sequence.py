@@ -380,6 +380,9 @@ def render_sequence(shot_path, out_dir, camera: str | None = None, frames=None,
     if times.size == 0:
         raise UsdcrowdError("no frames to render")
     cam_path = shot.camera(camera, float(times[0])).path            # raises StageError on a bad camera
+    # Lights and scenery are checked here too: an error raised while a worker
+    # builds its scene would only say that the process pool broke.
+    shot.lights, shot.scenery
     if executor not in ("local", "inline", "ray"):
         raise UsdcrowdError(f"unknown executor {executor!r} (local, inline, ray)")
     settings.variant = _variant.choose_variant(settings.variant)

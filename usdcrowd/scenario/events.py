@@ -146,6 +146,21 @@ def read_events(stage, agent_rows: dict[str, int], time: model.TimeRange,
     return model.EventTable(authored + sorted(detected, key=lambda e: e.path))
 
 
+def _bad_op(prim, time) -> str:
+    """The name of the first transform op of ``prim`` (or an ancestor) whose value is not finite."""
+    from pxr import UsdGeom
+
+    p = prim
+    while p and not p.IsPseudoRoot():
+        xf = UsdGeom.Xformable(p)
+        for op in (xf.GetOrderedXformOps() if xf else []):
+            value = op.Get(time)
+            if value is not None and not np.isfinite(np.asarray(value, dtype=np.float64)).all():
+                return op.GetName() if p == prim else f"{op.GetName()} of {p.GetPath()}"
+        p = p.GetParent()
+    return "xformOpOrder"
+
+
 def read_camera_agents(stage, time: float | None = None) -> model.CameraAgentTable:
     """Every camera with CameraAgentAPI, its initial state in canonical units.
 
@@ -179,6 +194,9 @@ def read_camera_agents(stage, time: float | None = None) -> model.CameraAgentTab
             continue
         cam = UsdGeom.Camera(prim)
         m = np.array(cache.GetLocalToWorldTransform(prim), dtype=np.float64) @ frame.to_canonical
+        if not np.isfinite(m).all():
+            raise ScenarioError("not a finite value", file=stage.GetRootLayer().identifier,
+                                prim=str(prim.GetPath()), attribute=_bad_op(prim, t))
         m[:3, :3] /= np.linalg.norm(m[:3, :3], axis=1, keepdims=True)
         near, far = cam.GetClippingRangeAttr().Get(t)
 
