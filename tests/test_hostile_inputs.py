@@ -340,3 +340,29 @@ def test_non_finite_transforms_and_lights_are_one_line_errors(museum, tmp_path, 
         err = capsys.readouterr().err
         assert err.strip().count("\n") == 0 and "inputs:intensity" in err and "not a finite" in err, (command, err)
     assert main(["validate", str(lit)]) == 1 and "inputs:intensity" in capsys.readouterr().out
+
+
+def test_a_damaged_animation_in_the_crowd_layer_is_found_by_preview_render_and_validate(tmp_path, capsys):
+    from pxr import Gf, Sdf, Vt
+
+    scenario = tmp_path / "museum.usda"
+    assert main(["new", "museum", "-o", str(scenario), "--agents", "4"]) == 0
+    shot = tmp_path / "shot"
+    assert main(["simulate", str(scenario), "-o", str(shot), "--frames", "1:4", "--no-progress"]) == 0
+    crowd = Sdf.Layer.FindOrOpen(str(shot / "crowd.usdc"))
+    paths = []
+    crowd.Traverse("/", lambda p: paths.append(p) if p.IsPropertyPath() and p.name == "translations" else None)
+    target = sorted(paths)[0]
+    value = list(crowd.QueryTimeSample(target, 2.0))
+    crowd.SetTimeSample(target, 2.0, Vt.Vec3fArray([Gf.Vec3f(float("inf"), 0, 0)] + value[1:]))
+    crowd.Save()
+    capsys.readouterr()
+    where = f"{target.GetPrimPath()}.translations"
+    for command, extra in (("preview", ["-o", str(tmp_path / "p.mp4")]),
+                           ("render", ["-o", str(tmp_path / "r"), "--resolution", "32x18", "--spp", "1",
+                                       "--no-progress"])):
+        assert main([command, str(shot / "shot.usda"), "--frames", "2"] + extra) == 2
+        err = capsys.readouterr().err
+        assert where in err and "not a finite value at time 2" in err, (command, err)
+    assert main(["validate", str(shot / "shot.usda")]) == 1
+    assert where in capsys.readouterr().out

@@ -68,10 +68,13 @@ def usd_problems(stage, source: str) -> list[Problem]:
 
 
 def _non_finite(prim) -> list[tuple[str, str]]:
-    """Transform ops and light values that are NaN or infinite (default value and authored samples)."""
-    from pxr import UsdGeom, UsdLux
+    """Transform ops, light values and skeletal animation that are NaN or infinite (default value and samples)."""
+    from pxr import UsdGeom, UsdLux, UsdSkel
 
     attrs = []
+    if prim.IsA(UsdSkel.Animation):
+        anim = UsdSkel.Animation(prim)
+        attrs += [anim.GetRotationsAttr(), anim.GetTranslationsAttr(), anim.GetScalesAttr()]
     if prim.IsA(UsdGeom.Xformable):
         attrs += [op.GetAttr() for op in UsdGeom.Xformable(prim).GetOrderedXformOps()]
     if prim.HasAPI(UsdLux.LightAPI):

@@ -251,10 +251,28 @@ class ShotScene:
                 scale[i] = np.array(s)
             root[i] = self._world(prim, t)
             visible[i] = UsdGeom.Imageable(prim).ComputeVisibility(t) != UsdGeom.Tokens.invisible
+        bad = ~(np.isfinite(rot).all(axis=(1, 2)) & np.isfinite(trans).all(axis=(1, 2))
+                & np.isfinite(scale).all(axis=(1, 2)) & np.isfinite(root).all(axis=(1, 2)))
+        if bad.any():
+            self._fail_pose(int(np.argmax(bad)), t, rot, trans, scale)
         local = rig.compose_local(rot, trans)
         local[..., :3, :3] *= scale[..., :, None]        # UsdSkel: scale, then rotate, then translate
         joints = rig.local_to_skel(local) @ root[:, None]
         return AgentPoses(t, paths, ids, visible, colors, joints)
+
+    def _fail_pose(self, i: int, t: float, rot, trans, scale) -> None:
+        """A damaged animation (NaN or inf) is one line naming its layer, prim, attribute and time."""
+        from ..errors import StageError
+
+        _prim, rq, tq, sq = self._agent_queries[i]
+        for values, query in ((rot[i], rq), (trans[i], tq), (scale[i], sq)):
+            if not np.isfinite(values).all():
+                attr = query.GetAttribute()
+                stack = attr.GetPropertyStack(t)
+                raise StageError(f"not a finite value at time {t:g}", file=stack[0].layer.identifier if stack else None,
+                                 prim=str(attr.GetPrim().GetPath()), attribute=attr.GetName())
+        raise StageError(f"the agent's transform is not finite at time {t:g}", file=self.path,
+                         prim=self.agent_paths[i])
 
     def skinned_vertices(self, poses: AgentPoses) -> np.ndarray:
         """(n, v, 3) float32 world positions of every agent's body vertices."""

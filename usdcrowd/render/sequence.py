@@ -238,7 +238,21 @@ _WORKER: dict = {}
 
 
 def _worker_init(shot_path, camera, settings_dict, threads):
-    """Runs once in each worker process: build the Mitsuba scene."""
+    """Runs once in each worker process: build the Mitsuba scene.
+
+    A user's mistake found here (a damaged animation) is kept and raised by the
+    first frame's task, so it reaches the user as itself: raised in a process
+    pool's initializer it would only break the pool.
+    """
+    from ..errors import UsdcrowdError
+
+    try:
+        _build_worker(shot_path, camera, settings_dict, threads)
+    except UsdcrowdError as exc:
+        _WORKER["error"] = exc
+
+
+def _build_worker(shot_path, camera, settings_dict, threads):
     import usdcrowd  # noqa: F401  (registers the schemas)
 
     from ..groundtruth.annotate import AgentMetadata
@@ -254,6 +268,8 @@ def _worker_init(shot_path, camera, settings_dict, threads):
 
 
 def _worker_render(t, out_dir):
+    if "error" in _WORKER:
+        raise _WORKER["error"]
     return render_frame_to_disk(_WORKER["renderer"], _WORKER["metadata"], t, out_dir, _WORKER["settings"])
 
 
