@@ -67,14 +67,36 @@ def usd_problems(stage, source: str) -> list[Problem]:
     return out
 
 
+def _animation_problems(anims) -> list[tuple[object, str, str]]:
+    """(prim, attribute, message) for skeletal animation samples that are NaN or infinite.
+
+    Samples are read from the strongest layer that has them (Sdf, no
+    composition per sample: 2.7 s for 2,000 agents x 240 frames here), with a
+    progress bar when there are many.
+    """
+    from pxr import UsdSkel
+    from tqdm import tqdm
+
+    out = []
+    for prim in tqdm(anims, desc="validate animation", unit="agent", disable=len(anims) < 500, leave=False):
+        anim = UsdSkel.Animation(prim)
+        for attr in (anim.GetRotationsAttr(), anim.GetTranslationsAttr(), anim.GetScalesAttr()):
+            specs = [sp for sp in attr.GetPropertyStack() if sp.layer.GetNumTimeSamplesForPath(sp.path)]
+            if not specs:
+                continue
+            layer, path = specs[0].layer, specs[0].path
+            for t in layer.ListTimeSamplesForPath(path):
+                if not np.isfinite(np.asarray(layer.QueryTimeSample(path, t), dtype=np.float64)).all():
+                    out.append((prim, attr.GetName(), f"not a finite value at time {t:g}"))
+                    break
+    return out
+
+
 def _non_finite(prim) -> list[tuple[str, str]]:
-    """Transform ops, light values and skeletal animation that are NaN or infinite (default value and samples)."""
-    from pxr import UsdGeom, UsdLux, UsdSkel
+    """Transform ops and light values that are NaN or infinite (default value and authored samples)."""
+    from pxr import UsdGeom, UsdLux
 
     attrs = []
-    if prim.IsA(UsdSkel.Animation):
-        anim = UsdSkel.Animation(prim)
-        attrs += [anim.GetRotationsAttr(), anim.GetTranslationsAttr(), anim.GetScalesAttr()]
     if prim.IsA(UsdGeom.Xformable):
         attrs += [op.GetAttr() for op in UsdGeom.Xformable(prim).GetOrderedXformOps()]
     if prim.HasAPI(UsdLux.LightAPI):
@@ -132,10 +154,15 @@ def schema_problems(stage, source: str) -> list[Problem]:
     def add(prim, attr, msg):
         out.append(Problem(source, str(prim.GetPath()), attr, msg, "usdcrowd"))
 
+    from pxr import UsdSkel
+
+    anims = []
     for prim in stage.Traverse():
         if prim.IsA(UsdGeom.Camera):
             for attr_name, msg in _lens_problems(prim):
                 add(prim, attr_name, msg)
+        if prim.IsA(UsdSkel.Animation):
+            anims.append(prim)
         for attr_name, msg in _non_finite(prim):
             add(prim, attr_name, msg)
         tname = prim.GetTypeName()
@@ -192,6 +219,8 @@ def schema_problems(stage, source: str) -> list[Problem]:
                 t = stage.GetPrimAtPath(target)
                 if not (t and schema.is_agent(t)):
                     add(prim, "crowd:members", f"target {target} is not a CrowdAgentAPI agent")
+    for prim, attr_name, msg in _animation_problems(anims):
+        add(prim, attr_name, msg)
     return out
 
 
