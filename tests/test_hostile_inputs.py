@@ -366,3 +366,17 @@ def test_a_damaged_animation_in_the_crowd_layer_is_found_by_preview_render_and_v
         assert where in err and "not a finite value at time 2" in err, (command, err)
     assert main(["validate", str(shot / "shot.usda")]) == 1
     assert where in capsys.readouterr().out
+
+
+def test_frames_outside_the_shot_are_refused_by_preview_and_render(tmp_path, capsys):
+    scenario = tmp_path / "museum.usda"
+    assert main(["new", "museum", "-o", str(scenario), "--agents", "4"]) == 0
+    shot = tmp_path / "shot"
+    assert main(["simulate", str(scenario), "-o", str(shot), "--frames", "1:4", "--no-progress"]) == 0
+    capsys.readouterr()
+    for command, out in (("preview", tmp_path / "p.mp4"), ("render", tmp_path / "r")):
+        argv = [command, str(shot / "shot.usda"), "--frames", "2:5000", "-o", str(out)]
+        assert main(argv + (["--no-progress"] if command == "render" else [])) == 2
+        err = capsys.readouterr().err
+        assert "frame 5 is outside the shot's frames 1-4" in err and err.count("\n") == 1, err
+        assert not out.exists()

@@ -55,6 +55,7 @@ def run(args) -> int:
     scene = ShotScene(args.stage)
     times = args.frames if args.frames is not None else scene.time_codes
     camera = args.camera
+    scene.check_times(times)
     scene.camera(camera, float(times[0]))              # a wrong camera fails before any work
     width, height = args.resolution or (1280, 720)
 

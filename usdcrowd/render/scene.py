@@ -108,6 +108,24 @@ class ShotScene:
         m = np.array(self._xf(time).GetLocalToWorldTransform(prim), dtype=np.float64)
         return m @ self._to_canonical
 
+    def check_times(self, times) -> None:
+        """Refuse time codes outside the shot's range (a ``--frames`` typo would render held poses).
+
+        Raises
+        ------
+        StageError
+        """
+        from ..errors import StageError
+
+        times = np.asarray(times, dtype=np.float64)
+        if len(self.time_codes) == 0 or len(times) == 0:
+            return
+        lo, hi = float(self.time_codes[0]), float(self.time_codes[-1])
+        outside = times[(times < lo - 1e-6) | (times > hi + 1e-6)]
+        if len(outside):
+            raise StageError(f"frame {outside[0]:g} is outside the shot's frames {lo:g}-{hi:g}", file=self.path,
+                             attribute="--frames")
+
     # --------------------------------------------------------------- cameras
     @property
     def camera_paths(self) -> list[str]:

@@ -393,6 +393,7 @@ def render_sequence(shot_path, out_dir, camera: str | None = None, frames=None,
     shot_path = os.fspath(Path(shot_path).resolve())
     shot = ShotScene(shot_path)
     times = np.asarray(frames if frames is not None else shot.time_codes, dtype=np.float64)
+    shot.check_times(times)
     if times.size == 0:
         raise UsdcrowdError("no frames to render")
     cam_path = shot.camera(camera, float(times[0])).path            # raises StageError on a bad camera
