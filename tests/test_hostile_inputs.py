@@ -36,6 +36,15 @@ def _run(capsys, command, stage, out):
     return code, err
 
 
+def _small_shot(tmp_path, agents: int, last_frame: int):
+    """A museum shot of ``agents`` agents over frames 1..``last_frame`` in tmp_path/shot."""
+    scenario = tmp_path / "museum.usda"
+    assert main(["new", "museum", "-o", str(scenario), "--agents", str(agents)]) == 0
+    shot = tmp_path / "shot"
+    assert main(["simulate", str(scenario), "-o", str(shot), "--frames", f"1:{last_frame}", "--no-progress"]) == 0
+    return shot
+
+
 def _crowd_stage(path, prims: str):
     """A 6-frame stage with a 2-agent group and ``prims`` beside it under /World."""
     path.write_text('#usda 1.0\n(\n    defaultPrim = "World"\n    startTimeCode = 1\n    endTimeCode = 6\n)\n'
@@ -65,10 +74,7 @@ def test_a_fifo_stage_or_sublayer_is_refused_at_once_by_every_command(layers, ca
 
 
 def test_a_shot_without_its_crowd_layer_is_an_error_not_an_empty_render(tmp_path, capsys):
-    scenario = tmp_path / "museum.usda"
-    assert main(["new", "museum", "-o", str(scenario), "--agents", "6"]) == 0
-    shot = tmp_path / "shot"
-    assert main(["simulate", str(scenario), "-o", str(shot), "--frames", "1:12", "--no-progress"]) == 0
+    shot = _small_shot(tmp_path, agents=6, last_frame=12)
     capsys.readouterr()
     (shot / "crowd.usdc").unlink()
     for command in ("render", "preview", "cameras", "inspect"):
@@ -282,10 +288,7 @@ def test_a_camera_no_renderer_can_use_is_refused_by_preview_render_and_validate(
                                                                                value, words):
     from pxr import Gf, Sdf
 
-    scenario = tmp_path / "museum.usda"
-    assert main(["new", "museum", "-o", str(scenario), "--agents", "4"]) == 0
-    shot = tmp_path / "shot"
-    assert main(["simulate", str(scenario), "-o", str(shot), "--frames", "1:6", "--no-progress"]) == 0
+    shot = _small_shot(tmp_path, agents=4, last_frame=6)
     layer = Sdf.Layer.FindOrOpen(str(shot / "cameras.usda"))
     spec = layer.GetAttributeAtPath(f"/World/Cameras/CrowdCam.{attribute}")
     if spec is None:
@@ -345,10 +348,7 @@ def test_non_finite_transforms_and_lights_are_one_line_errors(museum, tmp_path, 
 def test_a_damaged_animation_in_the_crowd_layer_is_found_by_preview_render_and_validate(tmp_path, capsys):
     from pxr import Gf, Sdf, Vt
 
-    scenario = tmp_path / "museum.usda"
-    assert main(["new", "museum", "-o", str(scenario), "--agents", "4"]) == 0
-    shot = tmp_path / "shot"
-    assert main(["simulate", str(scenario), "-o", str(shot), "--frames", "1:4", "--no-progress"]) == 0
+    shot = _small_shot(tmp_path, agents=4, last_frame=4)
     crowd = Sdf.Layer.FindOrOpen(str(shot / "crowd.usdc"))
     paths = []
     crowd.Traverse("/", lambda p: paths.append(p) if p.IsPropertyPath() and p.name == "translations" else None)
@@ -369,10 +369,7 @@ def test_a_damaged_animation_in_the_crowd_layer_is_found_by_preview_render_and_v
 
 
 def test_frames_outside_the_shot_are_refused_by_preview_and_render(tmp_path, capsys):
-    scenario = tmp_path / "museum.usda"
-    assert main(["new", "museum", "-o", str(scenario), "--agents", "4"]) == 0
-    shot = tmp_path / "shot"
-    assert main(["simulate", str(scenario), "-o", str(shot), "--frames", "1:4", "--no-progress"]) == 0
+    shot = _small_shot(tmp_path, agents=4, last_frame=4)
     capsys.readouterr()
     for command, out in (("preview", tmp_path / "p.mp4"), ("render", tmp_path / "r")):
         argv = [command, str(shot / "shot.usda"), "--frames", "2:5000", "-o", str(out)]
