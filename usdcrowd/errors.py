@@ -46,6 +46,15 @@ class UsdcrowdError(Exception):
 class StageError(UsdcrowdError):
     """A stage cannot be opened or is not what the command needs."""
 
+    @classmethod
+    def at(cls, prim, attribute: str, message: str) -> "StageError":
+        """The error about ``prim``'s ``attribute``, naming the layer that authors its strongest opinion
+        (where the user has to look), or the stage's root layer when nothing authors it."""
+        attr = prim.GetAttribute(attribute)
+        stack = attr.GetPropertyStack() if attr else []
+        layer = stack[0].layer.identifier if stack else prim.GetStage().GetRootLayer().identifier
+        return cls(message, file=layer, prim=str(prim.GetPath()), attribute=attribute)
+
 
 class ScenarioError(UsdcrowdError):
     """A scenario's values are wrong (out of range, missing asset, empty group)."""

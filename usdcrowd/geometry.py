@@ -50,10 +50,7 @@ def _check_topology(prim, points: np.ndarray, counts: np.ndarray, indices: np.nd
     from .errors import StageError
 
     def fail(message, attribute):
-        attr = prim.GetAttribute(attribute)
-        stack = attr.GetPropertyStack() if attr else []
-        layer = stack[0].layer.identifier if stack else prim.GetStage().GetRootLayer().identifier
-        raise StageError(message, file=layer, prim=str(prim.GetPath()), attribute=attribute)
+        raise StageError.at(prim, attribute, message)
 
     if not np.isfinite(points).all():
         fail("points must be finite numbers", "points")

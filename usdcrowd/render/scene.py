@@ -286,9 +286,7 @@ class ShotScene:
         for values, query in ((rot[i], rq), (trans[i], tq), (scale[i], sq)):
             if not np.isfinite(values).all():
                 attr = query.GetAttribute()
-                stack = attr.GetPropertyStack(t)
-                raise StageError(f"not a finite value at time {t:g}", file=stack[0].layer.identifier if stack else None,
-                                 prim=str(attr.GetPrim().GetPath()), attribute=attr.GetName())
+                raise StageError.at(attr.GetPrim(), attr.GetName(), f"not a finite value at time {t:g}")
         raise StageError(f"the agent's transform is not finite at time {t:g}", file=self.path,
                          prim=self.agent_paths[i])
 
@@ -311,11 +309,7 @@ def _check_lens(prim, time, *, focal, horizontalAperture, verticalAperture, near
     from ..errors import StageError
 
     def fail(attribute, message):
-        attr = prim.GetAttribute(attribute)
-        stack = attr.GetPropertyStack() if attr else []
-        layer = stack[0].layer.identifier if stack else prim.GetStage().GetRootLayer().identifier
-        raise StageError(f"{message} at time {float(time):g}", file=layer, prim=str(prim.GetPath()),
-                         attribute=attribute)
+        raise StageError.at(prim, attribute, f"{message} at time {float(time):g}")
 
     for name, value in (("focalLength", focal), ("horizontalAperture", horizontalAperture),
                         ("verticalAperture", verticalAperture)):
@@ -398,9 +392,7 @@ def _light_of(prim, to_world: np.ndarray, mpu: float) -> Light | None:
     for attr in (api.GetIntensityAttr(), api.GetExposureAttr(), api.GetColorAttr()):
         value = attr.Get()
         if value is not None and not np.isfinite(np.asarray(value, dtype=np.float64)).all():
-            stack = attr.GetPropertyStack()
-            raise StageError(f"not a finite value: {value}", file=stack[0].layer.identifier if stack else None,
-                             prim=str(prim.GetPath()), attribute=attr.GetName())
+            raise StageError.at(prim, attr.GetName(), f"not a finite value: {value}")
     rgb = np.array(api.GetColorAttr().Get(), dtype=np.float64)
     if api.GetEnableColorTemperatureAttr().Get():
         rgb = rgb * color_temperature_rgb(api.GetColorTemperatureAttr().Get())
