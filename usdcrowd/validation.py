@@ -7,7 +7,6 @@ the first.
 
 from __future__ import annotations
 
-import math
 import os
 from dataclasses import dataclass
 
@@ -120,6 +119,8 @@ def _non_finite(prim) -> list[tuple[str, str]]:
 
 def _lens_problems(prim) -> list[tuple[str, str]]:
     """Lens values no renderer can use, at the default time and every authored sample."""
+    from .view import lens_problem
+
     out = []
     for name in ("focalLength", "horizontalAperture", "verticalAperture", "clippingRange"):
         attr = prim.GetAttribute(name)
@@ -130,14 +131,9 @@ def _lens_problems(prim) -> list[tuple[str, str]]:
             v = attr.Get() if t is None else attr.Get(t)
             if v is None:
                 continue
-            when = "" if t is None else f" at time {t:g}"
-            if name == "clippingRange":
-                near, far = float(v[0]), float(v[1])
-                if not (math.isfinite(near) and math.isfinite(far) and 0 < near < far):
-                    out.append((name, f"must be 0 < near < far, got ({near:g}, {far:g}){when}"))
-                    break
-            elif not (math.isfinite(float(v)) and float(v) > 0):
-                out.append((name, f"must be > 0, got {float(v):g}{when}"))
+            problem = lens_problem(name, v)
+            if problem:
+                out.append((name, problem + ("" if t is None else f" at time {t:g}")))
                 break
     return out
 

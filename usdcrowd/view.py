@@ -175,3 +175,21 @@ def camera_record(cam: CameraView, width: int, height: int) -> dict:
         # What the camera was doing and why (seed 000's camera agents; None for other cameras).
         "agent_state": cam.agent_state, "tracked_event": cam.tracked_event,
     }
+
+
+def lens_problem(name: str, value) -> str | None:
+    """What makes a UsdGeom.Camera lens value unusable by any renderer, or None.
+
+    ``name`` is "focalLength", "horizontalAperture", "verticalAperture" (each
+    must be a finite number > 0) or "clippingRange" ((near, far) with
+    0 < near < far). The renderers refuse such a camera and ``validate``
+    reports it, in these words.
+    """
+    if name == "clippingRange":
+        near, far = float(value[0]), float(value[1])
+        if not (np.isfinite(near) and np.isfinite(far) and 0 < near < far):
+            return f"must be 0 < near < far, got ({near:g}, {far:g})"
+        return None
+    if not (np.isfinite(float(value)) and float(value) > 0):
+        return f"must be > 0, got {float(value):g}"
+    return None

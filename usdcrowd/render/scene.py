@@ -308,15 +308,16 @@ def _check_lens(prim, time, *, focal, horizontalAperture, verticalAperture, near
     """A camera no renderer can use is the user's mistake: one line naming the layer, the camera and the attribute."""
     from ..errors import StageError
 
+    from ..view import lens_problem
+
     def fail(attribute, message):
         raise StageError.at(prim, attribute, f"{message} at time {float(time):g}")
 
     for name, value in (("focalLength", focal), ("horizontalAperture", horizontalAperture),
-                        ("verticalAperture", verticalAperture)):
-        if not (np.isfinite(value) and value > 0):
-            fail(name, f"must be > 0, got {value:g}")
-    if not (np.isfinite(near) and np.isfinite(far) and 0 < near < far):
-        fail("clippingRange", f"must be 0 < near < far, got ({near:g}, {far:g})")
+                        ("verticalAperture", verticalAperture), ("clippingRange", (near, far))):
+        problem = lens_problem(name, value)
+        if problem:
+            fail(name, problem)
     if not np.isfinite(matrix).all():
         fail("xformOp:transform", "the camera's transform is not finite")
 

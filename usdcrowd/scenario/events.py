@@ -183,6 +183,7 @@ def read_camera_agents(stage, time: float | None = None) -> model.CameraAgentTab
     """
     from pxr import Usd, UsdGeom
 
+    from ..view import lens_problem
     from .read import range_problem
 
     frame = stage_frame(stage)
@@ -220,8 +221,9 @@ def read_camera_agents(stage, time: float | None = None) -> model.CameraAgentTab
 
         for lens in ("focalLength", "horizontalAperture", "verticalAperture"):
             value = prim.GetAttribute(lens).Get(t)
-            if value is None or not math.isfinite(value) or value <= 0:
-                fail(f"a camera agent's lens must be > 0, got {value}", lens)
+            problem = lens_problem(lens, value) if value is not None else "is not set"
+            if problem:
+                fail(problem, lens)
         get("elevationRange")
 
         mode = str(get("mode"))
