@@ -49,7 +49,6 @@ def load_shot(shot_path: str | os.PathLike, seed: int | None = None, progress: b
     from .scenario.crowd import read_crowd
     from .scenario.events import read_events
     from .scenario.stageio import time_range
-    from .usd import CAMERAS
 
     shot_path = os.fspath(shot_path)
     stage = open_stage(shot_path)
@@ -107,14 +106,6 @@ def _reorder(frames: model.CrowdFrames, order: np.ndarray, n: int) -> model.Crow
                              move(frames.health), move(frames.look_at), path_method)
 
 
-def crowd_summary(positions: np.ndarray, visible: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(t, 3) centroid and (t,) spread of the visible crowd per frame (the overview camera)."""
-    vis = visible if visible.any() else np.ones_like(visible)
-    pos = positions[:, vis].astype(np.float64)
-    c = pos.mean(axis=1)
-    return c, np.linalg.norm(pos - c[:, None], axis=2).max(axis=1)
-
-
 def refilm_shot(shot_path: str | os.PathLike, count: int | None = None, static: int = 0,
                 seed: int | None = None, progress: bool = True, limits=None) -> tuple[str, list[model.CameraTrack], ShotCrowd]:
     """Run the cameras again on an existing shot and replace its cameras.usda atomically.
@@ -128,9 +119,8 @@ def refilm_shot(shot_path: str | os.PathLike, count: int | None = None, static: 
     from .usd.events import author_events
 
     sc = load_shot(shot_path, progress=progress, limits=limits)
-    centres, spreads = crowd_summary(sc.positions, sc.scenario.agents.visible)
-    tracks = film_cameras(sc.scenario, sc.positions, sc.events, sc.default_prim, progress, centres, spreads,
-                          count=count, static=static, seed=seed)
+    tracks = film_cameras(sc.scenario, sc.positions, sc.events, sc.default_prim, progress, count=count,
+                          static=static, seed=seed)
     writer = None
     if sc.detected_now:
         def writer(layer):
@@ -163,11 +153,10 @@ def evaluate_shot(shot_path: str | os.PathLike, out_dir: str | os.PathLike, coun
     sc = load_shot(shot_path, progress=progress, limits=limits)
     out = output_dir(out_dir)
     active = active_mask(sc.events, sc.scenario.time.codes, len(sc.scenario.agents))
-    centres, spreads = crowd_summary(sc.positions, sc.scenario.agents.visible)
     results = {}
     for n in counts:
-        tracks = film_cameras(sc.scenario, sc.positions, sc.events, sc.default_prim, progress, centres, spreads,
-                              count=n, static=n, seed=seed)
+        tracks = film_cameras(sc.scenario, sc.positions, sc.events, sc.default_prim, progress, count=n, static=n,
+                              seed=seed)
         auto = [t for t in tracks if t.state is not None]
         stat = [t for t in tracks if t.state is None and "/Static" in t.path]
         series = {"autonomous": coverage(auto, sc.positions, active, sc.scenario.agents.visible),

@@ -93,8 +93,10 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     from pxr import Sdf, UsdLux
 
     from .atomic import output_dir
+    from .errors import ScenarioError
     from .events import EventDetector
     from .events.scenario import layer_events
+    from .limits import DEFAULT
     from .plots import trajectory_map
     from .scenario import load_scenario, open_stage, stage_frame
     from .scenario.events import read_events
@@ -105,9 +107,6 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     scenario_path = os.fspath(scenario_path)
     out_dir = Path(out_dir)
     stage = open_stage(scenario_path)
-    from .errors import ScenarioError
-    from .limits import DEFAULT
-
     limits = limits or DEFAULT
     scenario = load_scenario(scenario_path, seed=seed, stage=stage, limits=limits)
     if frames is not None:
@@ -126,9 +125,6 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     scenario_ref = os.path.relpath(os.path.abspath(scenario_path), out_dir.resolve())
 
     writer = CrowdLayerWriter(out_dir / CROWD, scenario, sframe, default_prim, scenario_ref, authored)
-    visible = scenario.agents.visible
-    if not visible.any():
-        visible = np.ones_like(visible)
     detector = EventDetector(scenario.agents.character_type, scenario.agents.visible, scenario.time.fps,
                              scope=f"/{default_prim}/Events" if default_prim else "/Events")
     collected = _Collected()
@@ -137,22 +133,21 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     stride = max(1, scenario.time.n_frames // 200)
     cameras = plot = None
     try:
-        _author_frames(writer, crowd_source(scenario), scenario, visible, plotted, stride, progress,
+        _author_frames(writer, crowd_source(scenario), scenario, plotted, stride, progress,
                        collected, detector if events else None)
         positions = np.concatenate(collected.positions)
         detected = list(detector.finish()) + layer_events(
             scenario.fields, positions, scenario.time.codes, scenario.agents.visible, detector.scope) if events else []
-        events = model.EventTable(list(scenario.events) + detected)
+        shot_events = model.EventTable(list(scenario.events) + detected)
         with Sdf.ChangeBlock():
-            n_events = author_events(writer.layer, events, scenario.agents.path, scenario.agents.agent_id, sframe)
+            n_events = author_events(writer.layer, shot_events, scenario.agents.path, scenario.agents.agent_id,
+                                     sframe)
         # The part writers save while the cameras and the picture are made.
         writer.start_saving()
-        tracks = film_cameras(scenario, positions, events, default_prim, progress,
-                              np.concatenate(collected.centres), np.concatenate(collected.spreads),
-                              count=camera_count)
+        tracks = film_cameras(scenario, positions, shot_events, default_prim, progress, count=camera_count)
         cameras = write_camera_tracks(out_dir, tracks, sframe, default_prim, scenario.time,
                                       defined={p for p in scenario.cameras.path},
-                                      extra={"seed": int(scenario.seed), "events": len(events)})
+                                      extra={"seed": int(scenario.seed), "events": len(shot_events)})
         plot = trajectory_map(_subset(scenario, plotted), np.concatenate(collected.tracks),
                               out_dir / "trajectories.png",
                               title=f"{Path(scenario_path).name}: {len(scenario.agents)} agents, "
@@ -177,22 +172,18 @@ class _Collected:
     """What the cameras and the picture need from the simulated chunks."""
 
     positions: list = field(default_factory=list)
-    centres: list = field(default_factory=list)
-    spreads: list = field(default_factory=list)
     tracks: list = field(default_factory=list)
 
 
 def film_cameras(scenario: model.Scenario, positions: np.ndarray, events: model.EventTable, default_prim: str,
-                 progress: bool, centres: np.ndarray, spreads: np.ndarray, count: int | None = None,
-                 static: int = 0, seed: int | None = None) -> list[model.CameraTrack]:
+                 progress: bool, count: int | None = None, static: int = 0,
+                 seed: int | None = None) -> list[model.CameraTrack]:
     """The shot's cameras: the overview, the camera agents (the scenario's, or ``count``), static ones.
 
     Parameters
     ----------
     positions : (t, n, 3) float
         The crowd over the shot.
-    centres, spreads : (t, 3), (t,) float
-        Centroid and spread of the visible crowd per frame (the overview camera).
     count : int, optional
         Number of camera agents: the scenario's first ``count`` and generated
         ones beyond them. Default: the scenario's.
@@ -200,17 +191,21 @@ def film_cameras(scenario: model.Scenario, positions: np.ndarray, events: model.
         Static cameras at strategic positions (seed 000's baseline).
     """
     from .cameras import film, generated_agents, overview_track, static_cameras
+    from .cameras.overview import crowd_summary
     from .cameras.placement import concat_agents, crowd_extent, take_agents
 
     root = f"/{default_prim}" if default_prim else ""
     times = scenario.time.codes
+    centres, spreads = crowd_summary(positions, scenario.agents.visible)
     tracks = [overview_track(centres, spreads, times, scenario.time.fps, f"{root}/Cameras/CrowdCam")]
+    # Placement needs where the crowd goes, not every frame of it.
+    sample = positions[:: max(1, len(positions) // 50)]
     agents = scenario.cameras
     if count is not None:
         if count <= len(agents):
             agents = take_agents(agents, np.arange(count))
         else:
-            centre, radius = crowd_extent(positions[:: max(1, len(positions) // 50)])
+            centre, radius = crowd_extent(sample)
             agents = concat_agents(agents, generated_agents(count - len(agents), centre, radius, root,
                                                             start=len(agents) + 1, bounds=scenario.bounds))
     if len(agents):
@@ -220,12 +215,12 @@ def film_cameras(scenario: model.Scenario, positions: np.ndarray, events: model.
                            scenario.agents.visible, seed=scenario.seed if seed is None else seed,
                            progress=bar.update, bounds=scenario.bounds)
     if static:
-        tracks += static_cameras(positions[:: max(1, len(positions) // 50)], static, times, root,
+        tracks += static_cameras(sample, static, times, root,
                                  bounds=scenario.bounds, seed=scenario.seed if seed is None else seed)
     return tracks
 
 
-def _author_frames(writer, chunks, scenario, visible, plotted, stride, progress, collected, detector) -> None:
+def _author_frames(writer, chunks, scenario, plotted, stride, progress, collected, detector) -> None:
     """Author (and animate) every chunk; collect what the cameras, the events and the picture need."""
     done = 0
     with _progress(scenario.time.n_frames, "simulate", progress) as bar:
@@ -234,10 +229,6 @@ def _author_frames(writer, chunks, scenario, visible, plotted, stride, progress,
             if detector is not None:
                 detector.feed(chunk)
             collected.positions.append(chunk.position.astype(np.float32))
-            pos = chunk.position[:, visible].astype(np.float64)
-            c = pos.mean(axis=1)
-            collected.centres.append(c)
-            collected.spreads.append(np.linalg.norm(pos - c[:, None], axis=2).max(axis=1))
             keep = (done + np.arange(len(chunk.times))) % stride == 0
             collected.tracks.append(chunk.position[keep][:, plotted])
             done += len(chunk.times)

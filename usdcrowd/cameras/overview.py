@@ -21,6 +21,15 @@ V_APERTURE = 20.25
 ELEVATION_DEG = 35.0
 
 
+def crowd_summary(positions: np.ndarray, visible: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(t, 3) centroid and (t,) largest distance from it of the visible crowd per frame (everyone if nobody is)."""
+    vis = np.asarray(visible, bool)
+    vis = vis if vis.any() else np.ones_like(vis)
+    pos = np.asarray(positions)[:, vis].astype(np.float64)
+    c = pos.mean(axis=1)
+    return c, np.linalg.norm(pos - c[:, None], axis=2).max(axis=1)
+
+
 def overview_track(centre: np.ndarray, spread: np.ndarray, times: np.ndarray, fps: float,
                    path: str) -> model.CameraTrack:
     """A camera framing the whole crowd.
