@@ -47,7 +47,7 @@ def load_shot(shot_path: str | os.PathLike, seed: int | None = None, progress: b
     from .events.scenario import layer_events
     from .scenario import load_scenario, open_stage, stage_frame
     from .scenario.crowd import read_crowd
-    from .scenario.events import read_events
+    from .scenario.events import layer_generator, read_events
     from .scenario.stageio import time_range
 
     shot_path = os.fspath(shot_path)
@@ -75,8 +75,7 @@ def load_shot(shot_path: str | os.PathLike, seed: int | None = None, progress: b
     positions = frames.position.astype(np.float32)
     # Events as the crowd layer and the scenario hold them, without the cameras layer being replaced.
     for layer in stage.GetLayerStack(includeSessionLayers=False):
-        data = dict(layer.customLayerData.get("usdcrowd", {})) if layer.customLayerData else {}
-        if data.get("generator") == "usdcrowd cameras":
+        if layer_generator(layer) == "usdcrowd cameras":
             stage.MuteLayer(layer.identifier)
     events = read_events(stage, rows, scenario.time)
     detected_now = not any(not e.authored for e in events)

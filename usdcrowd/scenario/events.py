@@ -16,14 +16,19 @@ from .. import model, schema
 from ..errors import ScenarioError
 from .stageio import stage_frame, time_range
 
-def is_generated_layer(layer) -> bool:
-    """True for a layer usdcrowd generated (the crowd layer and its parts, cameras.usda).
+def layer_generator(layer) -> str | None:
+    """Which usdcrowd command generated ``layer`` ("usdcrowd simulate", "usdcrowd cameras"), None for others.
 
     Told by the ``customLayerData["usdcrowd"]["generator"]`` usdcrowd writes,
     not by the file's name: a user's own sublayer may be called cameras.usda.
     """
     data = layer.customLayerData.get("usdcrowd") if layer.customLayerData else None
-    return bool(data) and bool(data.get("generator"))
+    return (data.get("generator") or None) if data else None
+
+
+def is_generated_layer(layer) -> bool:
+    """True for a layer usdcrowd generated (the crowd layer and its parts, cameras.usda)."""
+    return layer_generator(layer) is not None
 
 
 def _is_authored(prim) -> bool:

@@ -193,7 +193,8 @@ def load_scenario(path: str | os.PathLike, seed: int | None = None, stage=None,
     stage = stage or open_stage(source)
     r = _Reader(stage, source)
     r.limits = limits
-    n_frames = time_range(stage).n_frames
+    time = time_range(stage)
+    n_frames = time.n_frames
     if n_frames > limits.max_frames:
         raise ScenarioError(f"{n_frames:,} frames: more than the {limits.max_frames:,} accepted "
                             f"(raise it with --max-frames)", file=source, attribute="endTimeCode")
@@ -223,7 +224,7 @@ def load_scenario(path: str | os.PathLike, seed: int | None = None, stage=None,
                        f"(raise it with --max-agents)", prim, "crowd:clones")
             group_row[path] = len(groups)
             authored = r.authored(prim, INHERITED)
-            schedule = r.goal_waypoints(prim, time_range(stage).start)
+            schedule = r.goal_waypoints(prim, time.start)
             if schedule is not None:
                 authored["goal"] = schedule[2]
             groups.append(GroupSpec(path, parent, authored, clones, subclones))
@@ -253,7 +254,6 @@ def load_scenario(path: str | os.PathLike, seed: int | None = None, stage=None,
     fields = [_behavior_field(r, p) for p in layers]
     interest = _interest(r, points)
     bounds = _bounds(ground, obstacles, table, interest, fields)
-    time = time_range(stage)
     events = read_events(stage, {p: i for i, p in enumerate(table.path)}, time, agent_ids=table.agent_id)
     events = model.EventTable([e for e in events if e.authored])
     return model.Scenario(source, time, int(seed), group_table, table, fields, interest, obstacles, bounds,
