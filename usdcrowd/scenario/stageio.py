@@ -98,17 +98,12 @@ def open_stage(path: str | os.PathLike):
         Missing file, not a regular file, not a USD file, a file USD cannot
         parse, or a layer it needs that is missing or unreadable.
     """
-    from pxr import Tf, Usd
+    from pxr import Usd
 
     path = os.fspath(path)
     _check_layers(path)
     with _captured_stderr() as captured:
-        try:
-            stage = Usd.Stage.Open(path)
-        except Tf.ErrorException as exc:
-            raise StageError(f"not a readable USD file: {usd_error_text(exc)}", file=path) from None
-    if stage is None:
-        raise StageError("not a readable USD file", file=path)
+        stage = _opened(Usd.Stage.Open, path)
     errors = stage.GetCompositionErrors()
     if errors:
         # A reference to a prim that is not there, a cycle...: USD only warns, and the
@@ -148,6 +143,19 @@ def _captured_stderr():
             captured.text = tmp.read().decode("utf-8", "replace")
 
 
+def _opened(open_fn, path: str):
+    """``open_fn(path)`` (a stage or a layer); USD's failures become one-line StageErrors."""
+    from pxr import Tf
+
+    try:
+        opened = open_fn(path)
+    except Tf.ErrorException as exc:
+        raise StageError(f"not a readable USD file: {usd_error_text(exc)}", file=path) from None
+    if opened is None:
+        raise StageError("not a readable USD file", file=path)
+    return opened
+
+
 def _check_file(path: str, referrer: str | None = None) -> None:
     """A layer file must exist and be a regular file (one-line errors that name who refers to it)."""
     import stat
@@ -170,7 +178,7 @@ def _check_file(path: str, referrer: str | None = None) -> None:
 
 def _check_layers(root: str) -> None:
     """Check the root layer and every layer it composes, depth first, each once."""
-    from pxr import Sdf, Tf
+    from pxr import Sdf
 
     _check_file(root)
     seen, todo = set(), [os.path.abspath(root)]
@@ -179,12 +187,7 @@ def _check_layers(root: str) -> None:
         if path in seen:
             continue
         seen.add(path)
-        try:
-            layer = Sdf.Layer.FindOrOpen(path)
-        except Tf.ErrorException as exc:
-            raise StageError(f"not a readable USD file: {usd_error_text(exc)}", file=path) from None
-        if layer is None:
-            raise StageError("not a readable USD file", file=path)
+        layer = _opened(Sdf.Layer.FindOrOpen, path)
         for asset in layer.GetCompositionAssetDependencies():
             # Same-layer references (empty), resolver URIs and expressions are the resolver's business.
             if not asset or "://" in asset or "${" in asset or asset.startswith("`"):
