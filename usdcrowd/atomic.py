@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import os
 import re
+import shutil
 import uuid
 from pathlib import Path
 
@@ -45,7 +46,8 @@ def atomic_path(final: str | os.PathLike):
 def clean_partials(folder: str | os.PathLike, depth: int = 2) -> int:
     """Remove the temporary files an interrupted run left in ``folder`` (and its subfolders, ``depth`` deep).
 
-    Only names :func:`atomic_path` makes are touched. Returns how many were removed.
+    Only names :func:`atomic_path` makes are touched (files, and the
+    temporary clip folders named the same way). Returns how many were removed.
     """
     removed = 0
     try:
@@ -53,7 +55,10 @@ def clean_partials(folder: str | os.PathLike, depth: int = 2) -> int:
     except OSError:
         return 0
     for entry in entries:
-        if entry.is_dir(follow_symlinks=False) and depth > 0:
+        if entry.is_dir(follow_symlinks=False) and _PARTIAL.match(entry.name):
+            shutil.rmtree(entry.path, ignore_errors=True)       # a clip folder (usdcrowd.usd.clips)
+            removed += 1
+        elif entry.is_dir(follow_symlinks=False) and depth > 0:
             removed += clean_partials(entry.path, depth - 1)
         elif entry.is_file(follow_symlinks=False) and _PARTIAL.match(entry.name):
             with contextlib.suppress(OSError):
@@ -97,7 +102,6 @@ def export_layer(layer, final: str | os.PathLike) -> str:
     file, and nothing is left half-written.
     """
     import errno
-    import shutil
 
     from pxr import Tf
 

@@ -44,7 +44,7 @@ def _progress(total: int, desc: str, enabled: bool):
 def simulate_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike, seed: int | None = None,
                   frames: tuple[float, float] | None = None, progress: bool = True,
                   chunk_frames: int = 48, camera_count: int | None = None, events: bool = True,
-                  limits=None) -> ShotResult:
+                  limits=None, clip_frames: int | None = None) -> ShotResult:
     """Simulate a scenario and write shot.usda, crowd.usdc and cameras.usda in ``out_dir``.
 
     Parameters
@@ -69,6 +69,9 @@ def simulate_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike, 
         scout unless they track those).
     limits : usdcrowd.limits.Limits, optional
         Largest agent count, frame count and image accepted (default: the defaults).
+    clip_frames : int, optional
+        Frames per value-clip window of the crowd layer (default: sized to
+        the crowd, see :mod:`usdcrowd.usd.clips`).
     """
     def crowd(scenario):
         from .sim import SimSettings, simulate_chunks
@@ -76,14 +79,14 @@ def simulate_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike, 
         return simulate_chunks(scenario, SimSettings(chunk_frames=chunk_frames))
 
     return author_shot(scenario_path, out_dir, crowd, seed=seed, frames=frames, progress=progress,
-                       camera_count=camera_count, events=events, limits=limits)
+                       camera_count=camera_count, events=events, limits=limits, clip_frames=clip_frames)
 
 
 def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
                 crowd_source: Callable[[model.Scenario], Iterable[model.CrowdFrames]],
                 seed: int | None = None, frames: tuple[float, float] | None = None,
                 progress: bool = True, camera_count: int | None = None, events: bool = True,
-                limits=None) -> ShotResult:
+                limits=None, clip_frames: int | None = None) -> ShotResult:
     """Read a scenario, take its crowd from ``crowd_source`` and write the shot.
 
     ``crowd_source(scenario)`` yields consecutive :class:`CrowdFrames` chunks
@@ -124,7 +127,8 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     output_dir(out_dir)
     scenario_ref = os.path.relpath(os.path.abspath(scenario_path), out_dir.resolve())
 
-    writer = CrowdLayerWriter(out_dir / CROWD, scenario, sframe, default_prim, scenario_ref, authored)
+    writer = CrowdLayerWriter(out_dir / CROWD, scenario, sframe, default_prim, scenario_ref, authored,
+                              clip_frames=clip_frames)
     detector = EventDetector(scenario.agents.character_type, scenario.agents.visible, scenario.time.fps,
                              scope=f"/{default_prim}/Events" if default_prim else "/Events")
     collected = _Collected()

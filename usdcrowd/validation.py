@@ -14,6 +14,7 @@ import numpy as np
 
 from . import schema
 from .errors import UsdcrowdError
+from .scenario.samples import authored_samples
 
 # USD validators that judge packaging for delivery formats, not stages in a
 # working folder: a .usdc sublayer is exactly what the design asks for.
@@ -69,9 +70,9 @@ def usd_problems(stage, source: str) -> list[Problem]:
 def _animation_problems(anims) -> list[tuple[object, str, str]]:
     """(prim, attribute, message) for skeletal animation samples that are NaN or infinite.
 
-    Samples are read from the strongest layer that has them (Sdf, no
-    composition per sample: 2.7 s for 2,000 agents x 240 frames here), with a
-    progress bar when there are many.
+    Samples are read from the layers that hold them, value clips included
+    (no composition per sample: 2.7 s for 2,000 agents x 240 frames here),
+    with a progress bar when there are many.
     """
     from pxr import UsdSkel
     from tqdm import tqdm
@@ -80,12 +81,16 @@ def _animation_problems(anims) -> list[tuple[object, str, str]]:
     for prim in tqdm(anims, desc="validate animation", unit="agent", disable=len(anims) < 500, leave=False):
         anim = UsdSkel.Animation(prim)
         for attr in (anim.GetRotationsAttr(), anim.GetTranslationsAttr(), anim.GetScalesAttr()):
-            specs = [sp for sp in attr.GetPropertyStack() if sp.layer.GetNumTimeSamplesForPath(sp.path)]
-            if not specs:
-                continue
-            layer, path = specs[0].layer, specs[0].path
-            for t in layer.ListTimeSamplesForPath(path):
-                if not np.isfinite(np.asarray(layer.QueryTimeSample(path, t), dtype=np.float64)).all():
+            times = attr.GetTimeSamples()
+            values = authored_samples(attr, times) if times else []
+            if values is None:
+                values = [attr.Get(t) for t in times]
+            for t, v in zip(times, values):
+                if v is None:
+                    out.append((prim, attr.GetName(), f"no value at time {t:g} (a layer that holds it is "
+                                                      f"missing or unreadable)"))
+                    break
+                if not np.isfinite(np.asarray(v, dtype=np.float64)).all():
                     out.append((prim, attr.GetName(), f"not a finite value at time {t:g}"))
                     break
     return out
@@ -220,6 +225,29 @@ def schema_problems(stage, source: str) -> list[Problem]:
     return out
 
 
+def clip_problems(stage) -> list[Problem]:
+    """Value-clip layers that cannot be read (USD opens them only when a value is asked for)."""
+    from pxr import Sdf, Tf
+
+    from .scenario.stageio import _captured_stderr, _clip_assets
+
+    out = []
+    for layer in stage.GetUsedLayers():
+        for asset in _clip_assets(layer):
+            path = layer.ComputeAbsolutePath(asset)
+            if not os.path.isfile(path):
+                continue                # USD's own validator reports missing files
+            with _captured_stderr():
+                try:
+                    ok = Sdf.Layer.OpenAsAnonymous(path) is not None
+                except Tf.ErrorException:
+                    ok = False
+            if not ok:
+                out.append(Problem(layer.realPath or layer.identifier, "", "",
+                                   f"value clip {asset} is not a readable USD file", "usdcrowd"))
+    return out
+
+
 def scenario_problem(stage, source: str, limits=None) -> list[Problem]:
     """The first structural problem the scenario reader finds (empty group, missing image...)."""
     from .scenario import load_scenario
@@ -239,7 +267,7 @@ def validate(path: str | os.PathLike, stage=None, limits=None) -> list[Problem]:
 
     source = os.fspath(path)
     stage = stage or open_stage(source)
-    found = usd_problems(stage, source) + schema_problems(stage, source)
+    found = usd_problems(stage, source) + clip_problems(stage) + schema_problems(stage, source)
     seen = {(p.prim, p.attribute, p.message) for p in found}
     found += [p for p in scenario_problem(stage, source, limits) if (p.prim, p.attribute, p.message) not in seen]
     return sorted(found, key=lambda p: (p.severity != "error", p.prim, p.attribute))

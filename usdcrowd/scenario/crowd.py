@@ -18,6 +18,7 @@ import numpy as np
 
 from .. import model, schema
 from ..errors import StageError
+from .samples import authored_samples
 from .stageio import open_stage, stage_frame, time_range
 
 @dataclass
@@ -76,28 +77,19 @@ def _agents(stage):
     return out
 
 
-def _samples(attr, times: list[float], wanted: frozenset, dtype, shape: tuple[int, int]) -> np.ndarray:
+def _samples(attr, times: list[float], dtype, shape: tuple[int, int]) -> np.ndarray:
     """Values of an array attribute at ``times``, as one (len(times), *shape) array.
 
-    Samples come straight from the strongest layer that has time samples for
-    every frame asked for (checked against the composed value at the first,
-    middle and last frame: a layer offset or a stronger default would differ);
-    otherwise through a Usd.AttributeQuery per frame. Vt arrays become numpy
+    Samples come straight from the layers that hold them (the crowd layer or
+    its value clips, :func:`usdcrowd.scenario.samples.authored_samples`),
+    else through a Usd.AttributeQuery per frame. Vt arrays become numpy
     through their buffers, joined once.
     """
     from pxr import Usd
 
-    values = None
-    query = Usd.AttributeQuery(attr)
-    for spec in attr.GetPropertyStack(Usd.TimeCode.Default()):
-        if spec.HasInfo("timeSamples"):
-            found = spec.GetInfo("timeSamples")
-            if found.keys() >= wanted:
-                values = list(map(found.__getitem__, times))
-                if any(query.Get(times[i]) != values[i] for i in (0, len(times) // 2, -1)):
-                    values = None
-            break
+    values = authored_samples(attr, times)
     if values is None:
+        query = Usd.AttributeQuery(attr)
         values = [query.Get(t) for t in times]
     try:
         flat = np.frombuffer(b"".join([memoryview(v).tobytes() for v in values]), dtype=dtype)
@@ -113,7 +105,13 @@ def _tokens(attr, times: np.ndarray, vocabulary: tuple[str, ...], default: int =
     if not samples:
         v = attr.Get() if attr else None
         return np.full(len(times), vocabulary.index(str(v)) if v is not None else default, np.int8)
-    codes = np.array([vocabulary.index(str(attr.Get(t))) for t in samples], np.int8)
+    values = [str(attr.Get(t)) for t in samples]
+    unknown = sorted(set(values) - set(vocabulary))
+    if unknown:
+        raise StageError(f"value {unknown[0]!r} is not one of {', '.join(vocabulary)}"
+                         + (" (a layer that holds it is missing or unreadable)" if unknown[0] == "None" else ""),
+                         prim=str(attr.GetPrim().GetPath()), attribute=attr.GetName())
+    codes = np.array([vocabulary.index(v) for v in values], np.int8)
     # The last sample at or before each time; the first one holds before it.
     k = np.clip(np.searchsorted(np.asarray(samples), times, side="right") - 1, 0, len(samples) - 1)
     return codes[k]
@@ -200,10 +198,10 @@ def read_crowd(shot, frames=None) -> tuple[model.CrowdFrames, CrowdInfo]:
     rot = np.empty((len(window), n, 2, 4))
     trans = np.empty((len(window), n, 3))
     scale = np.empty(n)
-    times, wanted = window.tolist(), frozenset(window.tolist())
+    times = window.tolist()
     for a, (prim, anim) in enumerate(agents):
-        r = _samples(anim.GetAttribute("rotations"), times, wanted, np.float32, (3, 4))
-        t = _samples(anim.GetAttribute("translations"), times, wanted, np.float32, (3, 3))
+        r = _samples(anim.GetAttribute("rotations"), times, np.float32, (3, 4))
+        t = _samples(anim.GetAttribute("translations"), times, np.float32, (3, 3))
         rot[:, a] = np.roll(r[:, :2], 1, axis=-1)              # (x, y, z, w) -> (w, x, y, z)
         trans[:, a] = t[:, 0]
         s = anim.GetAttribute("scales").Get(float(window[0]))

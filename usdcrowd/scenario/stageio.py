@@ -189,11 +189,49 @@ def _check_layers(root: str) -> None:
         seen.add(path)
         layer = _opened(Sdf.Layer.FindOrOpen, path)
         for asset in layer.GetCompositionAssetDependencies():
-            # Same-layer references (empty), resolver URIs and expressions are the resolver's business.
-            if not asset or "://" in asset or "${" in asset or asset.startswith("`"):
-                continue
-            target = layer.ComputeAbsolutePath(asset)
-            if not os.path.isabs(target):
-                continue
-            _check_file(target, referrer=path)
-            todo.append(target)
+            target = _local_asset(layer, asset)
+            if target:
+                _check_file(target, referrer=path)
+                todo.append(target)
+        for asset in _clip_assets(layer):
+            # Value clips open lazily, in the middle of a render: checked now,
+            # not followed (a clip only holds samples).
+            target = _local_asset(layer, asset)
+            if target:
+                _check_file(target, referrer=path)
+                _check_crate(target, referrer=path)
+
+
+def _check_crate(path: str, referrer: str) -> None:
+    """A usdc file cut short (its table of contents lies past its end), found from its 24-byte header."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(24)
+            size = os.fstat(f.fileno()).st_size
+    except OSError as exc:
+        raise StageError(f"refers to {path}, which cannot be read: {exc.strerror}", file=referrer) from None
+    if head[:8] == b"PXR-USDC" and not 88 <= int.from_bytes(head[16:24], "little") < size:
+        raise StageError(f"refers to {path}, which is truncated or damaged (a USD crate file whose table "
+                         f"of contents lies past its end)", file=referrer)
+
+
+def _local_asset(layer, asset: str) -> str | None:
+    """The absolute file an asset path of ``layer`` names; None for what only the resolver can tell."""
+    # Same-layer references (empty), resolver URIs and expressions are the resolver's business.
+    if not asset or "://" in asset or "${" in asset or asset.startswith("`"):
+        return None
+    target = layer.ComputeAbsolutePath(asset)
+    return target if os.path.isabs(target) else None
+
+
+def _clip_assets(layer) -> list[str]:
+    """Value-clip layers (and manifests) a layer names: the USD files among its other asset paths.
+
+    (About 45 ms for a layer of 1,000 agents; clips may be anchored on any prim.)
+    """
+    from pxr import Sdf, UsdUtils
+
+    if not layer.realPath:
+        return []
+    _, assets, _ = UsdUtils.ExtractExternalReferences(layer.realPath)
+    return [a for a in assets if Sdf.FileFormat.FindByExtension(os.path.splitext(a)[1].lstrip(".") or "-")]

@@ -37,6 +37,7 @@ from ..character import rig
 from ..character.animation import Animator
 from ..character.root import apply_root_motion, root_scale
 from ..scenario.stageio import StageFrame
+from . import clips
 
 PROTOTYPES = "/CrowdPrototypes"
 SKEL_PROTO = f"{PROTOTYPES}/Skel"
@@ -142,7 +143,8 @@ _TOKEN_SLOTS = (("behavior", model.BEHAVIORS), ("anim_class", model.ANIM_CLASSES
 class _AgentPart:
     """Authors the prims and time samples of a subset of the agents into one layer."""
 
-    def __init__(self, layer, scenario: model.Scenario, frame: StageFrame, rows: np.ndarray, authored: set[str]):
+    def __init__(self, layer, scenario: model.Scenario, frame: StageFrame, rows: np.ndarray, authored: set[str],
+                 clip_plan: clips.ClipPlan | None = None, stem: str = ""):
         self.layer = layer
         self.scenario = scenario
         self.frame = frame
@@ -152,11 +154,17 @@ class _AgentPart:
         self._paths: list = []
         self._height = scenario.agents.height[self.rows]
         self._animator = Animator(1.0 / scenario.time.fps, self._height)
+        # Samples go to time-window clip layers (saved as each window completes) when planned.
+        self._clips, self._stem = clip_plan, stem
+        self._windows: dict = {}
         from pxr import Sdf
 
         with Sdf.ChangeBlock():
             for i in self.rows:
                 self._paths.append(self._write_agent(int(i)))
+            if clip_plan is not None and len(self.rows):
+                clips.author_clip_sets(layer, stem.replace(".", "_"), clip_plan, stem,
+                                       clips.anchor_roots(scenario.agents.path[i] for i in self.rows))
 
     def _write_agent(self, i: int):
         from pxr import Gf, Sdf, Vt
@@ -227,7 +235,7 @@ class _AgentPart:
         self.write_samples(frames.times, rig.to_usd_quat_order(rot), trans, tokens)
 
     def write_samples(self, times: np.ndarray, rot_usd: np.ndarray, trans: np.ndarray, tokens: dict) -> None:
-        """Samples of this part's agents.
+        """Samples of this part's agents, into this layer or into the clip windows they fall in.
 
         Parameters
         ----------
@@ -236,9 +244,33 @@ class _AgentPart:
         trans : (t, m, 3, 3) float32
         tokens : dict of (t, m) int8 codes, keyed like CrowdFrames' fields
         """
+        times = np.asarray(times, dtype=np.float64)
+        # Tokens hold their value, so they are written only where they change.
+        changed = {}
+        for key, _ in _TOKEN_SLOTS:
+            values = tokens[key]
+            changed[key] = np.ones_like(values, dtype=bool)
+            changed[key][1:] = values[1:] != values[:-1]
+            if key in self._last:
+                changed[key][0] = values[0] != self._last[key]
+            self._last[key] = values[-1]
+        if self._clips is None:
+            self._author(self.layer, times, rot_usd, trans, tokens, changed)
+            return
+        for k, idx in self._clips.windows_of(times):
+            sub = {key: c[idx] for key, c in changed.items()}
+            if times[idx[0]] == self._clips.window_start(k):
+                # A clip answers only for its own frames: each starts with every token.
+                for c in sub.values():
+                    c[0] = True
+            self._author(self._window(k), times[idx], rot_usd[idx], trans[idx],
+                         {key: v[idx] for key, v in tokens.items()}, sub)
+        for k in [k for k in self._windows if self._clips.window_end(k) <= times[-1]]:
+            self._save_window(k)
+
+    def _author(self, layer, times: np.ndarray, rot_usd, trans, tokens: dict, changed: dict) -> None:
         from pxr import Sdf, Vt
 
-        layer = self.layer
         times = [float(t) for t in times]
         n_t, n_j = len(times), rot_usd.shape[2]
         # One Vt array per agent for the whole chunk, sliced per frame: a slice
@@ -255,13 +287,34 @@ class _AgentPart:
                     set_sample(tpath, t, t_j[k])
             for slot, (key, vocab) in enumerate(_TOKEN_SLOTS, start=2):
                 values = tokens[key]
-                changed = np.ones_like(values, dtype=bool)
-                changed[1:] = values[1:] != values[:-1]
-                if key in self._last:
-                    changed[0] = values[0] != self._last[key]
-                for k, j in zip(*np.nonzero(changed)):
-                    layer.SetTimeSample(self._paths[j][slot], times[k], vocab[values[k, j]])
-                self._last[key] = values[-1]
+                for k, j in zip(*np.nonzero(changed[key])):
+                    set_sample(self._paths[j][slot], times[k], vocab[values[k, j]])
+
+    def _clip_layer(self):
+        """An empty layer declaring the attributes the clips provide (a window, or the manifest)."""
+        from pxr import Sdf
+
+        T = _types()
+        layer = Sdf.Layer.CreateAnonymous(".usdc")
+        kinds = (T.QuatfArray, T.Float3Array, T.Token, T.Token, T.Token)
+        with Sdf.ChangeBlock():
+            for paths in self._paths:
+                for path, kind in zip(paths, kinds):
+                    prim = layer.GetPrimAtPath(path.GetPrimPath()) or Sdf.CreatePrimInLayer(layer, path.GetPrimPath())
+                    Sdf.AttributeSpec(prim, path.name, kind, Sdf.VariabilityVarying, path.name.startswith("crowd:state"))
+        return layer
+
+    def _window(self, k: int):
+        layer = self._windows.get(k)
+        if layer is None:
+            layer = self._windows[k] = self._clip_layer()
+            layer.startTimeCode, layer.endTimeCode = self._clips.window_start(k), self._clips.window_end(k)
+            layer.timeCodesPerSecond = layer.framesPerSecond = self.scenario.time.fps
+        return layer
+
+    def _save_window(self, k: int) -> None:
+        os.makedirs(self._clips.folder, exist_ok=True)
+        export_layer(self._windows.pop(k), os.path.join(self._clips.folder, self._clips.file_name(self._stem, k)))
 
     def finish(self, lo: np.ndarray, hi: np.ndarray, path_method: np.ndarray | None) -> None:
         """Extents (m, 3) in the SkelRoots' canonical space, and the path method per agent."""
@@ -274,6 +327,11 @@ class _AgentPart:
                 _attr(spec, "extent", T.Float3Array, Vt.Vec3fArray([Gf.Vec3f(*lo[j].tolist()), Gf.Vec3f(*hi[j].tolist())]))
                 if path_method is not None:
                     spec.attributes["crowd:pathMethod"].default = model.PATH_METHODS[path_method[j]]
+        if self._clips is not None:
+            for k in sorted(self._windows):
+                self._save_window(k)
+            os.makedirs(self._clips.folder, exist_ok=True)
+            export_layer(self._clip_layer(), os.path.join(self._clips.folder, self._clips.manifest_name(self._stem)))
 
 
 def _agents_of(frames: model.CrowdFrames, rows: np.ndarray) -> model.CrowdFrames:
@@ -289,29 +347,30 @@ def _agents_of(frames: model.CrowdFrames, rows: np.ndarray) -> model.CrowdFrames
 _LOST = (BrokenPipeError, ConnectionResetError, EOFError)
 
 
-def _part_worker(conn, layer_paths, scenario, frame, row_sets, authored, default_prim):
+def _part_worker(conn, layer_paths, scenario, frame, row_sets, authored, default_prim, clip_plan=None):
     """A process that owns some part layers: commands arrive over ``conn``.
 
     When the coordinator is gone (interrupted, failed), the worker ends
     quietly: the coordinator reports what happened, once.
     """
     try:
-        _part_work(conn, layer_paths, scenario, frame, row_sets, authored, default_prim)
+        _part_work(conn, layer_paths, scenario, frame, row_sets, authored, default_prim, clip_plan)
     except _LOST:
         pass
 
 
-def _part_work(conn, layer_paths, scenario, frame, row_sets, authored, default_prim):
+def _part_work(conn, layer_paths, scenario, frame, row_sets, authored, default_prim, clip_plan):
     from pxr import Sdf
 
     from .. import schema
 
     schema.register()
     parts = []
-    for rows in row_sets:
+    for rows, path in zip(row_sets, layer_paths):
         layer = Sdf.Layer.CreateAnonymous(".usdc")
         _layer_metadata(layer, scenario, frame, default_prim)
-        parts.append(_AgentPart(layer, scenario, frame, rows, authored))
+        parts.append(_AgentPart(layer, scenario, frame, rows, authored, clip_plan,
+                                os.path.splitext(os.path.basename(path))[0]))
     # Columns of each part within the chunks this worker receives.
     bounds = np.cumsum([0] + [len(rows) for rows in row_sets])
     conn.send(("ready", None))
@@ -382,10 +441,15 @@ class CrowdLayerWriter:
     workers : int, optional
         Part layers written in parallel; default: one per core when the crowd
         has at least PARALLEL_MIN_AGENTS agents, else 1 (no extra process).
+    clip_frames : int, optional
+        Frames per value-clip window (:mod:`usdcrowd.usd.clips`); default: as
+        many as keep a process's samples near ``clips.AGENT_FRAMES_PER_PROCESS``.
+        A shot no longer than one window is written without clips.
     """
 
     def __init__(self, path, scenario: model.Scenario, frame: StageFrame, default_prim: str = "",
-                 scenario_ref: str = "", authored_agents: set[str] | None = None, workers: int | None = None):
+                 scenario_ref: str = "", authored_agents: set[str] | None = None, workers: int | None = None,
+                 clip_frames: int | None = None):
         from pxr import Sdf
 
         self.final = os.fspath(path)
@@ -407,11 +471,14 @@ class CrowdLayerWriter:
             _write_prototypes(self.layer)
             _write_group_profiles(self.layer, scenario)
         self._splits = np.array_split(np.arange(n), workers)
+        self.clip_plan = clips.plan(self.final, scenario.time.start, scenario.time.end,
+                                    max(map(len, self._splits)), clip_frames)
         self._local = None
         self._workers = []
         self._saving = False
         if workers == 1:
-            self._local = _AgentPart(self.layer, scenario, frame, self._splits[0], authored)
+            self._local = _AgentPart(self.layer, scenario, frame, self._splits[0], authored, self.clip_plan,
+                                     os.path.splitext(os.path.basename(self.final))[0])
             return
         # Each worker splits its agents into layers of about AGENTS_PER_PART.
         layer_rows = [np.array_split(rows, max(1, round(len(rows) / AGENTS_PER_PART))) for rows in self._splits]
@@ -426,7 +493,8 @@ class CrowdLayerWriter:
             first += len(row_sets)
             proc = ctx.Process(target=_part_worker, daemon=True,
                                args=(there, paths, scenario, frame, row_sets,
-                                     {scenario.agents.path[i] for i in rows} & authored, default_prim))
+                                     {scenario.agents.path[i] for i in rows} & authored, default_prim,
+                                     self.clip_plan))
             _start_ignoring_sigint(proc)
             # Only the worker may hold its end: were it also open here, a send to
             # a worker that died would block on a full pipe instead of failing.
@@ -526,6 +594,7 @@ class CrowdLayerWriter:
             self._collect()
             for proc, _ in self._workers:
                 proc.join()
+        clips.publish(self.clip_plan, self.final)
         return export_layer(self.layer, self.final)
 
     def abort(self) -> None:
@@ -536,3 +605,4 @@ class CrowdLayerWriter:
         for p in getattr(self, "part_paths", []):
             if os.path.exists(p):
                 os.unlink(p)
+        clips.discard(self.clip_plan)
