@@ -7,10 +7,14 @@
     python tools/bench.py preview         # OpenGL preview fps, 1,000 and 10,000 characters
     python tools/bench.py render          # Mitsuba s/frame and ground-truth overhead
     python tools/bench.py cameras         # camera agents + event detection steps/s (30 x 100, 100 x 10,000)
+    python tools/bench.py memory          # simulate's peak memory, 300 agents x 750 and 6,000 frames
+    python tools/bench.py memory --long   # and 10,000 agents x 10,000 frames (about 30 min)
 
 Each measured run happens in a child process so that its peak memory is its own.
 Targets (2-core machine): author 10,000 x 300 in <= 20 s and <= 4 GiB; 100
-camera agents with 10,000 characters (event detection included) >= 30 steps/s.
+camera agents with 10,000 characters (event detection included) >= 30 steps/s;
+simulate's peak memory at 6,000 frames within 10 % of 750, and 10,000 agents x
+10,000 frames within 4 GiB.
 """
 
 from __future__ import annotations
@@ -110,10 +114,11 @@ def bench_section(name: str, **kw) -> None:
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("section", nargs="?", default="all", choices=["all", "author", "sim", "cameras", "preview", "render"])
+    p.add_argument("section", nargs="?", default="all", choices=["all", "author", "sim", "cameras", "preview", "render", "memory"])
     p.add_argument("--agents", type=int, default=10_000)
     p.add_argument("--frames", type=int, default=300)
     p.add_argument("--sizes", default="1000,10000,100000", help="agent counts of the sim section")
+    p.add_argument("--long", action="store_true", help="memory: also 10,000 agents x 10,000 frames")
     args = p.parse_args(argv)
     print(f"machine: {os.cpu_count()} cores, python {sys.version.split()[0]}")
     if args.section in ("all", "author"):
@@ -123,6 +128,8 @@ def main(argv=None) -> int:
     for name in ("cameras", "preview", "render"):
         if args.section in ("all", name):
             bench_section(name)
+    if args.section in ("all", "memory"):
+        bench_section("memory", long=args.long)
     return 0
 
 

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from . import model
+from .framestore import FrameStore
 
 
 PLOT_MAX_AGENTS = 3000
@@ -58,9 +59,9 @@ def simulate_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike, 
     frames : (start, end), optional
         Overrides the stage's time range.
     chunk_frames : int
-        Frames simulated and authored at a time. The crowd layer's memory
-        stays linear in it; the cameras, which run once the crowd is known,
-        keep every frame's positions (t x n x 3 float32).
+        Frames simulated and authored at a time. Memory does not grow with
+        the shot's length: the crowd layer is saved in time windows (value
+        clips) and the positions the cameras need wait in a temporary file.
     camera_count : int, optional
         Camera agents to run: the scenario's first N and generated ones
         beyond. Default: the ones the scenario authors.
@@ -127,11 +128,13 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     output_dir(out_dir)
     scenario_ref = os.path.relpath(os.path.abspath(scenario_path), out_dir.resolve())
 
+    # Positions for the cameras wait on disk, not in memory (they grow with the shot).
+    store = FrameStore(len(scenario.agents), folder=out_dir)
     writer = CrowdLayerWriter(out_dir / CROWD, scenario, sframe, default_prim, scenario_ref, authored,
                               clip_frames=clip_frames)
     detector = EventDetector(scenario.agents.character_type, scenario.agents.visible, scenario.time.fps,
                              scope=f"/{default_prim}/Events" if default_prim else "/Events")
-    collected = _Collected()
+    collected = _Collected(store)
     # The trajectory map draws at most this many agents at about 200 instants.
     plotted = np.sort(np.random.default_rng(0).permutation(len(scenario.agents))[:PLOT_MAX_AGENTS])
     stride = max(1, scenario.time.n_frames // 200)
@@ -139,7 +142,7 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     try:
         _author_frames(writer, crowd_source(scenario), scenario, plotted, stride, progress,
                        collected, detector if events else None)
-        positions = np.concatenate(collected.positions)
+        positions = collected.positions
         detected = list(detector.finish()) + layer_events(
             scenario.fields, positions, scenario.time.codes, scenario.agents.visible, detector.scope) if events else []
         shot_events = model.EventTable(list(scenario.events) + detected)
@@ -148,7 +151,8 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
                                      sframe)
         # The part writers save while the cameras and the picture are made.
         writer.start_saving()
-        tracks = film_cameras(scenario, positions, shot_events, default_prim, progress, count=camera_count)
+        tracks = film_cameras(scenario, positions, shot_events, default_prim, progress, count=camera_count,
+                              summary=collected.summary())
         cameras = write_camera_tracks(out_dir, tracks, sframe, default_prim, scenario.time,
                                       defined={p for p in scenario.cameras.path},
                                       extra={"seed": int(scenario.seed), "events": len(shot_events)})
@@ -163,6 +167,8 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
             if done is not None and os.path.exists(done):
                 os.unlink(done)
         raise
+    finally:
+        store.close()
     # Last: the shot is the entry point, and exists only once everything it sublayers does.
     shot = write_shot(out_dir, scenario_path, scenario.time, sframe, default_prim, scenario.seed,
                       add_lights=not has_lights)
@@ -175,24 +181,33 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
 class _Collected:
     """What the cameras and the picture need from the simulated chunks."""
 
-    positions: list = field(default_factory=list)
+    positions: FrameStore
+    centres: list = field(default_factory=list)
+    spreads: list = field(default_factory=list)
     tracks: list = field(default_factory=list)
 
+    def summary(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.concatenate(self.centres), np.concatenate(self.spreads)
 
-def film_cameras(scenario: model.Scenario, positions: np.ndarray, events: model.EventTable, default_prim: str,
+
+def film_cameras(scenario: model.Scenario, positions, events: model.EventTable, default_prim: str,
                  progress: bool, count: int | None = None, static: int = 0,
-                 seed: int | None = None) -> list[model.CameraTrack]:
+                 seed: int | None = None, summary: tuple[np.ndarray, np.ndarray] | None = None
+                 ) -> list[model.CameraTrack]:
     """The shot's cameras: the overview, the camera agents (the scenario's, or ``count``), static ones.
 
     Parameters
     ----------
-    positions : (t, n, 3) float
-        The crowd over the shot.
+    positions : (t, n, 3) float array or FrameStore
+        The crowd over the shot (read a frame at a time).
     count : int, optional
         Number of camera agents: the scenario's first ``count`` and generated
         ones beyond them. Default: the scenario's.
     static : int
         Static cameras at strategic positions (seed 000's baseline).
+    summary : ((t, 3), (t,)) float, optional
+        The crowd's centroid and spread per frame (:func:`cameras.overview.crowd_summary`),
+        when already known.
     """
     from .cameras import film, generated_agents, overview_track, static_cameras
     from .cameras.overview import crowd_summary
@@ -200,7 +215,7 @@ def film_cameras(scenario: model.Scenario, positions: np.ndarray, events: model.
 
     root = f"/{default_prim}" if default_prim else ""
     times = scenario.time.codes
-    centres, spreads = crowd_summary(positions, scenario.agents.visible)
+    centres, spreads = summary if summary is not None else crowd_summary(positions, scenario.agents.visible)
     tracks = [overview_track(centres, spreads, times, scenario.time.fps, f"{root}/Cameras/CrowdCam")]
     # Placement needs where the crowd goes, not every frame of it.
     sample = positions[:: max(1, len(positions) // 50)]
@@ -226,13 +241,19 @@ def film_cameras(scenario: model.Scenario, positions: np.ndarray, events: model.
 
 def _author_frames(writer, chunks, scenario, plotted, stride, progress, collected, detector) -> None:
     """Author (and animate) every chunk; collect what the cameras, the events and the picture need."""
+    from .cameras.overview import crowd_summary
+
     done = 0
     with _progress(scenario.time.n_frames, "simulate", progress) as bar:
         for chunk in chunks:
             writer.write_chunk(chunk)
             if detector is not None:
                 detector.feed(chunk)
-            collected.positions.append(chunk.position.astype(np.float32))
+            position = chunk.position.astype(np.float32)       # as the cameras read it back from a shot
+            collected.positions.append(position)
+            centre, spread = crowd_summary(position, scenario.agents.visible)
+            collected.centres.append(centre)
+            collected.spreads.append(spread)
             keep = (done + np.arange(len(chunk.times))) % stride == 0
             collected.tracks.append(chunk.position[keep][:, plotted])
             done += len(chunk.times)

@@ -16,6 +16,7 @@ from .. import model
 
 # Members are within this many layer radii of the origin.
 REACH = 2.0
+_BLOCK = 256
 _KIND = {"explosion": "explosion", "volcano": "eruption"}
 
 
@@ -26,7 +27,7 @@ def layer_events(fields: list[model.BehaviorField], positions: np.ndarray, times
     Parameters
     ----------
     fields : list[BehaviorField]
-    positions : (t, n, 3) float
+    positions : (t, n, 3) float array or FrameStore
         The crowd over the shot, metres.
     times : (t,) float
         Time codes.
@@ -51,8 +52,10 @@ def layer_events(fields: list[model.BehaviorField], positions: np.ndarray, times
         if first >= len(times) or len(vis) == 0:
             continue
         r = reach * float(f.radius)
-        d = np.linalg.norm(positions[first:, vis, :2] - np.asarray(f.origin, dtype=np.float64)[:2], axis=2)
-        near = d <= r                                          # (m, v)
+        origin = np.asarray(f.origin, dtype=np.float64)[:2]
+        # In blocks of frames: positions may be a FrameStore on disk.
+        near = np.concatenate([np.linalg.norm(np.asarray(positions[s:s + _BLOCK])[:, vis, :2] - origin, axis=2) <= r
+                               for s in range(first, len(times), _BLOCK)])          # (m, v)
         frames = np.flatnonzero(near.any(axis=1))
         if len(frames) == 0:
             continue
