@@ -377,3 +377,55 @@ def test_frames_outside_the_shot_are_refused_by_preview_and_render(tmp_path, cap
         err = capsys.readouterr().err
         assert "frame 5 is outside the shot's frames 1-4" in err and err.count("\n") == 1, err
         assert not out.exists()
+
+
+@pytest.fixture(scope="module")
+def clipped_shot(tmp_path_factory):
+    """A 4-agent museum shot over 20 frames with its crowd split in 6-frame value clips."""
+    from usdcrowd.pipeline import simulate_shot
+
+    tmp = tmp_path_factory.mktemp("clipped")
+    scenario = tmp / "museum.usda"
+    assert main(["new", "museum", "-o", str(scenario), "--agents", "4"]) == 0
+    simulate_shot(scenario, tmp / "shot", frames=(1, 20), progress=False, clip_frames=6)
+    assert len(list((tmp / "shot" / "crowd.clips").iterdir())) == 5
+    return tmp / "shot"
+
+
+def _truncate(path):
+    data = path.read_bytes()
+    path.write_bytes(data[:len(data) // 2])
+
+
+def _garbage(path):
+    path.write_bytes(b"\x00\xffnot usd at all\n" * 40)
+
+
+SHOT_COMMANDS = {"inspect": [], "validate": [], "cameras": [], "metrics": ["-o", "{out}"],
+                 "preview": ["-o", "{out}/p.mp4", "--frames", "14"],
+                 "render": ["-o", "{out}", "--frames", "14", "--resolution", "32x18", "--spp", "1"]}
+
+
+@pytest.mark.parametrize("damage, file, words", [
+    (os.unlink, "crowd.clips/crowd.0002.usdc", "crowd.0002.usdc, which does not exist"),
+    (_truncate, "crowd.clips/crowd.0002.usdc", "crowd.0002.usdc, which is truncated or damaged"),
+    (_truncate, "crowd.clips/crowd.manifest.usdc", "crowd.manifest.usdc, which is truncated or damaged"),
+    (_truncate, "crowd.usdc", "crowd.usdc"),
+    (_garbage, "cameras.usda", "cameras.usda"),
+])
+@pytest.mark.parametrize("command", sorted(SHOT_COMMANDS))
+def test_a_damaged_shot_layer_is_one_line_in_every_command(clipped_shot, tmp_path, capsys, command, damage, file,
+                                                          words):
+    shutil.copytree(clipped_shot.parent, tmp_path / "w")      # the shot and the scenario it names
+    shot = tmp_path / "w" / "shot"
+    damage(shot / file)
+    out = tmp_path / "out"
+    argv = [command, str(shot / "shot.usda")] + [a.format(out=out) for a in SHOT_COMMANDS[command]]
+    capsys.readouterr()
+    code = main(argv + (["--no-progress"] if command not in ("inspect", "validate") else []))
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, (command, err)
+    assert words in err, err
+    assert not out.exists() or not any(out.rglob("*.*"))
+    # cameras replaces cameras.usda in place: a refused run leaves the shot as it was.
+    assert sorted(p.name for p in shot.iterdir()) == sorted(p.name for p in clipped_shot.iterdir())
