@@ -75,6 +75,25 @@ def test_counts_agree_between_exr_json_mot_and_coco(sequence):
     assert len(list((out / "mot" / "img1").glob("*.png"))) == len(FRAMES)
 
 
+def test_sequence_files_read_the_frames_one_at_a_time(sequence, tmp_path):
+    """COCO and MOT are written a frame at a time from the JSON files, and say what the frames say."""
+    from usdcrowd.groundtruth.coco import coco_dict, write_coco
+    from usdcrowd.groundtruth.mot import write_mot
+
+    out = Path(sequence.out_dir)
+    records = frame_json.Records(sorted((out / "json").glob("frame.*.json")))
+    assert len(records) >= 2 and isinstance(records[1], dict) and len(records[:1]) == 1
+    files = [f"img{i}.png" for i in range(len(records))]
+    write_coco(records, tmp_path / "c.json", files)
+    whole = coco_dict(list(records), files)
+    assert json.loads((tmp_path / "c.json").read_text()) == whole
+    assert len(whole["annotations"]) == sum(a["visible_pixels"] > 0 for r in records for a in r["agents"]) > 0
+    gt = read_mot(write_mot(records, tmp_path / "mot"))
+    assert len(gt) == sum(a.get("bbox_amodal") is not None for r in records for a in r["agents"])
+    assert (tmp_path / "mot" / "frames.csv").read_text().splitlines()[1:] == [
+        f"{i},{r['time']:g}" for i, r in enumerate(records, 1)]
+
+
 def test_coco_masks_decode_to_the_exr_pixels(sequence):
     from pycocotools.coco import COCO
 

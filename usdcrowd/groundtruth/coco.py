@@ -35,25 +35,20 @@ def _mask_utils():
     return mask_utils
 
 
-def coco_dict(records: list[dict], image_files: list[str]) -> dict:
-    """The COCO document of a sequence.
+def _categories(records) -> list[dict]:
+    names = records[0]["keypoint_names"] if len(records) else []
+    return [{"id": k + 1, "name": CATEGORY_NAMES.get(c, c), "supercategory": "agent",
+             "keypoints": list(names), "skeleton": SKELETON} for k, c in enumerate(CATEGORIES)]
 
-    Parameters
-    ----------
-    records : list of dict
-        Frame records in sequence order.
-    image_files : list of str
-        File name of each frame's image, relative to the COCO file.
-    """
+
+def _entries(records, image_files):
+    """("image", dict) and ("annotation", dict) items of a sequence, a frame at a time."""
     mask_utils = _mask_utils()
-    names = records[0]["keypoint_names"] if records else []
-    categories = [{"id": k + 1, "name": CATEGORY_NAMES.get(c, c), "supercategory": "agent",
-                   "keypoints": list(names), "skeleton": SKELETON} for k, c in enumerate(CATEGORIES)]
     cat_id = {c: k + 1 for k, c in enumerate(CATEGORIES)}
-    images, annotations = [], []
+    count = 0
     for index, (rec, file_name) in enumerate(zip(records, image_files), start=1):
-        images.append({"id": index, "file_name": file_name, "width": rec["width"], "height": rec["height"],
-                       "frame_index": index, "time_code": rec["time"], "camera": rec["camera"]["camera"]})
+        yield "image", {"id": index, "file_name": file_name, "width": rec["width"], "height": rec["height"],
+                        "frame_index": index, "time_code": rec["time"], "camera": rec["camera"]["camera"]}
         for a in rec["agents"]:
             if a["visible_pixels"] == 0:
                 continue
@@ -62,20 +57,55 @@ def coco_dict(records: list[dict], image_files: list[str]) -> dict:
                 seg = mask_utils.frPyObjects(seg, *seg["size"])
                 seg["counts"] = seg["counts"].decode("ascii")
             kps = [v for k in a["keypoints"] for v in (round(k[0], 2), round(k[1], 2), int(k[2]))]
-            annotations.append({
-                "id": len(annotations) + 1, "image_id": index,
+            count += 1
+            yield "annotation", {
+                "id": count, "image_id": index,
                 "category_id": cat_id.get(a.get("character_type", "human"), 1),
                 "segmentation": seg, "area": int(a["visible_pixels"]), "bbox": a["bbox_visible"],
                 "iscrowd": 0, "keypoints": kps, "num_keypoints": sum(1 for k in a["keypoints"] if k[2] > 0),
-                "track_id": a["track_id"], "visibility": a["visibility"], "bbox_amodal": a["bbox_amodal"]})
-    return {"info": {"description": "usdcrowd synthetic crowd ground truth", "version": "1.0"},
-            "licenses": [], "images": images, "annotations": annotations, "categories": categories}
+                "track_id": a["track_id"], "visibility": a["visibility"], "bbox_amodal": a["bbox_amodal"]}
 
 
-def write_coco(records: list[dict], path, image_files: list[str]) -> str:
-    """Write the COCO file of a sequence atomically; returns its path."""
-    doc = coco_dict(records, image_files)
+INFO = {"description": "usdcrowd synthetic crowd ground truth", "version": "1.0"}
+
+
+def coco_dict(records, image_files: list[str]) -> dict:
+    """The COCO document of a sequence, in memory.
+
+    Parameters
+    ----------
+    records : sequence of dict
+        Frame records in sequence order.
+    image_files : list of str
+        File name of each frame's image, relative to the COCO file.
+    """
+    doc = {"info": INFO, "licenses": [], "images": [], "annotations": [], "categories": _categories(records)}
+    for kind, entry in _entries(records, image_files):
+        doc[kind + "s"].append(entry)
+    return doc
+
+
+def write_coco(records, path, image_files: list[str]) -> str:
+    """Write the COCO file of a sequence atomically; returns its path.
+
+    The annotations are written as they are made (the document of a long
+    sequence is never whole in memory); the images, a small entry per
+    frame, follow them. ``records`` may read its frames from disk
+    (:class:`.frame_json.Records`).
+    """
+    def dump(value):
+        return json.dumps(value, separators=(",", ":"))
+
+    images = []
     with atomic_path(path) as tmp:
         with open(tmp, "w") as f:
-            json.dump(doc, f, separators=(",", ":"))
+            f.write(f'{{"info":{dump(INFO)},"licenses":[],"categories":{dump(_categories(records))},"annotations":[')
+            first = True
+            for kind, entry in _entries(records, image_files):
+                if kind == "image":
+                    images.append(entry)
+                    continue
+                f.write(("" if first else ",") + dump(entry))
+                first = False
+            f.write(f'],"images":{dump(images)}}}')
     return os.fspath(path)

@@ -76,10 +76,10 @@ def contact_sheet(images: list[str], records: list[dict], out_png, columns: int 
     for k, i in enumerate(pick):
         with Image.open(images[i]) as im:
             img = im.convert("RGB").resize((cell_w, cell_h), Image.LANCZOS)
-        draw_annotations(img, records[i], scale)
+        rec = records[i]
+        draw_annotations(img, rec, scale)
         x, y = (k % columns) * cell_w, (k // columns) * (cell_h + label_h)
         sheet.paste(img, (x, y + label_h))
-        rec = records[i]
         ImageDraw.Draw(sheet).text((x + 4, y + 2), f"t={rec['time']:g}  {len(rec['agents'])} agents "
                                    f"({sum(a['visible_pixels'] > 0 for a in rec['agents'])} visible)",
                                    fill=(230, 230, 230))

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Sequence
 
 from ..atomic import atomic_path
 
@@ -33,3 +34,27 @@ def read(path) -> dict:
     if record.get("schema") != SCHEMA:
         raise ValueError(f"{path}: not a usdcrowd frame record")
     return record
+
+
+class Records(Sequence):
+    """The frame records of a sequence, read from their files when asked for.
+
+    A long sequence's records (a dict per agent per frame) would not fit in
+    memory together; the exporters go through them one at a time.
+
+    Parameters
+    ----------
+    paths : list of path-like
+        One JSON file per frame, in sequence order.
+    """
+
+    def __init__(self, paths):
+        self.paths = [os.fspath(p) for p in paths]
+
+    def __len__(self) -> int:
+        return len(self.paths)
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return Records(self.paths[i])
+        return read(self.paths[i])

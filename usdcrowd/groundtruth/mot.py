@@ -27,14 +27,15 @@ from ..atomic import atomic_path
 PEDESTRIAN, DISTRACTOR = 1, 8
 
 
-def write_mot(records: list[dict], out_dir, name: str = "usdcrowd", fps: float = 24.0,
+def write_mot(records, out_dir, name: str = "usdcrowd", fps: float = 24.0,
               images: list[str | None] | None = None) -> str:
     """Write a MOTChallenge sequence folder from frame records.
 
     Parameters
     ----------
-    records : list of dict
-        Frame records in sequence order (see :mod:`.frame_json`).
+    records : sequence of dict
+        Frame records in sequence order (see :mod:`.frame_json`; a
+        :class:`.frame_json.Records` reads them one at a time).
     out_dir : path-like
         The sequence folder (``gt/gt.txt``, ``seqinfo.ini``, ``frames.csv``, ``img1/``).
     name : str
@@ -50,26 +51,27 @@ def write_mot(records: list[dict], out_dir, name: str = "usdcrowd", fps: float =
         Path of ``gt/gt.txt``.
     """
     out = Path(out_dir)
-    lines = []
-    for index, rec in enumerate(records, start=1):
-        for a in rec["agents"]:
-            if a.get("bbox_amodal") is None:
-                continue
-            x, y, bw, bh = a["bbox_amodal"]
-            human = a.get("character_type", "human") == "human"
-            lines.append(f"{index},{a['track_id']},{x + 1:.2f},{y + 1:.2f},{bw:.2f},{bh:.2f},"
-                         f"{1 if human else 0},{PEDESTRIAN if human else DISTRACTOR},{a['visibility']:.4f}")
     gt = out / "gt" / "gt.txt"
     gt.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_path(gt) as tmp:
-        tmp.write_text("\n".join(lines) + ("\n" if lines else ""))
-    w = records[0]["width"] if records else 0
-    h = records[0]["height"] if records else 0
+    times = []
+    # Frame by frame: records may be read from disk one at a time (frame_json.Records).
+    with atomic_path(gt) as tmp, open(tmp, "w") as f:
+        for index, rec in enumerate(records, start=1):
+            times.append(rec["time"])
+            for a in rec["agents"]:
+                if a.get("bbox_amodal") is None:
+                    continue
+                x, y, bw, bh = a["bbox_amodal"]
+                human = a.get("character_type", "human") == "human"
+                f.write(f"{index},{a['track_id']},{x + 1:.2f},{y + 1:.2f},{bw:.2f},{bh:.2f},"
+                        f"{1 if human else 0},{PEDESTRIAN if human else DISTRACTOR},{a['visibility']:.4f}\n")
+    first = records[0] if len(records) else {}
+    w, h = first.get("width", 0), first.get("height", 0)
     with atomic_path(out / "seqinfo.ini") as tmp:
         tmp.write_text(f"[Sequence]\nname={name}\nimDir=img1\nframeRate={fps:g}\nseqLength={len(records)}\n"
                        f"imWidth={w}\nimHeight={h}\nimExt=.png\n")
     with atomic_path(out / "frames.csv") as tmp:
-        tmp.write_text("frame,time_code\n" + "".join(f"{i},{r['time']:g}\n" for i, r in enumerate(records, 1)))
+        tmp.write_text("frame,time_code\n" + "".join(f"{i},{t:g}\n" for i, t in enumerate(times, 1)))
     if images:
         img_dir = out / "img1"
         img_dir.mkdir(exist_ok=True)

@@ -195,9 +195,28 @@ class Manifest:
         with atomic_path(self.path) as tmp:
             tmp.write_text(json.dumps({"header": self.header, "frames": self.frames}, indent=1, sort_keys=True))
 
+    # Rewriting the whole manifest after every frame would make a long
+    # sequence's writes grow with the square of its length: at most this often.
+    SAVE_EVERY_S = 2.0
+    _saved_at = 0.0
+
     def add(self, entry: dict) -> None:
+        """Record a finished frame; saved now if the last save is SAVE_EVERY_S old (else by :meth:`flush`)."""
+        import time
+
         self.frames[frame_tag(entry["time"])] = entry
-        self.save()
+        self._dirty = True
+        if time.monotonic() - self._saved_at >= self.SAVE_EVERY_S:
+            self.flush()
+
+    def flush(self) -> None:
+        """Save if frames were added since the last save (a frame not saved is rendered again on resume)."""
+        import time
+
+        if getattr(self, "_dirty", False):
+            self.save()
+            self._dirty = False
+            self._saved_at = time.monotonic()
 
 
 def verify_frame(out_dir, t: float, manifest: Manifest, settings: RenderSettings) -> bool:
@@ -431,6 +450,7 @@ def render_sequence(shot_path, out_dir, camera: str | None = None, frames=None,
             else:
                 _run_ray(shot_path, cam_path, settings, todo, out, on_done, max(workers, 1), address)
     finally:
+        manifest.flush()
         bar.close()
     wall = _time.perf_counter() - start
     result = SequenceResult(os.fspath(out), cam_path, settings.variant, [float(t) for t in times], sorted(rendered),
@@ -453,7 +473,7 @@ def write_sequence_files(out_dir, times, settings: RenderSettings, fps: float = 
     pngs = [os.fspath(out / frame_files(t, False)["png"]) for t in times]
     outputs = {}
     if settings.ground_truth:
-        records = [frame_json.read(out / frame_files(t, True)["json"]) for t in times]
+        records = frame_json.Records([out / frame_files(t, True)["json"] for t in times])
     else:
         records = [{"time": t, "agents": []} for t in times]
     stride = float(np.median(np.diff(times))) if len(times) > 1 else 1.0
