@@ -239,16 +239,19 @@ def test_scalar_fallback_gives_the_same_ground_truth(box_frame, tmp_path):
 
 
 def test_id_pass_is_identical_across_two_runs(museum_shot, tmp_path):
-    """A second process (another shape order inside Mitsuba) gives the same ids, bit for bit."""
+    """A second process (another shape order inside Mitsuba, its own BVH build) gives the same ids and
+    the same beauty, bit for bit."""
     script = tmp_path / "ids.py"
     script.write_text(
         "import sys, numpy as np\nimport usdcrowd\nfrom usdcrowd.render.final.frame import FrameRenderer\n"
-        "r = FrameRenderer(sys.argv[1], None, (96, 54), spp=1, max_depth=2).render(6)\n"
-        "np.save(sys.argv[2], r.gt.ids)\n")
-    subprocess.run([sys.executable, str(script), museum_shot, str(tmp_path / "ids.npy")], check=True)
-    here = FrameRenderer(museum_shot, None, (96, 54), spp=1, max_depth=2).render(6)
+        "r = FrameRenderer(sys.argv[1], None, (96, 54), spp=4, max_depth=2).render(6)\n"
+        "np.save(sys.argv[2], r.gt.ids)\nnp.save(sys.argv[3], r.beauty)\n")
+    subprocess.run([sys.executable, str(script), museum_shot, str(tmp_path / "ids.npy"), str(tmp_path / "b.npy")],
+                   check=True)
+    here = FrameRenderer(museum_shot, None, (96, 54), spp=4, max_depth=2).render(6)
     other = np.load(tmp_path / "ids.npy")
     assert np.array_equal(here.gt.ids, other)
+    assert np.array_equal(here.beauty, np.load(tmp_path / "b.npy"))
     agents = set(np.unique(here.gt.ids)) & set(range(1, SCENERY_ID_BASE))
     assert agents and agents <= set(ShotScene(museum_shot).agents(6).agent_ids.tolist())
     assert all(i >= SCENERY_ID_BASE for i in np.unique(here.gt.ids) if i not in agents and i != 0)

@@ -26,6 +26,7 @@ from .camera import sensor_dict
 from .lights import emitters
 from .materials import agent_bsdf_dict, bsdf_dict, usd_uv_to_mitsuba
 from .meshes import flat_or_smooth, make_mesh
+from .variant import single_threaded_build
 
 AGENTS_KEY = "agents"
 SENSOR_KEY = "sensor"
@@ -150,5 +151,6 @@ def build_scene(shot: ShotScene, cam: CameraView, width: int, height: int, spp: 
     if not any(k.startswith("light_") for k in scene):
         # A stage without lights still shows something: a dim grey sky.
         scene["light_default"] = {"type": "constant", "radiance": {"type": "rgb", "value": [0.5, 0.5, 0.5]}}
-    loaded = mi.load_dict(scene)
+    with single_threaded_build():       # a BVH that does not depend on thread timing
+        loaded = mi.load_dict(scene)
     return BuiltScene(loaded, mi.traverse(loaded), agent_ids, nv, animated, id_paths)

@@ -159,7 +159,8 @@ class FrameRenderer:
             params[f"{a.key}.vertex_positions"] = float_buffer(verts)
         params[f"{SENSOR_KEY}.to_world"] = mi.ScalarTransform4f(sensor_to_world(cam).tolist())
         params[f"{SENSOR_KEY}.x_fov"] = cam.fov_x()
-        params.update()
+        with _variant.single_threaded_build():      # the same BVH, so the same bytes
+            params.update()
         return cam, poses, vertices
 
     # ----------------------------------------------------------------- render
