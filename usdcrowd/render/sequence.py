@@ -320,10 +320,14 @@ def _run_ray(shot_path, camera, settings, todo, out_dir, on_done, workers, addre
         raise UsdcrowdError("--executor ray needs Ray: pip install 'usdcrowd[distributed]'") from None
     started = False
     if not ray.is_initialized():
+        import logging
+
+        # Ray's own start-up notes would bury the progress bar and our one-line errors.
+        quiet = {"log_to_driver": False, "logging_level": logging.ERROR}
         if address:
-            ray.init(address=address, log_to_driver=False)
+            ray.init(address=address, **quiet)
         else:
-            ray.init(num_cpus=max(workers, 1), log_to_driver=False, include_dashboard=False)
+            ray.init(num_cpus=max(workers, 1), include_dashboard=False, **quiet)
         started = True
     try:
         actor_cls = ray.remote(num_cpus=1)(_RayRenderer)
@@ -337,12 +341,23 @@ def _run_ray(shot_path, camera, settings, todo, out_dir, on_done, workers, addre
         while in_flight:
             (ref,), _ = ray.wait(list(in_flight), num_returns=1)
             actor = in_flight.pop(ref)
-            on_done(ray.get(ref))
+            on_done(_ray_result(ray, ref))
             if queue:
                 in_flight[actor.render.remote(queue.pop(0), os.fspath(out_dir))] = actor
     finally:
         if started:
             ray.shutdown()
+
+
+def _ray_result(ray, ref):
+    """``ray.get(ref)``; a user's mistake found on a worker is raised as itself (one line), not as Ray's report."""
+    try:
+        return ray.get(ref)
+    except ray.exceptions.RayTaskError as exc:
+        cause = getattr(exc, "cause", None)
+        if isinstance(cause, (UsdcrowdError, OSError)):
+            raise cause from None
+        raise
 
 
 class _RayRenderer:
