@@ -346,16 +346,10 @@ def test_non_finite_transforms_and_lights_are_one_line_errors(museum, tmp_path, 
 
 
 def test_a_damaged_animation_in_the_crowd_layer_is_found_by_preview_render_and_validate(tmp_path, capsys):
-    from pxr import Gf, Sdf, Vt
+    from shot_damage import spoil_root_translation
 
     shot = _small_shot(tmp_path, agents=4, last_frame=4)
-    crowd = Sdf.Layer.FindOrOpen(str(shot / "crowd.usdc"))
-    paths = []
-    crowd.Traverse("/", lambda p: paths.append(p) if p.IsPropertyPath() and p.name == "translations" else None)
-    target = sorted(paths)[0]
-    value = list(crowd.QueryTimeSample(target, 2.0))
-    crowd.SetTimeSample(target, 2.0, Vt.Vec3fArray([Gf.Vec3f(float("inf"), 0, 0)] + value[1:]))
-    crowd.Save()
+    target = spoil_root_translation(shot / "crowd.usdc", 2.0, float("inf"))
     capsys.readouterr()
     where = f"{target.GetPrimPath()}.translations"
     for command, extra in (("preview", ["-o", str(tmp_path / "p.mp4")]),

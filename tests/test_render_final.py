@@ -442,25 +442,17 @@ def test_ray_executor_on_a_local_cluster(museum_shot, tmp_path):
 def test_a_users_mistake_found_on_a_ray_worker_is_one_line(tmp_path, capsys):
     """A damaged frame found by a Ray actor: the CLI prints the StageError's one line, not Ray's traceback."""
     pytest.importorskip("ray")
-    from pxr import Gf, Sdf, Vt
-
-    from usdcrowd.cli import main
-
     from frames_factory import straight_walk
+    from shot_damage import spoil_root_translation
 
     import usdcrowd.resources as res
+    from usdcrowd.cli import main
     from usdcrowd.pipeline import author_shot
 
     shot = tmp_path / "shot"
     author_shot(res.data_dir("stages") / "museum.usda", shot, lambda sc: [straight_walk(sc.agents, sc.time)],
                 frames=(1, 4), progress=False)
-    crowd = Sdf.Layer.FindOrOpen(str(shot / "crowd.usdc"))
-    paths = []
-    crowd.Traverse("/", lambda p: paths.append(p) if p.IsPropertyPath() and p.name == "translations" else None)
-    target = sorted(paths)[0]
-    value = list(crowd.QueryTimeSample(target, 3.0))
-    crowd.SetTimeSample(target, 3.0, Vt.Vec3fArray([Gf.Vec3f(float("nan"), 0, 0)] + value[1:]))
-    crowd.Save()
+    spoil_root_translation(shot / "crowd.usdc", 3.0, float("nan"))
     capsys.readouterr()
     code = main(["render", str(shot / "shot.usda"), "-o", str(tmp_path / "r"), "--frames", "3", "--executor", "ray",
                  "--resolution", "32x18", "--spp", "1", "--no-progress"])
