@@ -96,6 +96,24 @@ def test_a_window_of_frames_matches_the_whole_read(museum):
         read_crowd(shot, frames=(0, 10))
 
 
+@pytest.mark.parametrize("size", [5, 17])
+def test_reading_in_windows_gives_the_whole_read(museum, size):
+    """Windows whose starts fall inside blends, read with a bounded look-back, join into the whole read."""
+    from usdcrowd.character.animation import BLEND_FRAMES
+    from usdcrowd.character.root import frames_since_change
+    from usdcrowd.scenario.crowd import read_crowd
+
+    shot, _, _, whole, _ = museum
+    starts = list(range(FRAMES[0], FRAMES[1] + 1, size))
+    since = frames_since_change(whole.anim_class)
+    # Some window starts with an agent in the middle of a class change: the look-back must reach its key pose.
+    assert any((since[s - FRAMES[0]] < BLEND_FRAMES - 1).any() for s in starts[1:])
+    parts = [read_crowd(shot, frames=(s, min(s + size - 1, FRAMES[1])))[0] for s in starts]
+    for name in ("position", "heading", "velocity", "behavior", "anim_class", "health"):
+        joined = np.concatenate([getattr(p, name) for p in parts])
+        np.testing.assert_allclose(joined, getattr(whole, name), atol=1e-6, err_msg=name)
+
+
 def test_samples_follow_the_composed_value_over_the_crowd_layer(museum):
     """A stronger opinion (here a default in the session layer) wins over the crowd layer's samples."""
     from pxr import Gf, Usd, Vt

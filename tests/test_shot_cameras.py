@@ -227,6 +227,34 @@ def test_refilming_a_shot_without_detected_events_detects_them_beside_the_camera
         "cameras.usda")
 
 
+def test_reading_a_shot_back_in_windows_gives_the_same_crowd_and_events(harbour_shot, tmp_path, monkeypatch):
+    """The cameras read a shot a window at a time (bounded memory): the same positions and detected events."""
+    import shutil
+
+    from pxr import Sdf
+
+    from usdcrowd import filming
+
+    shutil.copytree(harbour_shot.parent, tmp_path / "copy")
+    shot = tmp_path / "copy" / "shot"
+    crowd = Sdf.Layer.FindOrOpen(str(shot / "crowd.usdc"))
+    events = crowd.GetPrimAtPath("/World/Events")
+    for name in [c.name for c in events.nameChildren]:
+        del events.nameChildren[name]
+    crowd.Save()
+    loaded = {}
+    for window in (512, 37):
+        monkeypatch.setattr(filming, "READ_WINDOW", window)
+        loaded[window] = filming.load_shot(shot / "shot.usda", progress=False)
+    a, b = loaded[512], loaded[37]
+    assert a.detected_now and b.detected_now and a.positions.shape == b.positions.shape == (240, 110, 3)
+    np.testing.assert_allclose(np.asarray(b.positions), np.asarray(a.positions), atol=1e-6)
+    assert [(e.path, e.start, e.end) for e in b.events] == [(e.path, e.start, e.end) for e in a.events]
+    assert sum(not e.authored for e in a.events) > 0
+    for x, y in zip(a.events, b.events):
+        assert np.array_equal(x.members, y.members) and np.array_equal(x.active, y.active), x.path
+
+
 def test_frame_json_records_the_camera_state_and_each_agents_events(harbour_shot, tmp_path):
     from pxr import Usd
 

@@ -18,6 +18,7 @@ import numpy as np
 
 from . import model
 from .errors import StageError
+from .framestore import FrameStore
 
 
 @dataclass
@@ -27,7 +28,7 @@ class ShotCrowd:
     shot: str
     out_dir: Path
     scenario: model.Scenario
-    positions: np.ndarray          # (t, n, 3) float32, scenario rows
+    positions: FrameStore          # (t, n, 3) float32, scenario rows, on disk
     events: model.EventTable
     detected_now: bool             # events were missing from the crowd layer and were detected here
     default_prim: str
@@ -46,7 +47,7 @@ def load_shot(shot_path: str | os.PathLike, seed: int | None = None, progress: b
     from .events import EventDetector
     from .events.scenario import layer_events
     from .scenario import load_scenario, open_stage, stage_frame
-    from .scenario.crowd import read_crowd
+    from .pipeline import frame_progress
     from .scenario.events import layer_generator, read_events
     from .scenario.stageio import time_range
 
@@ -60,35 +61,65 @@ def load_shot(shot_path: str | os.PathLike, seed: int | None = None, progress: b
     scenario = load_scenario(scenario_path, seed=seed if seed is not None else data.get("seed"),
                              **({"limits": limits} if limits else {}))
     scenario.time = time_range(stage)
-    frames, info = read_crowd(stage)
     rows = {p: i for i, p in enumerate(scenario.agents.path)}
-    order = np.array([rows.get(p, -1) for p in info.path])
-    if len(order) == 0 or (order < 0).any():
-        missing = [p for p, r in zip(info.path, order) if r < 0][:1]
-        raise StageError(f"the shot's crowd does not match its scenario (agent {missing[0] if missing else '?'} "
-                         f"unknown)" if missing else "the shot's crowd layer holds no agents", file=shot_path)
-    if len(set(order.tolist())) != len(scenario.agents):
-        absent = sorted(set(rows) - set(info.path))[:1]
-        raise StageError(f"the shot's crowd does not match its scenario (agent {absent[0] if absent else '?'} "
-                         f"is not in the shot; simulate again)", file=shot_path)
-    frames = _reorder(frames, order, len(scenario.agents))
-    positions = frames.position.astype(np.float32)
     # Events as the crowd layer and the scenario hold them, without the cameras layer being replaced.
     for layer in stage.GetLayerStack(includeSessionLayers=False):
         if layer_generator(layer) == "usdcrowd cameras":
             stage.MuteLayer(layer.identifier)
     events = read_events(stage, rows, scenario.time)
     detected_now = not any(not e.authored for e in events)
-    if detected_now:
-        root = stage.GetDefaultPrim()
-        det = EventDetector(scenario.agents.character_type, scenario.agents.visible, scenario.time.fps,
-                            scope=f"{root.GetPath()}/Events" if root else "/Events")
-        det.feed(frames)
+    root = stage.GetDefaultPrim()
+    det = EventDetector(scenario.agents.character_type, scenario.agents.visible, scenario.time.fps,
+                        scope=f"{root.GetPath()}/Events" if root else "/Events") if detected_now else None
+    # The crowd is read back a window at a time; its positions wait on disk for the cameras.
+    positions = FrameStore(len(scenario.agents), folder=Path(shot_path).parent)
+    with frame_progress(scenario.time.n_frames, "read crowd", progress) as bar:
+        for frames in _crowd_windows(stage, scenario, rows, shot_path):
+            positions.append(frames.position.astype(np.float32))
+            if det is not None:
+                det.feed(frames)
+            bar.update(len(frames.times))
+    if det is not None:
         events = model.EventTable([e for e in events if e.authored] + list(det.finish()) + layer_events(
             scenario.fields, positions, scenario.time.codes, scenario.agents.visible, det.scope))
-    default_prim = stage.GetDefaultPrim().GetName() if stage.GetDefaultPrim() else ""
+    default_prim = root.GetName() if root else ""
     return ShotCrowd(shot_path, Path(shot_path).parent, scenario, positions, events, detected_now, default_prim,
                      stage_frame(stage))
+
+
+# Frames read back at a time: about this many agent-frames (reading takes
+# about 650 bytes each while the skeleton is inverted), at most READ_WINDOW.
+READ_AGENT_FRAMES = 400_000
+READ_WINDOW = 512
+
+
+def _crowd_windows(stage, scenario: model.Scenario, rows: dict[str, int], shot_path: str):
+    """The shot's crowd in consecutive windows of frames (memory bounded in the shot's length), scenario rows."""
+    from .scenario.crowd import read_crowd
+
+    t = scenario.time
+    window = min(READ_WINDOW, max(48, READ_AGENT_FRAMES // max(1, len(rows))))
+    order = None
+    for start in range(0, t.n_frames, window):
+        a, b = t.start + start, t.start + min(start + window, t.n_frames) - 1
+        frames, info = read_crowd(stage, frames=(a, b))
+        if order is None:
+            order = _scenario_rows(info.path, rows, shot_path)
+        yield _reorder(frames, order, len(rows))
+
+
+def _scenario_rows(paths: list[str], rows: dict[str, int], shot_path: str) -> np.ndarray:
+    """Scenario row of each agent read from the shot; the two must hold the same agents."""
+    order = np.array([rows.get(p, -1) for p in paths])
+    if len(order) == 0 or (order < 0).any():
+        missing = [p for p, r in zip(paths, order) if r < 0][:1]
+        raise StageError(f"the shot's crowd does not match its scenario (agent {missing[0] if missing else '?'} "
+                         f"unknown)" if missing else "the shot's crowd layer holds no agents", file=shot_path)
+    if len(set(order.tolist())) != len(rows):
+        absent = sorted(set(rows) - set(paths))[:1]
+        raise StageError(f"the shot's crowd does not match its scenario (agent {absent[0] if absent else '?'} "
+                         f"is not in the shot; simulate again)", file=shot_path)
+    return order
 
 
 def _reorder(frames: model.CrowdFrames, order: np.ndarray, n: int) -> model.CrowdFrames:

@@ -36,7 +36,8 @@ class ShotResult:
     n_events: int = 0
 
 
-def _progress(total: int, desc: str, enabled: bool):
+def frame_progress(total: int, desc: str, enabled: bool):
+    """A progress bar counting frames (hidden when not ``enabled``)."""
     from tqdm import tqdm
 
     return tqdm(total=total, desc=desc, unit="frame", disable=not enabled, leave=False, dynamic_ncols=True)
@@ -229,7 +230,7 @@ def film_cameras(scenario: model.Scenario, positions, events: model.EventTable, 
                                                             start=len(agents) + 1, bounds=scenario.bounds))
     if len(agents):
         rows = {p: i for i, p in enumerate(scenario.agents.path)}
-        with _progress(len(times), "cameras", progress) as bar:
+        with frame_progress(len(times), "cameras", progress) as bar:
             tracks += film(positions, times, scenario.time.fps, agents, events, scenario.obstacles, rows,
                            scenario.agents.visible, seed=scenario.seed if seed is None else seed,
                            progress=bar.update, bounds=scenario.bounds)
@@ -244,7 +245,7 @@ def _author_frames(writer, chunks, scenario, plotted, stride, progress, collecte
     from .cameras.overview import crowd_summary
 
     done = 0
-    with _progress(scenario.time.n_frames, "simulate", progress) as bar:
+    with frame_progress(scenario.time.n_frames, "simulate", progress) as bar:
         for chunk in chunks:
             writer.write_chunk(chunk)
             if detector is not None:

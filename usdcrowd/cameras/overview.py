@@ -21,13 +21,23 @@ V_APERTURE = 20.25
 ELEVATION_DEG = 35.0
 
 
-def crowd_summary(positions: np.ndarray, visible: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(t, 3) centroid and (t,) largest distance from it of the visible crowd per frame (everyone if nobody is)."""
+def crowd_summary(positions, visible: np.ndarray, block: int = 256) -> tuple[np.ndarray, np.ndarray]:
+    """(t, 3) centroid and (t,) largest distance from it of the visible crowd per frame (everyone if nobody is).
+
+    ``positions`` is a (t, n, 3) array or a :class:`usdcrowd.framestore.FrameStore`,
+    read ``block`` frames at a time.
+    """
     vis = np.asarray(visible, bool)
     vis = vis if vis.any() else np.ones_like(vis)
-    pos = np.asarray(positions)[:, vis].astype(np.float64)
-    c = pos.mean(axis=1)
-    return c, np.linalg.norm(pos - c[:, None], axis=2).max(axis=1)
+    centres, spreads = [], []
+    for first in range(0, len(positions), block):
+        pos = np.asarray(positions[first:first + block])[:, vis].astype(np.float64)
+        c = pos.mean(axis=1)
+        centres.append(c)
+        spreads.append(np.linalg.norm(pos - c[:, None], axis=2).max(axis=1))
+    if not centres:
+        return np.zeros((0, 3)), np.zeros(0)
+    return np.concatenate(centres), np.concatenate(spreads)
 
 
 def overview_track(centre: np.ndarray, spread: np.ndarray, times: np.ndarray, fps: float,

@@ -170,8 +170,10 @@ def recover_root_motion(root_rot: np.ndarray, root_trans: np.ndarray, torso_rot:
     anim_class : (t, n) int
         Animation class codes (crowd:state:animClass).
     since : (t, n) int
-        :func:`frames_since_change` of the whole shot, rows matching these.
-        The first row must be unblended for every agent.
+        :func:`frames_since_change`, rows matching these. An agent's frames
+        are exact from its first unblended frame on; a blend whose key pose
+        lies before the first row is only approximated (readers start each
+        agent at an unblended frame and drop the rows before it).
     iterations : int
         Gauss-Newton steps on blended frames.
 
@@ -198,8 +200,6 @@ def recover_root_motion(root_rot: np.ndarray, root_trans: np.ndarray, torso_rot:
 
     w = blend_weight(since)
     blend = w < 1.0
-    if blend[:1].any():
-        raise ValueError("recover_root_motion: the first frame must not be a blend")
     # A blend's key is the pose of the frame before its class change. Generation 0 blends
     # key on an unblended frame, generation g on one of generation g - 1 (a change during a
     # blend). Solving by generation, then by frames since the change, every key and every
@@ -207,13 +207,13 @@ def recover_root_motion(root_rot: np.ndarray, root_trans: np.ndarray, torso_rot:
     gen = np.full(w.shape, -1, dtype=np.int64)
     for t in np.flatnonzero(blend.any(axis=1)):
         a = np.flatnonzero(blend[t])
-        before = t - since[t, a] - 1
-        gen[t, a] = np.where(blend[before, a], gen[before, a] + 1, 0)
+        before = np.maximum(t - since[t, a] - 1, 0)        # a key before the first row: approximated
+        gen[t, a] = np.where(blend[before, a] & (before < t), gen[before, a] + 1, 0)
     lo, hi = np.array([-np.inf, STRIDE_SCALE_RANGE[0], -1.0]), np.array([np.inf, STRIDE_SCALE_RANGE[1], 1.0])
     mid = np.array([0.0, 0.5 * sum(STRIDE_SCALE_RANGE), 0.0])
     for g in range(gen.max() + 1):
         tt, aa = np.nonzero(gen == g)
-        before = tt - since[tt, aa] - 1
+        before = np.maximum(tt - since[tt, aa] - 1, 0)
         key = (legs[before, aa], torso[before, aa], pz[before, aa])
         c, wa = cls[tt, aa], w[tt, aa]
         obs = np.stack([yaw[tt, aa], pitch[tt, aa], roll[tt, aa], torso_pitch[tt, aa], torso_roll[tt, aa]], -1)

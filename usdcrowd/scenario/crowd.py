@@ -172,6 +172,7 @@ def read_crowd(shot, frames=None) -> tuple[model.CrowdFrames, CrowdInfo]:
     """
     from pxr import Usd, UsdGeom
 
+    from ..character.animation import BLEND_FRAMES
     from ..character.root import blend_weight, frames_since_change, recover_root_motion
 
     stage = shot if isinstance(shot, Usd.Stage) else open_stage(os.fspath(shot))
@@ -183,16 +184,29 @@ def read_crowd(shot, frames=None) -> tuple[model.CrowdFrames, CrowdInfo]:
     codes = _frames(frames, shot_time)
     n = len(agents)
 
-    # Blends between animation classes carry their key pose forward, so the
-    # skeleton is read from a frame where every agent's pose is unblended.
-    history = shot_time.start + np.arange(int(round(codes[-1] - shot_time.start)) + 1, dtype=np.float64)
-    anim_class = np.stack([_tokens(p.GetAttribute("crowd:state:animClass"), history, model.ANIM_CLASSES)
-                           for p, _ in agents], 1)
-    since = frames_since_change(anim_class)
-    first = int(round(codes[0] - shot_time.start))
-    want = max(first - 1, 0)                    # and the frame before, for the velocity
-    settled = blend_weight(since[:want + 1]) >= 1.0
-    begin = int(min(np.flatnonzero(settled[:, a])[-1] for a in range(n)))
+    # Blends between animation classes carry their key pose forward, so each
+    # agent is read from one of its unblended frames at or before the frame
+    # before the first one wanted (for the velocity). The class history comes
+    # from a short look-back, longer only while some agent blends all through
+    # it, so reading a window of a long shot costs the window, not the shot.
+    first_abs = int(round(codes[0] - shot_time.start))
+    want_abs = max(first_abs - 1, 0)
+    end_abs = int(round(codes[-1] - shot_time.start))
+    lookback = 4 * BLEND_FRAMES
+    while True:
+        # BLEND_FRAMES more history than searched: the blend counts are exact from there on.
+        h0 = max(0, want_abs - lookback - BLEND_FRAMES)
+        history = shot_time.start + np.arange(h0, end_abs + 1, dtype=np.float64)
+        anim_class = np.stack([_tokens(p.GetAttribute("crowd:state:animClass"), history, model.ANIM_CLASSES)
+                               for p, _ in agents], 1)
+        since = frames_since_change(anim_class)
+        lo = 0 if h0 == 0 else BLEND_FRAMES
+        settled = blend_weight(since[lo:want_abs - h0 + 1]) >= 1.0
+        if h0 == 0 or settled.any(axis=0).all():
+            break
+        lookback *= 4
+    first = first_abs - h0
+    begin = lo + int(min(np.flatnonzero(settled[:, a])[-1] for a in range(n)))
     window = history[begin:]
 
     rot = np.empty((len(window), n, 2, 4))
