@@ -16,7 +16,8 @@ demo: $(STAMP)
 	$(VENV)/bin/usdcrowd demo -o out/demo
 
 ## The tests, all of them: the slow ones read our MOT files with motmetrics
-## (in its own small venv, it needs numpy < 2) and start a local Ray cluster.
+## (in its own small venv, it needs numpy < 2), import our shots in Blender
+## (the bpy wheel in its own venv) and start a local Ray cluster.
 test: $(STAMP)
 	$(PY) -m pytest -q
 

@@ -3,10 +3,7 @@
 from __future__ import annotations
 
 import json
-import os
 import subprocess
-import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -237,13 +234,10 @@ print(summary.to_csv())
 
 def _motmetrics_python() -> str:
     """A small venv with motmetrics 1.4.0 on numpy < 2 (it calls np.asfarray, gone in numpy 2), made once."""
-    venv = Path(os.environ.get("USDCROWD_MOTMETRICS_VENV", Path(tempfile.gettempdir()) / "usdcrowd-motmetrics-venv"))
-    python = venv / "bin" / "python"
-    if not python.exists():
-        subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
-        subprocess.run([str(python), "-m", "pip", "install", "-q", "numpy<2", "pandas<2.3", "scipy<1.14",
-                        "motmetrics==1.4.0"], check=True)
-    return str(python)
+    from tool_venvs import tool_python
+
+    return tool_python("motmetrics", ["numpy<2", "pandas<2.3", "scipy<1.14", "motmetrics==1.4.0"],
+                       "USDCROWD_MOTMETRICS_VENV")
 
 
 @pytest.mark.slow
@@ -251,10 +245,7 @@ def test_motmetrics_scores_the_ground_truth_against_itself(sequence, tmp_path):
     gt = Path(sequence.out_dir) / "mot" / "gt" / "gt.txt"
     script = tmp_path / "score.py"
     script.write_text(MOTMETRICS_SCRIPT)
-    try:
-        python = _motmetrics_python()
-    except subprocess.CalledProcessError:
-        pytest.skip("could not build the motmetrics venv (no package index?)")
+    python = _motmetrics_python()
     out = subprocess.run([python, str(script), str(gt)], check=True, capture_output=True, text=True).stdout
     header, row = out.strip().splitlines()[:2]
     values = dict(zip(header.split(",")[1:], row.split(",")[1:]))

@@ -3,11 +3,14 @@
 #   bash tools/setup.sh            (make setup runs this)
 # System packages: libllvm19 for Mitsuba's llvm_ad_rgb variant (Debian 12's LLVM 15
 # aborts), Mesa's EGL and DRI drivers for headless OpenGL previews (llvmpipe), and
-# Xvfb so the tests can drive the interactive preview window on a virtual screen.
+# Xvfb so the tests can drive the interactive preview window on a virtual screen,
+# and the X and GL client libraries Blender's bpy wheel links against (the tests
+# import our shots with it, in its own venv).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 APT_PACKAGES="libllvm19 libegl1 libegl-mesa0 libgl1-mesa-dri libgles2 xvfb"
+APT_PACKAGES="$APT_PACKAGES libgl1 libx11-6 libxrender1 libxfixes3 libxi6 libxkbcommon0 libxext6 libsm6"
 PYTHON="${PYTHON:-python3}"
 EXTRAS="${USDCROWD_EXTRAS:-dev,final,preview,distributed}"
 
