@@ -80,3 +80,62 @@ def test_blender_plays_a_shot_split_in_value_clips_as_the_one_layer_shot(blender
     match = gap.argmin(axis=1)
     assert len(set(match.tolist())) == len(heads) == len(walked)
     assert gap[np.arange(len(heads)), match].max() < 1e-4
+
+
+LENS_SCRIPT = '''
+import bpy, json, sys
+exported, shot = sys.argv[1], sys.argv[2]
+bpy.ops.wm.read_factory_settings(use_empty=True)
+data = bpy.data.cameras.new("Lens35")
+data.lens, data.sensor_width, data.sensor_fit = 35.0, 36.0, "HORIZONTAL"
+obj = bpy.data.objects.new("Lens35", data)
+bpy.context.scene.collection.objects.link(obj)
+obj.location = (1.0, -5.0, 1.7)
+bpy.ops.wm.usd_export(filepath=exported)
+out = {"exported": {"lens": data.lens, "angle_x": data.angle_x}}
+bpy.ops.wm.read_factory_settings(use_empty=True)
+bpy.ops.wm.usd_import(filepath=shot)
+out["imported"] = {o.name: {"lens": o.data.lens, "angle_x": o.data.angle_x}
+                   for o in bpy.data.objects if o.type == "CAMERA"}
+print("RESULT " + json.dumps(out))
+'''
+
+
+def test_lenses_mean_the_same_millimetres_in_blender_and_usdcrowd(blender_python, museum_path, tmp_path):
+    """focalLength and the apertures are tenths of a scene unit both ways: a Blender 35 mm lens reads as
+    35 mm here, and our cameras reach Blender with the millimetres and field of view we render with."""
+    import math
+
+    from frames_factory import straight_walk
+
+    from usdcrowd.pipeline import author_shot
+    from usdcrowd.render.scene import ShotScene
+
+    shot = author_shot(museum_path, tmp_path / "shot", lambda sc: [straight_walk(sc.agents, sc.time)],
+                       frames=(1, 4), progress=False, camera_count=2)
+    exported = tmp_path / "blender_camera.usda"
+    script = tmp_path / "lenses.py"
+    script.write_text(LENS_SCRIPT)
+    run = subprocess.run([blender_python, str(script), str(exported), shot.shot], capture_output=True, text=True,
+                         timeout=600)
+    assert run.returncode == 0, run.stderr[-2000:]
+    got = json.loads(next(ln for ln in run.stdout.splitlines() if ln.startswith("RESULT "))[len("RESULT "):])
+
+    theirs = ShotScene(exported)
+    view = theirs.camera(theirs.camera_paths[0], 1)
+    assert view.focal_length == pytest.approx(35.0, rel=1e-6) and view.horizontal_aperture == pytest.approx(36.0)
+    assert math.radians(view.fov_x()) == pytest.approx(got["exported"]["angle_x"], rel=1e-6)
+
+    from usdcrowd.cameras import overview, placement
+
+    # The lenses usdcrowd meant: the overview's, the generated camera agents', the scenario's own (24 mm).
+    meant = {"CrowdCam": overview.FOCAL_LENGTH, "Agent01": placement.FOCAL_LENGTH,
+             "Agent02": placement.FOCAL_LENGTH, "Overview": 24.0}
+    assert {k: round(v["lens"], 3) for k, v in got["imported"].items()} == meant
+    ours = ShotScene(shot.shot)
+    names = {p.rsplit("/", 1)[-1]: p for p in ours.camera_paths}
+    assert set(got["imported"]) == set(names)
+    for name, blender in got["imported"].items():
+        mine = ours.camera(names[name], 1)
+        assert blender["lens"] == pytest.approx(mine.focal_length, rel=1e-5), name
+        assert blender["angle_x"] == pytest.approx(math.radians(mine.fov_x()), rel=1e-5), name

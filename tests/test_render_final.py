@@ -39,9 +39,9 @@ def Xform "World"
     }
     def Camera "Cam"
     {
-        float focalLength = 24
-        float horizontalAperture = 36
-        float verticalAperture = 27
+        float focalLength = 0.24
+        float horizontalAperture = 0.36
+        float verticalAperture = 0.27
         float2 clippingRange = (0.1, 100)
         float3 xformOp:rotateXYZ = (90, 0, 0)
         uniform token[] xformOpOrder = ["xformOp:rotateXYZ"]
@@ -169,9 +169,9 @@ def Xform "World"
     }
     def Camera "Cam"
     {
-        float focalLength = 24
-        float horizontalAperture = 36
-        float verticalAperture = 27
+        float focalLength = 0.24
+        float horizontalAperture = 0.36
+        float verticalAperture = 0.27
         float3 xformOp:rotateXYZ = (90, 0, 0)
         uniform token[] xformOpOrder = ["xformOp:rotateXYZ"]
     }
@@ -217,8 +217,8 @@ def Xform "World"
     }}
     def Camera "Cam"
     {{
-        float focalLength = 24
-        float horizontalAperture = 36
+        float focalLength = 0.24
+        float horizontalAperture = 0.36
         {level}
     }}
 }}

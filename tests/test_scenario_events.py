@@ -98,7 +98,9 @@ def test_harbour_scenario_has_its_authored_event_and_camera_agents():
     np.testing.assert_array_equal(cams.elevation[east], [2.0, 10.0])
     assert cams.target == [None, None, "/World/Events/BoatArrival"]
     assert [model.CAMERA_MODES[m] for m in cams.mode] == ["scouting", "scouting", "tracking"]
-    assert cams.focal_length.tolist() == [35.0, 35.0, 50.0] and cams.horizontal_aperture.tolist() == [36.0] * 3
+    # Authored in tenths of a metre (0.35, 0.36 as float), read in millimetres.
+    np.testing.assert_allclose(cams.focal_length, [35.0, 35.0, 50.0], rtol=1e-6)
+    np.testing.assert_allclose(cams.horizontal_aperture, [36.0] * 3, rtol=1e-6)
     np.testing.assert_allclose(cams.near, 0.1, rtol=1e-6)
     np.testing.assert_allclose(cams.far, [300.0] * 3)
     # The initial transform is the authored one (a Z-up metre stage): USD computes the same matrix.

@@ -71,9 +71,9 @@ TINY_STAGE = textwrap.dedent('''\
 
         def Camera "Cam"
         {
-            float focalLength = 24
-            float horizontalAperture = 36
-            float verticalAperture = 20.25
+            float focalLength = 0.24
+            float horizontalAperture = 0.36
+            float verticalAperture = 0.2025
             float2 clippingRange = (0.1, 100)
             double3 xformOp:translate = (0, -9, 4.5)
             float3 xformOp:rotateXYZ = (68, 0, 0)

@@ -13,6 +13,7 @@ from collections import Counter
 import numpy as np
 
 from . import model, schema
+from .view import mm_per_lens_unit
 
 
 def summarize(path: str | os.PathLike, stage=None, limits=None) -> dict:
@@ -54,13 +55,16 @@ def summarize(path: str | os.PathLike, stage=None, limits=None) -> dict:
             "visibility": float(sc.interest.visibility[i])} for i, p in enumerate(sc.interest.path)]
         out["obstacles"] = len(sc.obstacles)
     cams, lights, events = [], [], []
+    # Lens attributes are in tenths of a scene unit; reported in millimetres.
+    lens_mm = mm_per_lens_unit(UsdGeom.GetStageMetersPerUnit(stage))
     for prim in stage.Traverse():
         if prim.IsA(UsdGeom.Camera):
             cam = UsdGeom.Camera(prim)
             xf = UsdGeom.Xformable(prim)
             cams.append({
-                "path": str(prim.GetPath()), "focalLength": cam.GetFocalLengthAttr().Get(),
-                "aperture": [cam.GetHorizontalApertureAttr().Get(), cam.GetVerticalApertureAttr().Get()],
+                "path": str(prim.GetPath()), "focalLengthMm": float(cam.GetFocalLengthAttr().Get()) * lens_mm,
+                "apertureMm": [float(cam.GetHorizontalApertureAttr().Get()) * lens_mm,
+                               float(cam.GetVerticalApertureAttr().Get()) * lens_mm],
                 "clipping": list(cam.GetClippingRangeAttr().Get()),
                 "animated": bool(xf.TransformMightBeTimeVarying()),
                 "cameraAgent": prim.HasAPI(schema.CAMERA_AGENT_API)})
@@ -173,7 +177,8 @@ def format_summary(s: dict) -> str:
         lines.append(f"scenery {s['obstacles']} obstacle(s)")
     lines.append(f"cameras {len(s['cameras'])}")
     for c in s["cameras"]:
-        lines.append(f"  {c['path']}  {c['focalLength']:g} mm, aperture {c['aperture'][0]:g}x{c['aperture'][1]:g} mm, "
+        lines.append(f"  {c['path']}  {c['focalLengthMm']:.4g} mm, aperture {c['apertureMm'][0]:.4g}x"
+                     f"{c['apertureMm'][1]:.4g} mm, "
                      f"clip {c['clipping'][0]:g}-{c['clipping'][1]:g}{', animated' if c['animated'] else ''}"
                      f"{', camera agent' if c['cameraAgent'] else ''}")
     lines.append(f"lights  {len(s['lights'])}")

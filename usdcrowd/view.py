@@ -60,6 +60,18 @@ def look_at(eye, target, up=_Z_UP) -> np.ndarray:
     return m
 
 
+def mm_per_lens_unit(meters_per_unit: float) -> float:
+    """Millimetres in one unit of UsdGeom.Camera's lens attributes on a stage of ``meters_per_unit``.
+
+    USD gives ``focalLength``, ``horizontalAperture`` and ``verticalAperture``
+    in tenths of a scene unit: millimetres on a centimetre stage, 0.1 m on a
+    metre stage (a 35 mm lens is 0.35 there, as Blender writes it). usdcrowd
+    keeps lenses in millimetres (:class:`CameraView`) and converts where it
+    reads or writes a stage.
+    """
+    return 100.0 * float(meters_per_unit)
+
+
 def fov(focal_length, aperture) -> np.ndarray:
     """Field of view in radians across an ``aperture`` (same unit as ``focal_length``)."""
     return 2.0 * np.arctan(0.5 * np.asarray(aperture, dtype=np.float64) / np.asarray(focal_length, dtype=np.float64))

@@ -24,7 +24,7 @@ from ..geometry import MeshData, mesh_of
 # The shared types live in the pure core; imported here for renderers and old imports.
 from ..poses import AgentPoses
 from ..shading import SCENERY_ID_BASE, Light, Material
-from ..view import CameraView
+from ..view import CameraView, mm_per_lens_unit
 
 __all__ = ["SCENERY_ID_BASE", "AgentPoses", "CameraView", "Light", "Material", "SceneryItem", "ShotScene",
            "color_temperature_rgb"]
@@ -163,9 +163,11 @@ class ShotScene:
         _check_lens(prim, time, focal=focal, horizontalAperture=h_ap, verticalAperture=v_ap,
                     near=float(near), far=float(far), matrix=m)
         mpu = self.frame.meters_per_unit
+        lens = mm_per_lens_unit(mpu)         # tenths of a scene unit -> millimetres
         state = prim.GetAttribute("crowd:camera:state")
         tracked = prim.GetAttribute("crowd:camera:trackedEvent")
-        return CameraView(str(prim.GetPath()), float(time), m, focal, h_ap, v_ap, near * mpu, far * mpu,
+        return CameraView(str(prim.GetPath()), float(time), m, focal * lens, h_ap * lens, v_ap * lens,
+                          near * mpu, far * mpu,
                           str(state.Get(time)) if state and state.HasValue() else None,
                           str(tracked.Get(time) or "") if tracked and tracked.HasValue() else None)
 

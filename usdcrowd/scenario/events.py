@@ -188,10 +188,11 @@ def read_camera_agents(stage, time: float | None = None) -> model.CameraAgentTab
     """
     from pxr import Usd, UsdGeom
 
-    from ..view import lens_problem
+    from ..view import lens_problem, mm_per_lens_unit
     from .read import range_problem
 
     frame = stage_frame(stage)
+    lens_mm = mm_per_lens_unit(frame.meters_per_unit)
     t = time_range(stage).start if time is None else float(time)
     cache = UsdGeom.XformCache(Usd.TimeCode(t))
     rows = []
@@ -240,9 +241,9 @@ def read_camera_agents(stage, time: float | None = None) -> model.CameraAgentTab
         targets = target.GetTargets() if target else []
         rows.append(dict(
             path=str(prim.GetPath()), cam_to_world=m,
-            focal_length=float(cam.GetFocalLengthAttr().Get(t)),
-            horizontal_aperture=float(cam.GetHorizontalApertureAttr().Get(t)),
-            vertical_aperture=float(cam.GetVerticalApertureAttr().Get(t)),
+            focal_length=float(cam.GetFocalLengthAttr().Get(t)) * lens_mm,
+            horizontal_aperture=float(cam.GetHorizontalApertureAttr().Get(t)) * lens_mm,
+            vertical_aperture=float(cam.GetVerticalApertureAttr().Get(t)) * lens_mm,
             near=float(frame.length_to_canonical(near)), far=float(frame.length_to_canonical(far)),
             mode=model.code(model.CAMERA_MODES, mode), max_speed=float(get("maxSpeed")),
             max_force=float(get("maxForce")), max_angular_speed=math.radians(get("maxAngularSpeed")),

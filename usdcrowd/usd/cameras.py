@@ -23,6 +23,7 @@ import numpy as np
 from .. import __version__, model
 from ..atomic import export_layer
 from ..scenario.stageio import StageFrame
+from ..view import mm_per_lens_unit
 
 CAMERAS = "cameras.usda"
 STATE = "crowd:camera:state"
@@ -71,6 +72,7 @@ def write_camera_tracks(out_dir: str | os.PathLike, tracks: list[model.CameraTra
                                           "cameras": len(tracks), **(extra or {})}}
     T = Sdf.ValueTypeNames
     mpu = frame.meters_per_unit
+    lens = mm_per_lens_unit(mpu)            # lenses in tenths of a scene unit, as USD means them
     with Sdf.ChangeBlock():
         for track in tracks:
             _parents(layer, track.path)
@@ -79,13 +81,13 @@ def write_camera_tracks(out_dir: str | os.PathLike, tracks: list[model.CameraTra
                 spec.specifier = Sdf.SpecifierOver
             else:
                 spec.specifier, spec.typeName = Sdf.SpecifierDef, "Camera"
-                _set(spec, "horizontalAperture", T.Float, float(track.horizontal_aperture))
-                _set(spec, "verticalAperture", T.Float, float(track.vertical_aperture))
+                _set(spec, "horizontalAperture", T.Float, float(track.horizontal_aperture) / lens)
+                _set(spec, "verticalAperture", T.Float, float(track.vertical_aperture) / lens)
                 _set(spec, "clippingRange", T.Float2, Gf.Vec2f(track.near / mpu, track.far / mpu))
                 if track.agent is not None:
                     spec.SetInfo("apiSchemas", Sdf.TokenListOp.Create(prependedItems=["CameraAgentAPI"]))
                     _agent_values(spec, track.agent)
-            fl = [float(f) for f in track.focal_length]
+            fl = [float(f) / lens for f in track.focal_length]
             if track.path not in defined or len(set(fl)) > 1:     # the user's own lens stays theirs
                 focal = Sdf.AttributeSpec(spec, "focalLength", T.Float)
                 focal.default = fl[0]           # what readers that ask without a time get
