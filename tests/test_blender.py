@@ -139,3 +139,54 @@ def test_lenses_mean_the_same_millimetres_in_blender_and_usdcrowd(blender_python
         mine = ours.camera(names[name], 1)
         assert blender["lens"] == pytest.approx(mine.focal_length, rel=1e-5), name
         assert blender["angle_x"] == pytest.approx(math.radians(mine.fov_x()), rel=1e-5), name
+
+
+HIERARCHY_SCRIPT = '''
+import bpy, json, sys
+bpy.ops.wm.read_factory_settings(use_empty=True)
+bpy.ops.wm.usd_import(filepath=sys.argv[1])
+frames = [int(f) for f in sys.argv[2].split(",")]
+out = {"roots": {}, "chains": {}}
+for f in frames:
+    bpy.context.scene.frame_set(f)
+    for o in bpy.data.objects:
+        if o.type == "ARMATURE":
+            out["roots"].setdefault(o.name, []).append(list((o.matrix_world @ o.pose.bones[0].matrix).translation))
+for o in bpy.data.objects:
+    if o.type == "ARMATURE":
+        chain, p = [], o.parent
+        while p is not None:
+            chain.append(p.name)
+            p = p.parent
+        out["chains"][o.name] = chain
+print("RESULT " + json.dumps(out))
+'''
+
+
+def test_blender_keeps_groups_axes_and_units_of_a_y_up_centimetre_shot(blender_python, write_stage, tmp_path):
+    """Without our schemas Blender must still see the groups (fallbackPrimTypes): agents stay under
+    World/Crowd and land where usdcrowd put them, converted to Blender's Z-up metres."""
+    from frames_factory import straight_walk
+    from test_stage import Y_UP_CM
+
+    from usdcrowd.pipeline import author_shot
+    from usdcrowd.scenario.crowd import read_crowd
+
+    scenario = write_stage(Y_UP_CM, up="Y", mpu=0.01)
+    shot = author_shot(scenario, tmp_path / "shot", lambda sc: [straight_walk(sc.agents, sc.time)],
+                       progress=False, events=False).shot
+    frames = [1, 6, 12]
+    script = tmp_path / "hierarchy.py"
+    script.write_text(HIERARCHY_SCRIPT)
+    run = subprocess.run([blender_python, str(script), shot, ",".join(map(str, frames))], capture_output=True,
+                         text=True, timeout=600)
+    assert run.returncode == 0, run.stderr[-2000:]
+    got = json.loads(next(ln for ln in run.stdout.splitlines() if ln.startswith("RESULT "))[len("RESULT "):])
+    assert got["chains"] and all(chain[1:3] == ["Crowd", "World"] for chain in got["chains"].values()), got["chains"]
+    crowd, info = read_crowd(shot)
+    heads = np.array(list(got["roots"].values()))[:, :, :2]                          # Blender: Z-up metres
+    walked = np.swapaxes(crowd.position[np.array(frames) - 1][:, info.visible, :2], 0, 1)   # canonical metres
+    gap = np.linalg.norm(heads[:, None] - walked[None], axis=-1).max(axis=2)
+    match = gap.argmin(axis=1)
+    assert len(set(match.tolist())) == len(heads) == len(walked)
+    assert gap[np.arange(len(heads)), match].max() < 1e-4

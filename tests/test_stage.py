@@ -256,3 +256,32 @@ def test_part_layers_hold_the_same_samples_as_one_layer(museum_path, tmp_path, m
                 assert np.array_equal(np.asarray(a.Get(t)), np.asarray(b.Get(t))), (path, attr, t)
         ext = [stages[w].GetPrimAtPath(path).GetAttribute("extent").Get() for w in (1, 2)]
         assert np.array_equal(np.asarray(ext[0]), np.asarray(ext[1]))
+
+
+def test_plain_usd_core_sees_groups_as_transforms_in_shots_and_new_scenarios(write_stage, tmp_path):
+    """fallbackPrimTypes in the root layers: a reader without our schemas gets Xform groups, Scope events."""
+    import json
+    import subprocess
+    import sys
+
+    from usdcrowd.templates import new_scenario
+
+    shot = author_shot(write_stage(Y_UP_CM, up="Y", mpu=0.01), tmp_path / "shot", _walk, progress=False).shot
+    scenario = tmp_path / "museum.usda"
+    new_scenario("museum", scenario, agents=8)
+    code = """if True:
+        import json, sys
+        from pxr import Usd, UsdGeom
+        out = {}
+        for path, prim in ((sys.argv[1], "/World/Crowd"), (sys.argv[2], "/World/Crowd/Visitors")):
+            stage = Usd.Stage.Open(path)
+            p = stage.GetPrimAtPath(prim)
+            out[prim] = [p.GetTypeName(), p.IsA(UsdGeom.Xform), p.GetPrimTypeInfo().GetSchemaTypeName()]
+        print(json.dumps(out))
+    """
+    run = subprocess.run([sys.executable, "-c", code, shot, str(scenario)], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr[-1500:]
+    got = json.loads(run.stdout)
+    # The authored type stays CrowdGroup; the type that applies without our plugin is Xform.
+    assert got == {"/World/Crowd": ["CrowdGroup", True, "Xform"],
+                   "/World/Crowd/Visitors": ["CrowdGroup", True, "Xform"]}

@@ -19,7 +19,21 @@ EVENT = "CrowdEvent"
 CAMERA_AGENT_API = "CameraAgentAPI"
 SCENERY_API = "CrowdSceneryAPI"
 
+# What a tool without our schemas should see each typed schema as (USD's
+# ``fallbackPrimTypes`` stage metadata, read from the root layer): without
+# it Blender drops CrowdGroup prims, so their agents lose their parent, its
+# name and the stage's axis and unit conversion. Groups become transforms;
+# layers and events, which hold only data, scopes.
+FALLBACK_PRIM_TYPES = {GROUP: ["Xform"], INTEREST_POINT: ["Xform"], BEHAVIOR_LAYER: ["Scope"], EVENT: ["Scope"]}
+
 _registered = False
+
+
+def author_fallbacks(layer) -> None:
+    """Write :data:`FALLBACK_PRIM_TYPES` into a (root) layer's metadata."""
+    from pxr import Vt
+
+    layer.pseudoRoot.SetInfo("fallbackPrimTypes", {k: Vt.TokenArray(v) for k, v in FALLBACK_PRIM_TYPES.items()})
 
 
 def register() -> None:

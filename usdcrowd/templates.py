@@ -90,6 +90,7 @@ def new_scenario(template: str, out: str | os.PathLike, agents: int | None = Non
     crowd["template"] = template
     data["usdcrowd"] = crowd
     layer.customLayerData = data
+    schema.author_fallbacks(layer)          # readable without our schemas (Blender, plain usd-core)
 
     # Copy the image assets the template points at, keeping relative paths.
     assets = []

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import os
 
-from .. import __version__, model
+from .. import __version__, model, schema
 from ..atomic import export_layer
 from ..scenario.stageio import StageFrame
 from .cameras import CAMERAS
@@ -49,6 +49,7 @@ def write_shot(out_dir: str | os.PathLike, scenario_path: str, time: model.TimeR
     layer.timeCodesPerSecond = layer.framesPerSecond = time.fps
     layer.pseudoRoot.SetInfo("upAxis", frame.up_axis)
     layer.pseudoRoot.SetInfo("metersPerUnit", frame.meters_per_unit)
+    schema.author_fallbacks(layer)          # readable without our schemas (Blender, plain usd-core)
     layer.customLayerData = {"usdcrowd": {"version": __version__, "seed": int(seed),
                                           "scenario": _relative(scenario_path, out_dir)}}
     if add_lights:
