@@ -159,6 +159,8 @@ for o in bpy.data.objects:
             chain.append(p.name)
             p = p.parent
         out["chains"][o.name] = chain
+out["props"] = {o.name: {k: v for k, v in o.items() if isinstance(v, (int, float, str))}
+                for o in bpy.data.objects if o.type == "EMPTY"}
 print("RESULT " + json.dumps(out))
 '''
 
@@ -190,3 +192,9 @@ def test_blender_keeps_groups_axes_and_units_of_a_y_up_centimetre_shot(blender_p
     match = gap.argmin(axis=1)
     assert len(set(match.tolist())) == len(heads) == len(walked)
     assert gap[np.arange(len(heads)), match].max() < 1e-4
+    # Agent ids and group attributes arrive as custom properties (Blender's userProperties namespace).
+    props = got["props"]
+    agents = {p["crowd:agentId"]: p for p in props.values() if "crowd:agentId" in p}
+    assert sorted(agents) == sorted(info.agent_id[info.visible].tolist())
+    assert {p["crowd:group"] for p in agents.values()} == {"/World/Crowd"}
+    assert props["Crowd"]["crowd:clones"] == 3 and props["Crowd"]["crowd:agents"] == len(info.agent_id)

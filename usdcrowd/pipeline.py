@@ -107,6 +107,7 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     from .scenario.events import read_events
     from .usd import CROWD, CrowdLayerWriter, write_shot
     from .usd.cameras import write_camera_tracks
+    from .usd.crowd_layer import write_group_properties
     from .usd.events import author_events
 
     scenario_path = os.fspath(scenario_path)
@@ -133,6 +134,7 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     store = FrameStore(len(scenario.agents), folder=out_dir)
     writer = CrowdLayerWriter(out_dir / CROWD, scenario, sframe, default_prim, scenario_ref, authored,
                               clip_frames=clip_frames)
+    write_group_properties(writer.layer, stage, scenario.groups.path)
     detector = EventDetector(scenario.agents.character_type, scenario.agents.visible, scenario.time.fps,
                              scope=f"/{default_prim}/Events" if default_prim else "/Events")
     collected = _Collected(store)

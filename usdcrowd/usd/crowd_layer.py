@@ -125,16 +125,44 @@ def _write_prototypes(layer) -> None:
     _attr(mesh, "primvars:skel:geomBindTransform", T.Matrix4d, Gf.Matrix4d(1.0))
 
 
+# Blender's namespace for custom properties it imports (and exports).
+USER_PROPERTIES = "userProperties:crowd:"
+
+
 def _write_group_profiles(layer, scenario: model.Scenario) -> None:
-    """Groups carry their resolved visit profile (drawn once per group)."""
+    """Groups carry their resolved visit profile (drawn once per group) and their agent count."""
     from pxr import Sdf
 
     a = scenario.agents
     for gi, gpath in enumerate(scenario.groups.path):
         members = np.flatnonzero(a.group == gi)
+        spec = _prim(layer, gpath)
+        _attr(spec, f"{USER_PROPERTIES}agents", _types().Int, int(members.size), Sdf.VariabilityUniform, custom=True)
         if members.size:
-            _attr(_prim(layer, gpath), "crowd:visitProfile", _types().Token,
+            _attr(spec, "crowd:visitProfile", _types().Token,
                   model.VISIT_PROFILES[a.visit_profile[members[0]]], Sdf.VariabilityUniform)
+
+
+def write_group_properties(layer, stage, group_paths: list[str]) -> None:
+    """Each group's authored ``crowd:`` values again as user properties (numbers, strings, tokens)."""
+    from pxr import Sdf
+
+    T = _types()
+    kinds = {bool: T.Bool, int: T.Int, float: T.Double, str: T.String}
+    with Sdf.ChangeBlock():
+        for path in group_paths:
+            prim = stage.GetPrimAtPath(path)
+            if not prim:
+                continue
+            for attr in prim.GetAuthoredAttributes():
+                name = attr.GetName()
+                if not name.startswith("crowd:") or attr.GetNumTimeSamples():
+                    continue
+                value = attr.Get()
+                value = str(value) if attr.GetTypeName() in (T.Token, T.String) else value
+                if type(value) in kinds:
+                    _attr(_prim(layer, path), f"userProperties:{name}", kinds[type(value)], value,
+                          Sdf.VariabilityUniform, custom=True)
 
 
 _TOKEN_SLOTS = (("behavior", model.BEHAVIORS), ("anim_class", model.ANIM_CLASSES), ("health", model.HEALTH_STATES))
@@ -186,6 +214,13 @@ class _AgentPart:
         if a.trades is not None and a.trades[i]:
             _attr(spec, "crowd:trades", T.Bool, True, U)
         _attr(spec, "crowd:color", T.Color3f, Gf.Vec3f(*a.color[i].tolist()), U)
+        # The same facts again where DCC tools look for custom properties (Blender
+        # imports the userProperties: namespace as an object's properties).
+        for name, kind, value in (("agentId", T.Int, int(a.agent_id[i])),
+                                  ("group", T.String, sc.groups.path[a.group[i]]),
+                                  ("role", T.String, model.ROLES[a.role[i]]),
+                                  ("characterType", T.String, model.CHARACTER_TYPES[a.character_type[i]])):
+            _attr(spec, f"{USER_PROPERTIES}{name}", kind, value, U, custom=True)
         _attr(spec, "crowd:speed", T.Float, float(a.speed[i]), U)
         _attr(spec, "crowd:height", T.Float, float(a.height[i]), U)
         start = self.frame.points_from_canonical(a.start[i])
