@@ -53,11 +53,16 @@ def _resize(stage, groups, n_authored: int, agents: int, template: str) -> None:
             prim.GetAttribute("crowd:clones").Set(int(k))
 
 
-def new_scenario(template: str, out: str | os.PathLike, agents: int | None = None, seed: int | None = None) -> dict:
+def new_scenario(template: str, out: str | os.PathLike, agents: int | None = None, seed: int | None = None,
+                 scenery: str | os.PathLike | None = None) -> dict:
     """Write a copy of a template, optionally resized to ``agents`` agents and reseeded.
 
     Image assets the template refers to (behavior maps) are copied next to
-    the new stage so its relative asset paths keep working.
+    the new stage so its relative asset paths keep working. With ``scenery``
+    (a USD file from a DCC tool, any up axis and units) the template's own
+    scenery is replaced by a reference to it at ``/World/Scenery``, with the
+    transform its axes and units need (:func:`usdcrowd.scenery.place_scenery`);
+    when it brings lights, the template's are dropped.
 
     Returns
     -------
@@ -102,6 +107,10 @@ def new_scenario(template: str, out: str | os.PathLike, agents: int | None = Non
                     source_file = src.parent / rel
                     if source_file.is_file():
                         assets.append((source_file, out.parent / rel))
+    total = n_authored + sum(int(p.GetAttribute("crowd:clones").Get()) for p in groups)
+    if scenery is not None:
+        del stage, groups   # an open stage would try to compose the reference from an anonymous layer
+        _replace_scenery(layer, scenery, out)
     with atomic_path(out) as tmp:
         if not layer.Export(str(tmp)):
             raise UsdcrowdError("could not be written", file=str(out))
@@ -109,5 +118,17 @@ def new_scenario(template: str, out: str | os.PathLike, agents: int | None = Non
             dest.parent.mkdir(parents=True, exist_ok=True)
             if source_file.resolve() != dest.resolve():
                 shutil.copyfile(source_file, dest)
-    total = n_authored + sum(int(p.GetAttribute("crowd:clones").Get()) for p in groups)
     return {"path": str(out), "agents": total, "seed": crowd.get("seed"), "assets": [str(d) for _, d in assets]}
+
+
+def _replace_scenery(layer, scenery, out: Path) -> None:
+    """The DCC scenery in place of the template's (and its lights in place of the template's, if any)."""
+    from .scenery import place_scenery
+
+    root = f"/{layer.defaultPrim}" if layer.defaultPrim else "/World"
+    parent = layer.GetPrimAtPath(root)
+    if parent and "Scenery" in parent.nameChildren:
+        del parent.nameChildren["Scenery"]
+    placed = place_scenery(layer, scenery, f"{root}/Scenery", out.parent)
+    if placed["lights"] and parent and "Lights" in parent.nameChildren:
+        del parent.nameChildren["Lights"]

@@ -225,6 +225,13 @@ def schema_problems(stage, source: str) -> list[Problem]:
     return out
 
 
+def frame_problems(stage) -> list[Problem]:
+    """Sublayers, and references without their correcting transform, in other units or axes than the stage."""
+    from .scenery import frame_problems as found
+
+    return [Problem(f, prim, "", message, "usdcrowd") for f, prim, message in found(stage)]
+
+
 def clip_problems(stage) -> list[Problem]:
     """Value-clip layers that cannot be read (USD opens them only when a value is asked for)."""
     from pxr import Sdf, Tf
@@ -267,7 +274,7 @@ def validate(path: str | os.PathLike, stage=None, limits=None) -> list[Problem]:
 
     source = os.fspath(path)
     stage = stage or open_stage(source)
-    found = usd_problems(stage, source) + clip_problems(stage) + schema_problems(stage, source)
+    found = usd_problems(stage, source) + clip_problems(stage) + frame_problems(stage) + schema_problems(stage, source)
     seen = {(p.prim, p.attribute, p.message) for p in found}
     found += [p for p in scenario_problem(stage, source, limits) if (p.prim, p.attribute, p.message) not in seen]
     return sorted(found, key=lambda p: (p.severity != "error", p.prim, p.attribute))

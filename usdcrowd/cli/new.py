@@ -1,4 +1,4 @@
-"""usdcrowd new TEMPLATE -o scenario.usda [--agents N] [--seed S]"""
+"""usdcrowd new TEMPLATE -o scenario.usda [--agents N] [--seed S] [--scenery DCC.usda]"""
 
 from __future__ import annotations
 
@@ -13,6 +13,8 @@ def add_parser(sub):
     p.add_argument("template", help=f"one of: {', '.join(list_templates())}")
     p.add_argument("-o", "--output", required=True, help="the new stage (.usda, .usdc or .usd)")
     p.add_argument("--agents", type=int, help="total number of agents (clones are rescaled per group)")
+    p.add_argument("--scenery", metavar="USD", help="a DCC tool's scenery (any up axis and units) in place of the "
+                                                   "template's: referenced with the transform it needs")
     add_seed(p)
     add_limits(p)
     p.set_defaults(run=run)
@@ -26,7 +28,7 @@ def run(args) -> int:
     if args.agents is not None and args.agents > limit:
         raise UsdcrowdError(f"{args.agents:,} agents: more than the {limit:,} accepted (raise it with --max-agents)",
                             attribute="--agents")
-    info = new_scenario(args.template, args.output, args.agents, args.seed)
+    info = new_scenario(args.template, args.output, args.agents, args.seed, scenery=args.scenery)
     print(f"wrote {info['path']}: template {args.template}, {info['agents']} agents, seed {info['seed']}")
     for asset in info["assets"]:
         print(f"  asset {asset}")

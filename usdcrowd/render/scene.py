@@ -24,7 +24,8 @@ from ..geometry import MeshData, mesh_of
 # The shared types live in the pure core; imported here for renderers and old imports.
 from ..poses import AgentPoses
 from ..shading import SCENERY_ID_BASE, Light, Material
-from ..view import CameraView, mm_per_lens_unit
+from ..scenery import lens_mm
+from ..view import CameraView
 
 __all__ = ["SCENERY_ID_BASE", "AgentPoses", "CameraView", "Light", "Material", "SceneryItem", "ShotScene",
            "color_temperature_rgb"]
@@ -157,16 +158,15 @@ class ShotScene:
         # Remove scale from the camera's frame: lenses do not scale with units.
         m[:3, :3] /= np.linalg.norm(m[:3, :3], axis=1, keepdims=True)
         near, far = cam.GetClippingRangeAttr().Get(time)
-        focal = float(cam.GetFocalLengthAttr().Get(time))
-        h_ap = float(cam.GetHorizontalApertureAttr().Get(time))
-        v_ap = float(cam.GetVerticalApertureAttr().Get(time))
+        # Tenths of a scene unit of the layer that authored each value -> millimetres.
+        focal, h_ap, v_ap = (lens_mm(a, time, self.frame) for a in (
+            cam.GetFocalLengthAttr(), cam.GetHorizontalApertureAttr(), cam.GetVerticalApertureAttr()))
         _check_lens(prim, time, focal=focal, horizontalAperture=h_ap, verticalAperture=v_ap,
                     near=float(near), far=float(far), matrix=m)
         mpu = self.frame.meters_per_unit
-        lens = mm_per_lens_unit(mpu)         # tenths of a scene unit -> millimetres
         state = prim.GetAttribute("crowd:camera:state")
         tracked = prim.GetAttribute("crowd:camera:trackedEvent")
-        return CameraView(str(prim.GetPath()), float(time), m, focal * lens, h_ap * lens, v_ap * lens,
+        return CameraView(str(prim.GetPath()), float(time), m, focal, h_ap, v_ap,
                           near * mpu, far * mpu,
                           str(state.Get(time)) if state and state.HasValue() else None,
                           str(tracked.Get(time) or "") if tracked and tracked.HasValue() else None)

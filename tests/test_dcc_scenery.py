@@ -1,0 +1,138 @@
+"""A DCC tool's scenery under a template crowd: Blender builds a small town in two conventions."""
+
+from __future__ import annotations
+
+import subprocess
+import textwrap
+
+import numpy as np
+import pytest
+
+from usdcrowd.cli import main
+
+# Built by Blender: a 60 m ground plane, a 4 x 6 x 5 m hall at (14, 9), a 3 x 3 x 12 m tower at (-15, -12)
+# turned 30 degrees, a sun and a 35 mm camera.
+TOWN_SCRIPT = '''
+import bpy, math, sys
+out, up, units = sys.argv[1], sys.argv[2], sys.argv[3]
+bpy.ops.wm.read_factory_settings(use_empty=True)
+def box(name, x, y, sx, sy, sz, turn=0.0):
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(x, y, sz / 2))
+    o = bpy.context.active_object
+    o.name, o.scale, o.rotation_euler = name, (sx, sy, sz), (0, 0, math.radians(turn))
+bpy.ops.mesh.primitive_plane_add(size=60.0, location=(0, 0, 0))
+box("Hall", 14.0, 9.0, 4.0, 6.0, 5.0)
+box("Tower", -15.0, -12.0, 3.0, 3.0, 12.0, 30.0)
+sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+bpy.context.scene.collection.objects.link(sun)
+cam = bpy.data.cameras.new("TownCam")
+cam.lens, cam.sensor_width = 35.0, 36.0
+co = bpy.data.objects.new("TownCam", cam)
+bpy.context.scene.collection.objects.link(co)
+co.location, co.rotation_euler = (0, -40, 12), (math.radians(75), 0, 0)
+kw = dict(convert_orientation=True, export_global_up_selection="Y",
+          export_global_forward_selection="NEGATIVE_Z") if up == "Y" else {}
+bpy.ops.wm.usd_export(filepath=out, convert_scene_units=units, **kw)
+'''
+HALL = (12.0, 6.0, 16.0, 12.0)      # footprint x0, y0, x1, y1, metres
+
+
+@pytest.fixture(scope="module")
+def towns(tmp_path_factory):
+    """The town exported by Blender as Z-up metres and as Y-up centimetres, each under the museum crowd."""
+    from tool_venvs import tool_python
+
+    python = tool_python("bpy", ["bpy==5.0.1"], "USDCROWD_BPY_VENV")
+    tmp = tmp_path_factory.mktemp("towns")
+    script = tmp / "town.py"
+    script.write_text(TOWN_SCRIPT)
+    out = {}
+    for name, up, units in (("z_m", "Z", "METERS"), ("y_cm", "Y", "CENTIMETERS")):
+        town = tmp / f"town_{name}.usda"
+        run = subprocess.run([python, str(script), str(town), up, units], capture_output=True, text=True,
+                             timeout=600)
+        assert run.returncode == 0, run.stderr[-2000:]
+        scenario = tmp / f"scenario_{name}.usda"
+        assert main(["new", "museum", "-o", str(scenario), "--agents", "30", "--scenery", str(town)]) == 0
+        out[name] = (town, scenario)
+    return out
+
+
+@pytest.mark.slow
+def test_a_blender_town_in_either_convention_becomes_the_same_obstacles(towns):
+    from usdcrowd.scenario import load_scenario
+
+    found = {}
+    for name, (town, scenario) in towns.items():
+        assert "upAxis = \"Y\"" in town.read_text() if name == "y_cm" else "metersPerUnit = 1" in town.read_text()
+        obstacles = load_scenario(scenario).obstacles
+        found[name] = {p.rsplit("/", 2)[-2]: (poly, h) for p, poly, h in
+                       zip(obstacles.path, obstacles.polygons, obstacles.height)}
+        assert set(found[name]) == {"Hall", "Tower"}         # the ground is ground, not an obstacle
+        hall, height = found[name]["Hall"]
+        np.testing.assert_allclose([*hall.min(0), *hall.max(0)], HALL, atol=1e-4)
+        assert height == pytest.approx(5.0, abs=1e-4)
+        tower, height = found[name]["Tower"]
+        assert height == pytest.approx(12.0, abs=1e-4)
+        np.testing.assert_allclose(tower.mean(0), (-15.0, -12.0), atol=1e-3)
+        # Turned 30 degrees: its corners reach 1.5 (cos 30 + sin 30) = 2.05 m from the centre along x.
+        assert tower[:, 0].max() - tower[:, 0].min() == pytest.approx(3.0 * (np.cos(np.pi / 6) + 0.5), abs=1e-3)
+    for key in ("Hall", "Tower"):
+        np.testing.assert_allclose(np.sort(found["y_cm"][key][0], axis=0), np.sort(found["z_m"][key][0], axis=0),
+                                   atol=1e-4)
+
+
+@pytest.mark.slow
+def test_the_towns_lights_and_camera_are_the_shots(towns):
+    from pxr import Usd, UsdLux
+
+    from usdcrowd.render.scene import ShotScene
+
+    for name, (_, scenario) in towns.items():
+        stage = Usd.Stage.Open(str(scenario))
+        lights = [str(p.GetPath()) for p in stage.Traverse() if p.HasAPI(UsdLux.LightAPI)]
+        assert lights == ["/World/Scenery/root/Sun/Sun"], (name, lights)
+        scene = ShotScene(scenario)
+        cam = scene.camera("/World/Scenery/root/TownCam/TownCam", 1)
+        # 35 mm whatever the file's units (tenths of *its* scene unit), at (0, -40, 12) m.
+        assert cam.focal_length == pytest.approx(35.0, rel=1e-6) and cam.horizontal_aperture == pytest.approx(36.0)
+        np.testing.assert_allclose(cam.cam_to_world[3, :3], (0.0, -40.0, 12.0), atol=1e-5)
+        assert len(scene.scenery) >= 3            # ground, hall and tower are drawn
+
+
+def test_validate_reports_a_reference_in_other_units_without_its_correction(write_stage, tmp_path, capsys):
+    town = tmp_path / "town.usda"
+    town.write_text(textwrap.dedent('''\
+        #usda 1.0
+        (
+            defaultPrim = "Town"
+            metersPerUnit = 0.01
+            upAxis = "Y"
+        )
+        def Xform "Town"
+        {
+            def Cube "Hall"
+            {
+                double size = 500
+            }
+        }
+        '''))
+    bare = write_stage('''
+def Xform "World"
+{
+    def Xform "Scenery"
+    {
+        def "Town" (prepend references = @./town.usda@)
+        {
+        }
+    }
+}
+''')
+    assert main(["validate", str(bare)]) == 1
+    out = capsys.readouterr().out
+    assert "/World/Scenery/Town" in out and "Y-up centimetres" in out and "Z-up metres" in out
+    placed = tmp_path / "placed.usda"
+    assert main(["new", "dialogue", "-o", str(placed), "--scenery", str(town)]) == 0
+    capsys.readouterr()
+    main(["validate", str(placed)])
+    assert "town.usda" not in capsys.readouterr().out

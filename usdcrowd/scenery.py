@@ -1,0 +1,168 @@
+"""A DCC tool's scenery under a template crowd: referenced, with the transform its units and axes need.
+
+A layer written in other units or another up axis than the stage that
+references it is composed as it is: a Y-up centimetre town referenced into a
+Z-up metre scenario comes in a hundred times too big and on its side. USD
+leaves the correction to the referencing prim, so :func:`place_scenery`
+authors it there (a rotation about X between Y-up and Z-up, then a uniform
+scale), and :func:`frame_problems` reports a reference without it, or a
+sublayer, which cannot be corrected at all.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from .errors import StageError
+from .scenario.stageio import StageFrame
+
+
+def correction(source: StageFrame, target: StageFrame) -> np.ndarray:
+    """(4, 4) row-vector matrix taking ``source`` stage coordinates into ``target`` ones."""
+    return source.to_canonical @ target.from_canonical
+
+
+def layer_frame(layer) -> StageFrame:
+    """Up axis and units a layer declares (USD's fallbacks, Y and centimetres, where it declares none)."""
+    from pxr import UsdGeom
+
+    info = layer.pseudoRoot
+    up = str(info.GetInfo("upAxis")) if info.HasInfo("upAxis") else str(UsdGeom.GetFallbackUpAxis())
+    mpu = float(info.GetInfo("metersPerUnit")) if info.HasInfo("metersPerUnit") else 0.01
+    return StageFrame(up, mpu)
+
+
+def lens_mm(attr, time, stage_frame: StageFrame) -> float | None:
+    """A UsdGeom.Camera lens value in millimetres, in the units of the layer that authored it.
+
+    USD gives lenses in tenths of a scene unit; a camera referenced from a
+    centimetre DCC file into a metre stage keeps its file's unit (35 means
+    35 mm there, not 3.5 m). Layers that declare no unit take the stage's.
+    """
+    from pxr import Usd
+
+    from .view import mm_per_lens_unit
+
+    value = attr.Get(time)
+    if value is None:
+        return None
+    mpu = stage_frame.meters_per_unit
+    for spec in attr.GetPropertyStack(Usd.TimeCode(time)):
+        if spec.HasDefaultValue() or spec.layer.GetNumTimeSamplesForPath(spec.path):
+            if spec.layer.pseudoRoot.HasInfo("metersPerUnit"):
+                mpu = float(spec.layer.pseudoRoot.GetInfo("metersPerUnit"))
+            break
+    return float(value) * mm_per_lens_unit(mpu)
+
+
+def place_scenery(layer, scenery: str | os.PathLike, at: str, relative_to: str | os.PathLike) -> dict:
+    """Reference ``scenery``'s default (or first) root prim at ``at`` in ``layer``, corrected to its frame.
+
+    Parameters
+    ----------
+    layer : Sdf.Layer
+        The scenario being written (its upAxis and metersPerUnit are the target).
+    scenery : path-like
+        A USD file from a DCC tool.
+    at : str
+        Prim path that will hold the scenery (defined here as an Xform).
+    relative_to : path-like
+        Folder of the file ``layer`` will be saved as (the reference is relative to it).
+
+    Returns
+    -------
+    dict
+        ``{"source": StageFrame, "scale": float, "rotate_x": float, "lights": bool}``.
+    """
+    from pxr import Gf, Sdf, Usd, UsdLux, Vt
+
+    from .scenario.stageio import open_stage
+
+    scenery = os.fspath(scenery)
+    stage = open_stage(scenery)             # every layer it needs exists and is readable
+    root_layer = stage.GetRootLayer()
+    source = layer_frame(root_layer)
+    target = layer_frame(layer)
+    prim = stage.GetDefaultPrim() or next(iter(stage.GetPseudoRoot().GetChildren()), None)
+    if not prim:
+        raise StageError("has no root prim to reference as scenery", file=scenery)
+    m = correction(source, target)
+    scale = float(np.cbrt(abs(np.linalg.det(m[:3, :3]))))
+    rotate_x = 0.0 if source.up_axis == target.up_axis else (90.0 if source.up_axis == "Y" else -90.0)
+    # The correction sits on a parent of the referencing prim: on the same prim its
+    # xformOpOrder would replace the referenced root's own transform ops.
+    spec = Sdf.CreatePrimInLayer(layer, at)
+    spec.specifier, spec.typeName = Sdf.SpecifierDef, "Xform"
+    ref = Sdf.CreatePrimInLayer(layer, f"{at}/{prim.GetName()}")
+    ref.specifier = Sdf.SpecifierDef
+    ref.referenceList.prependedItems = [Sdf.Reference(os.path.relpath(os.path.abspath(scenery),
+                                                                      os.path.abspath(relative_to)),
+                                                      prim.GetPath() if not stage.GetDefaultPrim() else Sdf.Path())]
+    ops = []
+    if rotate_x:
+        a = Sdf.AttributeSpec(spec, "xformOp:rotateX", Sdf.ValueTypeNames.Float)
+        a.default = rotate_x
+        ops.append("xformOp:rotateX")
+    if abs(scale - 1.0) > 1e-12:
+        a = Sdf.AttributeSpec(spec, "xformOp:scale", Sdf.ValueTypeNames.Float3)
+        a.default = Gf.Vec3f(scale, scale, scale)
+        ops.append("xformOp:scale")
+    if ops:
+        a = Sdf.AttributeSpec(spec, "xformOpOrder", Sdf.ValueTypeNames.TokenArray, Sdf.VariabilityUniform)
+        a.default = Vt.TokenArray(ops)
+    lights = any(p.HasAPI(UsdLux.LightAPI) for p in Usd.PrimRange(prim))
+    return {"source": source, "scale": scale, "rotate_x": rotate_x, "lights": lights}
+
+
+def frame_problems(stage) -> list[tuple[str, str, str]]:
+    """(file, prim, message) for layers composed in other units or axes than the stage, uncorrected.
+
+    A sublayer cannot be corrected (its opinions apply as they are); a
+    reference can, by the referencing prim's transform, which must then be
+    :func:`correction` (rotation and scale) of the two frames.
+    """
+    from pxr import Sdf, UsdGeom
+
+    target = layer_frame(stage.GetRootLayer())
+    cache = UsdGeom.XformCache()
+    out = []
+    for layer in stage.GetLayerStack(includeSessionLayers=False)[1:]:
+        f = layer_frame(layer)
+        if _differs(f, target) and (layer.pseudoRoot.HasInfo("upAxis") or layer.pseudoRoot.HasInfo("metersPerUnit")):
+            out.append((layer.identifier, "", f"sublayer in {_describe(f)} under a {_describe(target)} stage: "
+                                              f"sublayers cannot be corrected; reference it from a prim instead"))
+    for prim in stage.Traverse():
+        if not prim.HasAuthoredReferences():
+            continue
+        for spec in prim.GetPrimStack():
+            for ref in spec.referenceList.GetAddedOrExplicitItems():
+                if not ref.assetPath:
+                    continue
+                ref_layer = Sdf.Layer.FindOrOpen(spec.layer.ComputeAbsolutePath(ref.assetPath))
+                if ref_layer is None:
+                    continue
+                f = layer_frame(ref_layer)
+                if not _differs(f, target):
+                    continue
+                # The correction sits above the referencing prim (on it, it would replace the referenced
+                # root's own ops): its parent's world transform must hold it.
+                parent = prim.GetParent()
+                above = np.array(cache.GetLocalToWorldTransform(parent), dtype=np.float64)[:3, :3] \
+                    if parent and not parent.IsPseudoRoot() else np.eye(3)
+                if not np.allclose(above, correction(f, target)[:3, :3], rtol=1e-5, atol=1e-9):
+                    out.append((spec.layer.identifier, str(prim.GetPath()),
+                                f"references {ref.assetPath} ({_describe(f)}) into a {_describe(target)} stage "
+                                f"without the transform that converts it (usdcrowd new --scenery authors it)"))
+    return out
+
+
+def _differs(a: StageFrame, b: StageFrame) -> bool:
+    return a.up_axis != b.up_axis or abs(a.meters_per_unit / b.meters_per_unit - 1.0) > 1e-6
+
+
+def _describe(f: StageFrame) -> str:
+    units = {1.0: "metres", 0.01: "centimetres", 0.001: "millimetres"}.get(round(f.meters_per_unit, 6),
+                                                                         f"{f.meters_per_unit:g} m per unit")
+    return f"{f.up_axis}-up {units}"
