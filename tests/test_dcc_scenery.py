@@ -136,3 +136,61 @@ def Xform "World"
     capsys.readouterr()
     main(["validate", str(placed)])
     assert "town.usda" not in capsys.readouterr().out
+
+
+def test_instanced_scenery_with_any_transform_ops_blocks_walking_and_is_drawn(write_stage, tmp_path):
+    """Instanceable references (instance proxies) under translate, rotateXYZ, orient, scale and matrix ops."""
+    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario import load_scenario
+
+    (tmp_path / "kiosk.usda").write_text(textwrap.dedent('''\
+        #usda 1.0
+        (
+            defaultPrim = "Kiosk"
+            metersPerUnit = 1
+            upAxis = "Z"
+        )
+        def Xform "Kiosk"
+        {
+            def Cube "Box"
+            {
+                double size = 2
+                double3 xformOp:translate = (0, 0, 1)
+                uniform token[] xformOpOrder = ["xformOp:translate"]
+            }
+        }
+        '''))
+    stage = write_stage('''
+def Xform "World"
+{
+    def "A" (instanceable = true
+        prepend references = @./kiosk.usda@)
+    {
+        double3 xformOp:translate = (10, 0, 0)
+        float3 xformOp:rotateXYZ = (0, 0, 45)
+        uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateXYZ"]
+    }
+    def "B" (instanceable = true
+        prepend references = @./kiosk.usda@)
+    {
+        quatf xformOp:orient = (0.70710677, 0, 0, 0.70710677)
+        float3 xformOp:scale = (2, 1, 1)
+        matrix4d xformOp:transform = ( (1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (-10, 5, 0, 1) )
+        uniform token[] xformOpOrder = ["xformOp:transform", "xformOp:orient", "xformOp:scale"]
+    }
+    def CrowdGroup "Crowd"
+    {
+        uniform int crowd:clones = 2
+    }
+}
+''', name="world.usda")
+    assert stage.parent == tmp_path           # beside the kiosk it references
+    obstacles = load_scenario(stage).obstacles
+    boxes = {p.split("/")[2]: poly for p, poly in zip(obstacles.path, obstacles.polygons)}
+    assert set(boxes) == {"A", "B"}
+    # A: a 2 m box turned 45 degrees at (10, 0): its corners sqrt(2) m away along the axes.
+    np.testing.assert_allclose([boxes["A"][:, 0].min(), boxes["A"][:, 0].max()], [10 - 2 ** 0.5, 10 + 2 ** 0.5],
+                               atol=1e-5)
+    # B: stretched to 4 m along its x, then turned 90 degrees: 2 m wide in x, 4 m long in y, at (-10, 5).
+    np.testing.assert_allclose([*boxes["B"].min(0), *boxes["B"].max(0)], [-11, 3, -9, 7], atol=1e-5)
+    assert len(ShotScene(stage).scenery) == 2

@@ -78,7 +78,7 @@ class ShotScene:
         from .. import schema
 
         self._agent_prims, self._scenery_prims, self._light_prims, self._camera_prims = [], [], [], []
-        it = iter(Usd.PrimRange(self.stage.GetPseudoRoot()))
+        it = iter(Usd.PrimRange(self.stage.GetPseudoRoot(), Usd.TraverseInstanceProxies()))
         for prim in it:
             if prim.IsA(UsdGeom.Imageable) and UsdGeom.Imageable(prim).GetPurposeAttr().Get() in ("guide", "proxy"):
                 it.PruneChildren()

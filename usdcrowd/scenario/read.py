@@ -207,7 +207,8 @@ def load_scenario(path: str | os.PathLike, seed: int | None = None, stage=None,
     layers, points, scenery = [], [], []
     waypoints: list = []            # per group: (times, points) of a time-sampled goal, or None
 
-    it = iter(Usd.PrimRange(stage.GetPseudoRoot()))
+    # Instance proxies too: scenery from DCC tools is often instanced.
+    it = iter(Usd.PrimRange(stage.GetPseudoRoot(), Usd.TraverseInstanceProxies()))
     for prim in it:
         if not prim.IsActive():
             it.PruneChildren()
