@@ -194,3 +194,19 @@ def Xform "World"
     # B: stretched to 4 m along its x, then turned 90 degrees: 2 m wide in x, 4 m long in y, at (-10, 5).
     np.testing.assert_allclose([*boxes["B"].min(0), *boxes["B"].max(0)], [-11, 3, -9, 7], atol=1e-5)
     assert len(ShotScene(stage).scenery) == 2
+
+
+@pytest.mark.slow
+def test_the_town_is_rendered_through_its_own_camera_and_lit_by_its_sun(towns, tmp_path):
+    pytest.importorskip("mitsuba")
+    from usdcrowd.render.final.frame import FrameRenderer
+    from usdcrowd.render.scene import ShotScene
+
+    _, scenario = towns["y_cm"]
+    shot = tmp_path / "shot"
+    assert main(["simulate", str(scenario), "-o", str(shot), "--frames", "1:2", "--no-progress"]) == 0
+    assert [light.path for light in ShotScene(shot / "shot.usda").lights] == ["/World/Scenery/root/Sun/Sun"]
+    r = FrameRenderer(shot / "shot.usda", "/World/Scenery/root/TownCam/TownCam", (96, 54), spp=2).render(1)
+    seen = {r.id_paths.get(int(i)) for i in np.unique(r.gt.ids)}
+    assert {"/World/Scenery/root/Hall/Cube", "/World/Scenery/root/Tower/Cube_001"} <= seen
+    assert r.beauty.mean() > 0.01             # lit by the town's sun
