@@ -206,7 +206,23 @@ def test_the_town_is_rendered_through_its_own_camera_and_lit_by_its_sun(towns, t
     shot = tmp_path / "shot"
     assert main(["simulate", str(scenario), "-o", str(shot), "--frames", "1:2", "--no-progress"]) == 0
     assert [light.path for light in ShotScene(shot / "shot.usda").lights] == ["/World/Scenery/root/Sun/Sun"]
-    r = FrameRenderer(shot / "shot.usda", "/World/Scenery/root/TownCam/TownCam", (96, 54), spp=2).render(1)
-    seen = {r.id_paths.get(int(i)) for i in np.unique(r.gt.ids)}
-    assert {"/World/Scenery/root/Hall/Cube", "/World/Scenery/root/Tower/Cube_001"} <= seen
+    cam = "/World/Scenery/root/TownCam/TownCam"
+    buildings = {"/World/Scenery/root/Hall/Cube", "/World/Scenery/root/Tower/Cube_001"}
+    r = FrameRenderer(shot / "shot.usda", cam, (96, 54), spp=2).render(1)
+    assert buildings <= {r.id_paths.get(int(i)) for i in np.unique(r.gt.ids)}
     assert r.beauty.mean() > 0.01             # lit by the town's sun
+    # The OpenGL preview draws it too, through the same camera.
+    pytest.importorskip("moderngl")
+    from usdcrowd.errors import UsdcrowdError
+    from usdcrowd.render.preview import PreviewRenderer
+
+    try:
+        preview = PreviewRenderer(shot / "shot.usda", 160, 90)
+    except UsdcrowdError as exc:
+        pytest.skip(str(exc))
+    try:
+        frame = preview.render(1, cam)
+    finally:
+        preview.release()
+    shape_paths = {item.shape_id: item.path for item in ShotScene(shot / "shot.usda").scenery}
+    assert buildings <= {shape_paths.get(int(i)) for i in np.unique(frame.ids)}
