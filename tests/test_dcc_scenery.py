@@ -226,3 +226,63 @@ def test_the_town_is_rendered_through_its_own_camera_and_lit_by_its_sun(towns, t
         preview.release()
     shape_paths = {item.shape_id: item.path for item in ShotScene(shot / "shot.usda").scenery}
     assert buildings <= {shape_paths.get(int(i)) for i in np.unique(frame.ids)}
+
+
+WALL = '''#usda 1.0
+(
+    defaultPrim = "Wall"
+    metersPerUnit = 0.01
+    upAxis = "Y"
+)
+def Xform "Wall"
+{
+    def Cube "Block"
+    {
+        double size = 100
+        double3 xformOp:translate = (0, 150, 0)
+        float3 xformOp:scale = (1, 3, 12)
+        uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:scale"]
+    }
+}
+'''
+
+
+def test_walkers_go_around_a_centimetre_y_up_wall_in_their_way(write_stage, tmp_path):
+    """A 12 m wide, 3 m tall wall from a Y-up centimetre file, referenced with its correction, stands
+    between a group and its goal: nobody walks through it."""
+    from usdcrowd.scenario import load_scenario
+    from usdcrowd.scenario.crowd import read_crowd
+
+    (tmp_path / "wall.usda").write_text(WALL)
+    # The correction usdcrowd new --scenery authors: Y-up to Z-up, centimetres to metres.
+    fix = ('float xformOp:rotateX = 90\n        float3 xformOp:scale = (0.01, 0.01, 0.01)\n'
+           '        uniform token[] xformOpOrder = ["xformOp:rotateX", "xformOp:scale"]')
+    scenario = write_stage(f'''
+def Xform "World"
+{{
+    def Xform "Scenery"
+    {{
+        {fix}
+        def "Wall" (prepend references = @./wall.usda@)
+        {{
+        }}
+    }}
+    def CrowdGroup "Walkers"
+    {{
+        uniform int crowd:clones = 12
+        uniform token crowd:behavior = "walk"
+        uniform point3f crowd:spawnCenter = (-6, 0, 0)
+        uniform float crowd:spawnRadius = 2
+        uniform point3f crowd:goal = (8, 0, 0)
+    }}
+}}
+''', end=240)
+    (wall,) = load_scenario(scenario).obstacles.polygons
+    # Blender's/any DCC's wall: 1 m thick (x), 12 m wide (y: the file's -z), 3 m tall, at the origin.
+    np.testing.assert_allclose([*wall.min(0), *wall.max(0)], [-0.5, -6, 0.5, 6], atol=1e-6)
+    shot = tmp_path / "shot"
+    assert main(["simulate", str(scenario), "-o", str(shot), "--no-progress"]) == 0
+    frames, _ = read_crowd(shot / "shot.usda")
+    x, y = frames.position[..., 0], frames.position[..., 1]
+    assert not ((np.abs(x) < 0.45) & (np.abs(y) < 5.95)).any()          # never inside the wall
+    assert (x[-1] > 0.6).mean() > 0.5                                       # most got past it, around it
