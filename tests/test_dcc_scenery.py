@@ -37,6 +37,28 @@ bpy.ops.wm.usd_export(filepath=out, convert_scene_units=units, **kw)
 HALL = (12.0, 6.0, 16.0, 12.0)      # footprint x0, y0, x1, y1, metres
 
 
+def _dcc_box(path, root: str, up: str, mpu: float, size: float, translate, scale=(1, 1, 1)):
+    """A DCC-style layer: one root Xform holding a Cube, in ``up`` axis and ``mpu`` metres per unit."""
+    path.write_text(textwrap.dedent(f'''\
+        #usda 1.0
+        (
+            defaultPrim = "{root}"
+            metersPerUnit = {mpu}
+            upAxis = "{up}"
+        )
+        def Xform "{root}"
+        {{
+            def Cube "Box"
+            {{
+                double size = {size}
+                double3 xformOp:translate = {tuple(translate)}
+                float3 xformOp:scale = {tuple(scale)}
+                uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:scale"]
+            }}
+        }}
+        '''))
+
+
 @pytest.fixture(scope="module")
 def towns(tmp_path_factory):
     """The town exported by Blender as Z-up metres and as Y-up centimetres, each under the museum crowd."""
@@ -143,23 +165,7 @@ def test_instanced_scenery_with_any_transform_ops_blocks_walking_and_is_drawn(wr
     from usdcrowd.render.scene import ShotScene
     from usdcrowd.scenario import load_scenario
 
-    (tmp_path / "kiosk.usda").write_text(textwrap.dedent('''\
-        #usda 1.0
-        (
-            defaultPrim = "Kiosk"
-            metersPerUnit = 1
-            upAxis = "Z"
-        )
-        def Xform "Kiosk"
-        {
-            def Cube "Box"
-            {
-                double size = 2
-                double3 xformOp:translate = (0, 0, 1)
-                uniform token[] xformOpOrder = ["xformOp:translate"]
-            }
-        }
-        '''))
+    _dcc_box(tmp_path / "kiosk.usda", "Kiosk", "Z", 1, 2, (0, 0, 1))
     stage = write_stage('''
 def Xform "World"
 {
@@ -228,32 +234,13 @@ def test_the_town_is_rendered_through_its_own_camera_and_lit_by_its_sun(towns, t
     assert buildings <= {shape_paths.get(int(i)) for i in np.unique(frame.ids)}
 
 
-WALL = '''#usda 1.0
-(
-    defaultPrim = "Wall"
-    metersPerUnit = 0.01
-    upAxis = "Y"
-)
-def Xform "Wall"
-{
-    def Cube "Block"
-    {
-        double size = 100
-        double3 xformOp:translate = (0, 150, 0)
-        float3 xformOp:scale = (1, 3, 12)
-        uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:scale"]
-    }
-}
-'''
-
-
 def test_walkers_go_around_a_centimetre_y_up_wall_in_their_way(write_stage, tmp_path):
     """A 12 m wide, 3 m tall wall from a Y-up centimetre file, referenced with its correction, stands
     between a group and its goal: nobody walks through it."""
     from usdcrowd.scenario import load_scenario
     from usdcrowd.scenario.crowd import read_crowd
 
-    (tmp_path / "wall.usda").write_text(WALL)
+    _dcc_box(tmp_path / "wall.usda", "Wall", "Y", 0.01, 100, (0, 150, 0), (1, 3, 12))
     # The correction usdcrowd new --scenery authors: Y-up to Z-up, centimetres to metres.
     fix = ('float xformOp:rotateX = 90\n        float3 xformOp:scale = (0.01, 0.01, 0.01)\n'
            '        uniform token[] xformOpOrder = ["xformOp:rotateX", "xformOp:scale"]')
