@@ -118,6 +118,8 @@ def test_the_towns_lights_and_camera_are_the_shots(towns):
         cam = scene.camera("/World/Scenery/root/TownCam/TownCam", 1)
         # 35 mm whatever the file's units (tenths of *its* scene unit), at (0, -40, 12) m.
         assert cam.focal_length == pytest.approx(35.0, rel=1e-6) and cam.horizontal_aperture == pytest.approx(36.0)
+        # Blender's default clipping, 0.1 to 1,000 m, also in the file's units.
+        assert (cam.near, cam.far) == (pytest.approx(0.1, rel=1e-6), pytest.approx(1000.0, rel=1e-6))
         np.testing.assert_allclose(cam.cam_to_world[3, :3], (0.0, -40.0, 12.0), atol=1e-5)
         assert len(scene.scenery) >= 3            # ground, hall and tower are drawn
 

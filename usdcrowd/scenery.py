@@ -34,27 +34,32 @@ def layer_frame(layer) -> StageFrame:
     return StageFrame(up, mpu)
 
 
-def lens_mm(attr, time, stage_frame: StageFrame) -> float | None:
-    """A UsdGeom.Camera lens value in millimetres, in the units of the layer that authored it.
+def authoring_meters_per_unit(attr, time, stage_frame: StageFrame) -> float:
+    """metersPerUnit of the layer that holds ``attr``'s strongest value (the stage's if it declares none).
 
-    USD gives lenses in tenths of a scene unit; a camera referenced from a
-    centimetre DCC file into a metre stage keeps its file's unit (35 means
-    35 mm there, not 3.5 m). Layers that declare no unit take the stage's.
+    Lens and clipping values are in scene units of the file that wrote them:
+    a camera referenced from a centimetre DCC file into a metre stage keeps
+    its centimetres.
     """
     from pxr import Usd
 
+    t = time if isinstance(time, Usd.TimeCode) else Usd.TimeCode(time)
+    for spec in attr.GetPropertyStack(t):
+        if spec.HasDefaultValue() or spec.layer.GetNumTimeSamplesForPath(spec.path):
+            if spec.layer.pseudoRoot.HasInfo("metersPerUnit"):
+                return float(spec.layer.pseudoRoot.GetInfo("metersPerUnit"))
+            break
+    return stage_frame.meters_per_unit
+
+
+def lens_mm(attr, time, stage_frame: StageFrame) -> float | None:
+    """A UsdGeom.Camera lens value in millimetres (USD: tenths of the authoring layer's scene unit)."""
     from .view import mm_per_lens_unit
 
     value = attr.Get(time)
     if value is None:
         return None
-    mpu = stage_frame.meters_per_unit
-    for spec in attr.GetPropertyStack(Usd.TimeCode(time)):
-        if spec.HasDefaultValue() or spec.layer.GetNumTimeSamplesForPath(spec.path):
-            if spec.layer.pseudoRoot.HasInfo("metersPerUnit"):
-                mpu = float(spec.layer.pseudoRoot.GetInfo("metersPerUnit"))
-            break
-    return float(value) * mm_per_lens_unit(mpu)
+    return float(value) * mm_per_lens_unit(authoring_meters_per_unit(attr, time, stage_frame))
 
 
 def place_scenery(layer, scenery: str | os.PathLike, at: str, relative_to: str | os.PathLike) -> dict:

@@ -13,12 +13,13 @@ from collections import Counter
 import numpy as np
 
 from . import model, schema
-from .view import mm_per_lens_unit
 
 
 def summarize(path: str | os.PathLike, stage=None, limits=None) -> dict:
     """Collect the summary of a stage as plain JSON-able data."""
-    from pxr import UsdGeom, UsdLux
+    from pxr import Usd, UsdGeom, UsdLux
+
+    from .scenery import authoring_meters_per_unit, lens_mm
 
     from .scenario import load_scenario, open_stage, stage_frame
     from .scenario.events import read_events
@@ -55,17 +56,19 @@ def summarize(path: str | os.PathLike, stage=None, limits=None) -> dict:
             "visibility": float(sc.interest.visibility[i])} for i, p in enumerate(sc.interest.path)]
         out["obstacles"] = len(sc.obstacles)
     cams, lights, events = [], [], []
-    # Lens attributes are in tenths of a scene unit; reported in millimetres.
-    lens_mm = mm_per_lens_unit(UsdGeom.GetStageMetersPerUnit(stage))
+    # Lens attributes are in tenths of the authoring layer's scene unit; reported in millimetres.
+    frame = stage_frame(stage)
     for prim in stage.Traverse():
         if prim.IsA(UsdGeom.Camera):
             cam = UsdGeom.Camera(prim)
             xf = UsdGeom.Xformable(prim)
+            t = Usd.TimeCode.Default()
             cams.append({
-                "path": str(prim.GetPath()), "focalLengthMm": float(cam.GetFocalLengthAttr().Get()) * lens_mm,
-                "apertureMm": [float(cam.GetHorizontalApertureAttr().Get()) * lens_mm,
-                               float(cam.GetVerticalApertureAttr().Get()) * lens_mm],
-                "clipping": list(cam.GetClippingRangeAttr().Get()),
+                "path": str(prim.GetPath()), "focalLengthMm": lens_mm(cam.GetFocalLengthAttr(), t, frame),
+                "apertureMm": [lens_mm(cam.GetHorizontalApertureAttr(), t, frame),
+                               lens_mm(cam.GetVerticalApertureAttr(), t, frame)],
+                "clipping": [float(v) * authoring_meters_per_unit(cam.GetClippingRangeAttr(), t, frame)
+                             for v in cam.GetClippingRangeAttr().Get()],
                 "animated": bool(xf.TransformMightBeTimeVarying()),
                 "cameraAgent": prim.HasAPI(schema.CAMERA_AGENT_API)})
         elif prim.HasAPI(UsdLux.LightAPI):
@@ -179,7 +182,7 @@ def format_summary(s: dict) -> str:
     for c in s["cameras"]:
         lines.append(f"  {c['path']}  {c['focalLengthMm']:.4g} mm, aperture {c['apertureMm'][0]:.4g}x"
                      f"{c['apertureMm'][1]:.4g} mm, "
-                     f"clip {c['clipping'][0]:g}-{c['clipping'][1]:g}{', animated' if c['animated'] else ''}"
+                     f"clip {c['clipping'][0]:.4g}-{c['clipping'][1]:.6g} m{', animated' if c['animated'] else ''}"
                      f"{', camera agent' if c['cameraAgent'] else ''}")
     lines.append(f"lights  {len(s['lights'])}")
     for li in s["lights"]:

@@ -24,7 +24,7 @@ from ..geometry import MeshData, mesh_of
 # The shared types live in the pure core; imported here for renderers and old imports.
 from ..poses import AgentPoses
 from ..shading import SCENERY_ID_BASE, Light, Material
-from ..scenery import lens_mm
+from ..scenery import authoring_meters_per_unit, lens_mm
 from ..view import CameraView
 
 __all__ = ["SCENERY_ID_BASE", "AgentPoses", "CameraView", "Light", "Material", "SceneryItem", "ShotScene",
@@ -157,17 +157,17 @@ class ShotScene:
         m = self._world(prim, time)
         # Remove scale from the camera's frame: lenses do not scale with units.
         m[:3, :3] /= np.linalg.norm(m[:3, :3], axis=1, keepdims=True)
-        near, far = cam.GetClippingRangeAttr().Get(time)
+        # Scene units of the layer that authored the range (a camera referenced from a centimetre file).
+        clip = cam.GetClippingRangeAttr()
+        near, far = np.array(clip.Get(time), dtype=np.float64) * authoring_meters_per_unit(clip, time, self.frame)
         # Tenths of a scene unit of the layer that authored each value -> millimetres.
         focal, h_ap, v_ap = (lens_mm(a, time, self.frame) for a in (
             cam.GetFocalLengthAttr(), cam.GetHorizontalApertureAttr(), cam.GetVerticalApertureAttr()))
         _check_lens(prim, time, focal=focal, horizontalAperture=h_ap, verticalAperture=v_ap,
                     near=float(near), far=float(far), matrix=m)
-        mpu = self.frame.meters_per_unit
         state = prim.GetAttribute("crowd:camera:state")
         tracked = prim.GetAttribute("crowd:camera:trackedEvent")
-        return CameraView(str(prim.GetPath()), float(time), m, focal, h_ap, v_ap,
-                          near * mpu, far * mpu,
+        return CameraView(str(prim.GetPath()), float(time), m, focal, h_ap, v_ap, near, far,
                           str(state.Get(time)) if state and state.HasValue() else None,
                           str(tracked.Get(time) or "") if tracked and tracked.HasValue() else None)
 
