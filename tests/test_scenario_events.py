@@ -145,7 +145,7 @@ def test_time_sampled_member_ids_give_the_active_mask(write_stage):
 
 
 def test_events_from_the_crowd_layer_are_detected_and_come_after_authored_ones(write_stage, tmp_path):
-    scenario = write_stage(MEMBERS_STAGE, name="scenario.usda")
+    write_stage(MEMBERS_STAGE, name="scenario.usda")          # the scenario the crowd layer sits on
     crowd = Sdf.Layer.CreateNew(str(tmp_path / "crowd.usdc"))
     crowd.customLayerData = {"usdcrowd": {"generator": "usdcrowd simulate"}}      # what marks it generated
     for path, type_name in (("/World/Events", "Scope"), ("/World/Events/Detected_0001", "CrowdEvent")):
