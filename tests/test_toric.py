@@ -82,3 +82,48 @@ def test_a_target_behind_the_camera_has_no_toric_coordinates():
     m[3, :3] = (0, 0, 1.7)                       # identity rotation: the camera looks down world -Z
     with pytest.raises(ToricError, match="behind"):
         pose_to_toric(m, (0, 0, 5.0), (1, 0, 5.0), FOV_X, ASPECT)
+
+
+def test_cinematic_features_give_back_the_framing_and_the_characters_orientations(tmp_path):
+    import csv
+    import json
+
+    from usdcrowd.cameras.features import cinematic_features, write_features
+    from usdcrowd.view import look_at
+
+    times = np.arange(1.0, 5.0)
+    a, b = np.array([0.0, 0.0, 1.6]), np.array([2.0, 0.0, 1.6])
+    heads_a, heads_b = np.tile(a, (4, 1)), np.tile(b, (4, 1))
+    # Frames 1-3: toric cameras with known angles; frame 4: a plain camera south of the pair looking north.
+    asked = [((-0.4, 0.1), (0.35, 0.0), 1.9, 0.2), ((-0.2, -0.1), (0.5, 0.1), 2.2, 0.35), ((-0.6, 0.0), (0.1, 0.2), 1.5, 0.0)]
+    cams = [toric_to_pose(a, b, pa, pb, th, ph, FOV_X, ASPECT) for pa, pb, th, ph in asked]
+    cams.append(look_at((1.0, -6.0, 1.6), (1.0, 0.0, 1.6))[0])
+    # A faces the camera in the south (-y), B faces north (+y): away from it.
+    yaw_a, yaw_b = np.full(4, -np.pi / 2), np.full(4, np.pi / 2)
+    f = cinematic_features(times, heads_a, heads_b, yaw_a, yaw_b, heads_a * [1, 1, 0], heads_b * [1, 1, 0],
+                           np.array([1.0, 2.0, 1.0, 1.0]), np.array([2.0, 2.0, 2.0, 2.0]), np.array(cams),
+                           FOV_X, ASPECT)
+    for k, (pa, pb, th, ph) in enumerate(asked):
+        np.testing.assert_allclose(np.r_[f.p_a[k], f.p_b[k], f.theta[k], f.phi[k]], np.r_[pa, pb, th, ph], atol=1e-6)
+    np.testing.assert_allclose(f.d_ab, 2.0)
+    assert abs(f.s_a[3]) == pytest.approx(np.pi) and f.s_b[3] == pytest.approx(0.0, abs=1e-9)
+    assert abs(f.s_ab[3]) == pytest.approx(np.pi)
+    assert f.main == 1                                   # B is the larger on screen on average
+    written = write_features(f, tmp_path / "f.csv", tmp_path / "f.json", camera="/World/Cameras/Toric")
+    rows = list(csv.DictReader(open(written[0])))
+    assert len(rows) == 4 and float(rows[1]["theta"]) == pytest.approx(2.2) and rows[0]["M"] == "B"
+    doc = json.loads((tmp_path / "f.json").read_text())
+    assert doc["camera"] == "/World/Cameras/Toric" and doc["frames"][2]["pA_x"] == pytest.approx(-0.6)
+
+
+def test_heads_and_shoulders_come_from_the_rig():
+    from usdcrowd.cameras.features import head_and_facing
+    from usdcrowd.character import rig
+
+    rest = rig.BIND_SKEL[None].copy()                   # the canonical 1.75 m character, facing +X
+    turn = np.eye(4)
+    turn[:2, :2] = [[0.0, 1.0], [-1.0, 0.0]]            # row vectors: +X -> +Y, a quarter turn left
+    turned = rest @ turn
+    head, yaw = head_and_facing(np.concatenate([rest, turned]))
+    assert yaw[0] == pytest.approx(0.0, abs=1e-9) and yaw[1] == pytest.approx(np.pi / 2)
+    assert 1.45 < head[0, 2] < 1.75 and np.allclose(head[0, :2], head[1, [1, 0]] * [1, -1], atol=1e-9)

@@ -1,0 +1,125 @@
+"""Cinematic features of a camera filming two characters (seed 002, section 4.1, appendix B).
+
+Per frame, for characters A and B and a camera:
+
+- ``pA``, ``pB``: on-screen positions of their heads (normalised device
+  coordinates, as :mod:`usdcrowd.cameras.toric`);
+- ``theta``, ``phi``: the camera's toric angles about the two heads;
+- ``dAB``: the distance between the two characters on the ground, metres;
+- ``sA``, ``sB``: the yaw of each character's shoulders relative to the
+  camera's view direction, radians in [-pi, pi) (0: the character faces
+  away from the camera, looking where it looks; pi: it faces the camera);
+- ``sAB``: the yaw of B's shoulders relative to A's (sB - sA, wrapped);
+- ``M``: the main character over the sequence, 0 for A and 1 for B: the one
+  with the larger mean on-screen box (width x height of its projected
+  keypoints), Hitchcock's rule as appendix B applies it.
+
+The heads and shoulders come from the three-bone rig: the head is midway
+between the neck and the head top, the shoulders face along the torso
+joint's +X (the rig's forward).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from .toric import ToricError, pose_to_toric
+
+NAMES = ("pA_x", "pA_y", "pB_x", "pB_y", "theta", "phi", "dAB", "sA", "sB", "sAB")
+
+
+@dataclass
+class CinematicFeatures:
+    """Features of ``t`` frames (see the module); NaN where the toric angles are undefined."""
+
+    times: np.ndarray        # (t,) float
+    p_a: np.ndarray          # (t, 2)
+    p_b: np.ndarray          # (t, 2)
+    theta: np.ndarray        # (t,)
+    phi: np.ndarray          # (t,)
+    d_ab: np.ndarray         # (t,)
+    s_a: np.ndarray          # (t,)
+    s_b: np.ndarray          # (t,)
+    s_ab: np.ndarray         # (t,)
+    main: int                # 0: A, 1: B
+
+    def rows(self) -> list[dict]:
+        """One dict per frame (for CSV and JSON)."""
+        cols = np.column_stack([self.p_a, self.p_b, self.theta, self.phi, self.d_ab, self.s_a, self.s_b, self.s_ab])
+        return [{"time": float(t), **{n: (None if np.isnan(v) else float(v)) for n, v in zip(NAMES, row)},
+                 "M": "A" if self.main == 0 else "B"} for t, row in zip(self.times, cols)]
+
+
+def _wrap(a):
+    return np.mod(np.asarray(a) + np.pi, 2.0 * np.pi) - np.pi
+
+
+def head_and_facing(joints_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Head point (n, 3) and shoulder yaw (n,) of posed agents (joint-to-world matrices (n, 3, 4, 4))."""
+    from ..character import rig
+
+    k = rig.keypoints(joints_world)
+    neck, top = k[:, rig.KEYPOINT_NAMES.index("neck")], k[:, rig.KEYPOINT_NAMES.index("headTop")]
+    forward = joints_world[:, 1, 0, :3]               # the torso's +X in the world
+    return 0.5 * (neck + top), np.arctan2(forward[:, 1], forward[:, 0])
+
+
+def cinematic_features(times, heads_a, heads_b, yaw_a, yaw_b, ground_a, ground_b, boxes_a, boxes_b,
+                       cam_to_world, fov_x: float, aspect: float) -> CinematicFeatures:
+    """Features of a camera filming A and B.
+
+    Parameters
+    ----------
+    times : (t,) float
+    heads_a, heads_b : (t, 3) float
+        Head points, metres.
+    yaw_a, yaw_b : (t,) float
+        Shoulder yaw in the world, radians.
+    ground_a, ground_b : (t, 3) float
+        Ground points, metres.
+    boxes_a, boxes_b : (t,) float
+        On-screen box areas (any unit; only their means are compared).
+    cam_to_world : (t, 4, 4) float
+        Row-vector camera-to-world matrices.
+    fov_x, aspect : float
+        Horizontal field of view (radians) and width / height.
+    """
+    t = len(times)
+    p_a, p_b = np.full((t, 2), np.nan), np.full((t, 2), np.nan)
+    theta, phi = np.full(t, np.nan), np.full(t, np.nan)
+    for k in range(t):
+        try:
+            p_a[k], p_b[k], theta[k], phi[k] = pose_to_toric(cam_to_world[k], heads_a[k], heads_b[k], fov_x, aspect)
+        except ToricError:
+            pass                # a head behind the camera, or the two heads on one vertical
+    back = np.asarray(cam_to_world)[:, 2, :2]         # the camera's back axis, on the ground
+    view_yaw = np.arctan2(-back[:, 1], -back[:, 0])
+    s_a, s_b = _wrap(np.asarray(yaw_a) - view_yaw), _wrap(np.asarray(yaw_b) - view_yaw)
+    d_ab = np.linalg.norm((np.asarray(ground_b) - np.asarray(ground_a))[:, :2], axis=1)
+    main = int(np.nanmean(boxes_b) > np.nanmean(boxes_a))
+    return CinematicFeatures(np.asarray(times, dtype=np.float64), p_a, p_b, theta, phi, d_ab, s_a, s_b,
+                             _wrap(s_b - s_a), main)
+
+
+def write_features(features: CinematicFeatures, csv_path, json_path=None, **about) -> list[str]:
+    """Write the features as CSV (and JSON, with ``about``: camera, characters...) atomically."""
+    from ..atomic import atomic_path
+
+    rows = features.rows()
+    written = []
+    with atomic_path(csv_path) as tmp:
+        with open(tmp, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=["time", *NAMES, "M"])
+            w.writeheader()
+            w.writerows(rows)
+    written.append(os.fspath(csv_path))
+    if json_path is not None:
+        with atomic_path(json_path) as tmp:
+            tmp.write_text(json.dumps({**about, "main": "AB"[features.main], "frames": rows}, indent=1))
+        written.append(os.fspath(json_path))
+    return written
