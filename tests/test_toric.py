@@ -127,3 +127,34 @@ def test_heads_and_shoulders_come_from_the_rig():
     head, yaw = head_and_facing(np.concatenate([rest, turned]))
     assert yaw[0] == pytest.approx(0.0, abs=1e-9) and yaw[1] == pytest.approx(np.pi / 2)
     assert 1.45 < head[0, 2] < 1.75 and np.allclose(head[0, :2], head[1, [1, 0]] * [1, -1], atol=1e-9)
+
+
+def test_features_of_a_shot_match_the_renderers_projection_and_the_cli_writes_them(museum_path, tmp_path, capsys):
+    import csv
+
+    from frames_factory import straight_walk
+
+    from usdcrowd.cameras.features import head_and_facing, shot_features
+    from usdcrowd.cli import main
+    from usdcrowd.pipeline import author_shot
+    from usdcrowd.render.scene import ShotScene
+
+    shot = author_shot(museum_path, tmp_path / "shot", lambda sc: [straight_walk(sc.agents, sc.time)],
+                       frames=(1, 6), progress=False, events=False).shot
+    cam = "/World/Cameras/CrowdCam"
+    f, about = shot_features(shot, cam, "Guide", "Teacher", width=1600, height=900)
+    assert about["A"].endswith("/Guide") and about["B"].endswith("/Teacher") and len(f.times) == 6
+    scene = ShotScene(shot)
+    rows = [scene.agent_paths.index(about["A"]), scene.agent_paths.index(about["B"])]
+    for k, t in enumerate(f.times):
+        head, _ = head_and_facing(scene.agents(t).joints_world[rows])
+        uv, _ = scene.camera(cam, t).project(head, 1600, 900)
+        ndc = np.stack([uv[:, 0] / 1600 * 2 - 1, 1 - uv[:, 1] / 900 * 2], -1)
+        np.testing.assert_allclose([f.p_a[k], f.p_b[k]], ndc, atol=1e-6)
+    assert main(["features", shot, "Guide", "Teacher", "-o", str(tmp_path / "f"), "--camera", cam,
+                 "--frames", "2:4"]) == 0
+    assert [r["time"] for r in csv.DictReader(open(tmp_path / "f" / "features.csv"))] == ["2.0", "3.0", "4.0"]
+    capsys.readouterr()
+    assert main(["features", shot, "clone_0000", "Guide", "-o", str(tmp_path / "g")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "more than one agent named 'clone_0000'" in err

@@ -123,3 +123,64 @@ def write_features(features: CinematicFeatures, csv_path, json_path=None, **abou
             tmp.write_text(json.dumps({**about, "main": "AB"[features.main], "frames": rows}, indent=1))
         written.append(os.fspath(json_path))
     return written
+
+
+def shot_features(shot, camera: str | None, agent_a: str, agent_b: str, times=None,
+                  width: int = 1920, height: int = 1080) -> tuple[CinematicFeatures, dict]:
+    """Cinematic features of a shot's camera filming two of its agents.
+
+    Parameters
+    ----------
+    shot : path-like or ShotScene
+    camera : str or None
+        Camera prim path (None: the first camera).
+    agent_a, agent_b : str
+        Agent prim paths, or their last path component when it is unique.
+    times : sequence of float, optional
+        Time codes (default: every frame of the shot).
+    width, height : int
+        Image size the screen boxes are measured in (its aspect is the framing's).
+
+    Returns
+    -------
+    features : CinematicFeatures
+    about : dict
+        Camera and agent paths, field of view and aspect (for the JSON).
+    """
+    from ..errors import StageError
+    from ..render.scene import ShotScene
+
+    scene = shot if isinstance(shot, ShotScene) else ShotScene(shot)
+    paths = scene.agent_paths
+
+    def row(name):
+        hits = [i for i, p in enumerate(paths) if p == name or p.rsplit("/", 1)[-1] == name]
+        if len(hits) != 1:
+            raise StageError(f"{'no' if not hits else 'more than one'} agent named {name!r} "
+                             f"(give its prim path)", file=scene.path, prim=name)
+        return hits[0]
+
+    ia, ib = row(agent_a), row(agent_b)
+    times = np.asarray(scene.time_codes if times is None else times, dtype=np.float64)
+    scene.check_times(times)
+    heads, yaws, grounds, boxes, mats = [], [], [], [], []
+    view = None
+    for t in times:
+        view = scene.camera(camera, t)
+        poses = scene.agents(t)
+        head, yaw = head_and_facing(poses.joints_world[[ia, ib]])
+        key = poses.keypoints()[[ia, ib]]
+        uv, z = view.project(key, width, height)
+        size = np.where((z > 0).all(axis=1), np.ptp(uv[..., 0], axis=1) * np.ptp(uv[..., 1], axis=1), 0.0)
+        heads.append(head)
+        yaws.append(yaw)
+        grounds.append(key[:, -1])
+        boxes.append(size)
+        mats.append(view.cam_to_world)
+    heads, yaws, grounds, boxes = (np.array(v) for v in (heads, yaws, grounds, boxes))
+    fov_x, aspect = np.radians(view.fov_x()), width / height
+    features = cinematic_features(times, heads[:, 0], heads[:, 1], yaws[:, 0], yaws[:, 1], grounds[:, 0],
+                                  grounds[:, 1], boxes[:, 0], boxes[:, 1], np.array(mats), fov_x, aspect)
+    about = {"shot": scene.path, "camera": view.path, "A": paths[ia], "B": paths[ib],
+             "fov_x_deg": float(np.degrees(fov_x)), "aspect": aspect}
+    return features, about
