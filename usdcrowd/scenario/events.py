@@ -188,11 +188,11 @@ def read_camera_agents(stage, time: float | None = None) -> model.CameraAgentTab
     """
     from pxr import Usd, UsdGeom
 
-    from ..view import lens_problem, mm_per_lens_unit
+    from ..scenery import authoring_meters_per_unit, lens_mm
+    from ..view import lens_problem
     from .read import range_problem
 
     frame = stage_frame(stage)
-    lens_mm = mm_per_lens_unit(frame.meters_per_unit)
     t = time_range(stage).start if time is None else float(time)
     cache = UsdGeom.XformCache(Usd.TimeCode(t))
     rows = []
@@ -205,7 +205,9 @@ def read_camera_agents(stage, time: float | None = None) -> model.CameraAgentTab
             raise ScenarioError("not a finite value", file=stage.GetRootLayer().identifier,
                                 prim=str(prim.GetPath()), attribute=_bad_op(prim, t))
         m[:3, :3] /= np.linalg.norm(m[:3, :3], axis=1, keepdims=True)
-        near, far = cam.GetClippingRangeAttr().Get(t)
+        clip = cam.GetClippingRangeAttr()
+        # In the scene units of the layer that authored them, as the renderers read them.
+        near, far = (float(v) * authoring_meters_per_unit(clip, t, frame) for v in clip.Get(t))
 
         def fail(message, attribute):
             raise ScenarioError(message, file=stage.GetRootLayer().identifier, prim=str(prim.GetPath()),
@@ -241,10 +243,10 @@ def read_camera_agents(stage, time: float | None = None) -> model.CameraAgentTab
         targets = target.GetTargets() if target else []
         rows.append(dict(
             path=str(prim.GetPath()), cam_to_world=m,
-            focal_length=float(cam.GetFocalLengthAttr().Get(t)) * lens_mm,
-            horizontal_aperture=float(cam.GetHorizontalApertureAttr().Get(t)) * lens_mm,
-            vertical_aperture=float(cam.GetVerticalApertureAttr().Get(t)) * lens_mm,
-            near=float(frame.length_to_canonical(near)), far=float(frame.length_to_canonical(far)),
+            focal_length=lens_mm(cam.GetFocalLengthAttr(), t, frame),
+            horizontal_aperture=lens_mm(cam.GetHorizontalApertureAttr(), t, frame),
+            vertical_aperture=lens_mm(cam.GetVerticalApertureAttr(), t, frame),
+            near=near, far=far,
             mode=model.code(model.CAMERA_MODES, mode), max_speed=float(get("maxSpeed")),
             max_force=float(get("maxForce")), max_angular_speed=math.radians(get("maxAngularSpeed")),
             arrival_distance=float(get("arrivalDistance")),
