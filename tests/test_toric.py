@@ -158,3 +158,30 @@ def test_features_of_a_shot_match_the_renderers_projection_and_the_cli_writes_th
     assert main(["features", shot, "clone_0000", "Guide", "-o", str(tmp_path / "g")]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "more than one agent named 'clone_0000'" in err
+
+
+def test_smoothing_keeps_steady_tracks_removes_jitter_and_turns_through_180_degrees(rng):
+    from usdcrowd.cameras.smoothing import smooth_track
+    from usdcrowd.view import look_at
+
+    t = np.arange(400)
+    # A camera circling a point at constant speed, turning through +-180 degrees: the average of a steady
+    # motion is itself (away from the ends) but for the pull of averaging points on a circle.
+    angle = t * (2 * np.pi / len(t)) + np.pi        # its yaw passes +-180 degrees at frame 200
+    eye = np.stack([10 * np.cos(angle), 10 * np.sin(angle), np.full(len(t), 3.0)], -1)
+    track = look_at(eye, (0.0, 0.0, 1.5))
+    smooth = smooth_track(track)
+    np.testing.assert_allclose(np.einsum("tij,tkj->tik", smooth[:, :3, :3], smooth[:, :3, :3]),
+                               np.broadcast_to(np.eye(3), (len(t), 3, 3)), atol=1e-9)
+    mid = slice(40, 360)
+    # Averaging points of a circle pulls them in: 3 x 20-frame boxes (sigma 10 frames, 9 degrees) by 1.2 %.
+    np.testing.assert_allclose(np.linalg.norm(smooth[mid, 3, :2], axis=1), 10.0, rtol=0.015)
+    forward = -smooth[mid, 2, :3]
+    want = -track[mid, 2, :3]
+    assert np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", forward, want), -1, 1))).max() < 2.0
+    # Jitter on a still camera is averaged away: 60 frames of noise shrink by about sqrt(60).
+    still = np.repeat(look_at((0.0, -8.0, 2.0), (0.0, 0.0, 1.5)), len(t), axis=0)
+    noisy = still.copy()
+    noisy[:, 3, :3] += rng.normal(scale=0.05, size=(len(t), 3))
+    out = smooth_track(noisy)
+    assert np.std(out[mid, 3, :3] - still[mid, 3, :3]) < 0.25 * np.std(noisy[mid, 3, :3] - still[mid, 3, :3])
