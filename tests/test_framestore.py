@@ -7,7 +7,7 @@ import os
 import numpy as np
 import pytest
 
-from usdcrowd.framestore import FrameStore
+from usdcrowd.framestore import FrameStore, frame_blocks
 
 
 def test_frames_read_back_as_appended(rng, tmp_path):
@@ -20,7 +20,8 @@ def test_frames_read_back_as_appended(rng, tmp_path):
         assert np.array_equal(store[3:17], whole[3:17]) and np.array_equal(store[::5], whole[::5])
         assert np.array_equal(store[2:9, [1, 4], :2], whole[2:9, [1, 4], :2])
         assert np.array_equal(np.asarray(store), whole)
-        assert np.array_equal(np.concatenate([b for _, b in store.blocks(6)]), whole)
+        assert np.array_equal(np.concatenate(list(frame_blocks(store, size=6))), whole)
+        assert np.array_equal(np.concatenate(list(frame_blocks(store, start=5, size=7))), whole[5:])
         assert store[30:].shape == (0, 5, 3)
         with pytest.raises(IndexError):
             store[23]

@@ -91,11 +91,6 @@ class FrameStore:
         out = self._read(0, self._t)
         return out.astype(dtype) if dtype is not None else out
 
-    def blocks(self, size: int = 256):
-        """(first frame, (m, n, c) frames) in consecutive blocks of at most ``size`` frames."""
-        for first in range(0, self._t, size):
-            yield first, self[first:first + size]
-
     def close(self) -> None:
         self._file.close()
 
@@ -104,3 +99,13 @@ class FrameStore:
 
     def __exit__(self, *exc):
         self.close()
+
+
+def frame_blocks(positions, start: int = 0, size: int = 256):
+    """Consecutive blocks of at most ``size`` frames of ``positions`` from frame ``start`` on, as arrays.
+
+    ``positions`` is a (t, n, c) array or a :class:`FrameStore`: readers that
+    need every frame go through a long shot this way, a block in memory at a time.
+    """
+    for first in range(start, len(positions), size):
+        yield np.asarray(positions[first:first + size])

@@ -29,9 +29,11 @@ def crowd_summary(positions, visible: np.ndarray, block: int = 256) -> tuple[np.
     """
     vis = np.asarray(visible, bool)
     vis = vis if vis.any() else np.ones_like(vis)
+    from ..framestore import frame_blocks
+
     centres, spreads = [], []
-    for first in range(0, len(positions), block):
-        pos = np.asarray(positions[first:first + block])[:, vis].astype(np.float64)
+    for frames in frame_blocks(positions, size=block):
+        pos = frames[:, vis].astype(np.float64)
         c = pos.mean(axis=1)
         centres.append(c)
         spreads.append(np.linalg.norm(pos - c[:, None], axis=2).max(axis=1))

@@ -13,10 +13,10 @@ from __future__ import annotations
 import numpy as np
 
 from .. import model
+from ..framestore import frame_blocks
 
 # Members are within this many layer radii of the origin.
 REACH = 2.0
-_BLOCK = 256
 _KIND = {"explosion": "explosion", "volcano": "eruption"}
 
 
@@ -54,8 +54,8 @@ def layer_events(fields: list[model.BehaviorField], positions: np.ndarray, times
         r = reach * float(f.radius)
         origin = np.asarray(f.origin, dtype=np.float64)[:2]
         # In blocks of frames: positions may be a FrameStore on disk.
-        near = np.concatenate([np.linalg.norm(np.asarray(positions[s:s + _BLOCK])[:, vis, :2] - origin, axis=2) <= r
-                               for s in range(first, len(times), _BLOCK)])          # (m, v)
+        near = np.concatenate([np.linalg.norm(block[:, vis, :2] - origin, axis=2) <= r
+                               for block in frame_blocks(positions, first)])          # (m, v)
         frames = np.flatnonzero(near.any(axis=1))
         if len(frames) == 0:
             continue
