@@ -14,7 +14,7 @@ import numpy as np
 
 from . import schema
 from .errors import UsdcrowdError
-from .scenario.samples import authored_samples
+from .scenario.samples import sample_values
 
 # USD validators that judge packaging for delivery formats, not stages in a
 # working folder: a .usdc sublayer is exactly what the design asks for.
@@ -82,10 +82,7 @@ def _animation_problems(anims) -> list[tuple[object, str, str]]:
         anim = UsdSkel.Animation(prim)
         for attr in (anim.GetRotationsAttr(), anim.GetTranslationsAttr(), anim.GetScalesAttr()):
             times = attr.GetTimeSamples()
-            values = authored_samples(attr, times) if times else []
-            if values is None:
-                values = [attr.Get(t) for t in times]
-            for t, v in zip(times, values):
+            for t, v in zip(times, sample_values(attr, times)):
                 if v is None:
                     out.append((prim, attr.GetName(), f"no value at time {t:g} (a layer that holds it is "
                                                       f"missing or unreadable)"))

@@ -18,7 +18,7 @@ import numpy as np
 
 from .. import model, schema
 from ..errors import StageError
-from .samples import authored_samples
+from .samples import sample_values
 from .stageio import open_stage, stage_frame, time_range
 
 @dataclass
@@ -81,16 +81,11 @@ def _samples(attr, times: list[float], dtype, shape: tuple[int, int]) -> np.ndar
     """Values of an array attribute at ``times``, as one (len(times), *shape) array.
 
     Samples come straight from the layers that hold them (the crowd layer or
-    its value clips, :func:`usdcrowd.scenario.samples.authored_samples`),
-    else through a Usd.AttributeQuery per frame. Vt arrays become numpy
+    its value clips), else composed per frame
+    (:func:`usdcrowd.scenario.samples.sample_values`). Vt arrays become numpy
     through their buffers, joined once.
     """
-    from pxr import Usd
-
-    values = authored_samples(attr, times)
-    if values is None:
-        query = Usd.AttributeQuery(attr)
-        values = [query.Get(t) for t in times]
+    values = sample_values(attr, times)
     try:
         flat = np.frombuffer(b"".join([memoryview(v).tobytes() for v in values]), dtype=dtype)
         return flat.reshape((len(times),) + shape)

@@ -52,3 +52,14 @@ def authored_samples(attr, times: list[float]) -> list | None:
         values += run
         i = j
     return values
+
+
+def sample_values(attr, times: list[float]) -> list:
+    """The values of ``attr`` at ``times``: :func:`authored_samples`, else composed a frame at a time."""
+    from pxr import Usd
+
+    values = authored_samples(attr, times)
+    if values is None:
+        query = Usd.AttributeQuery(attr)
+        values = [query.Get(t) for t in times]
+    return values
