@@ -62,6 +62,20 @@ def lens_mm(attr, time, stage_frame: StageFrame) -> float | None:
     return float(value) * mm_per_lens_unit(authoring_meters_per_unit(attr, time, stage_frame))
 
 
+def camera_lens(cam, time, stage_frame: StageFrame) -> tuple[float, float, float, float, float]:
+    """A UsdGeom.Camera's (focal, horizontal, vertical aperture) in millimetres and (near, far) in metres.
+
+    Each value in the units of the layer that authored it (:func:`lens_mm`,
+    :func:`authoring_meters_per_unit`): what the renderers, the camera-agent
+    reader and ``inspect`` all use.
+    """
+    clip = cam.GetClippingRangeAttr()
+    near, far = (float(v) * authoring_meters_per_unit(clip, time, stage_frame) for v in clip.Get(time))
+    focal, h_ap, v_ap = (lens_mm(a, time, stage_frame) for a in (
+        cam.GetFocalLengthAttr(), cam.GetHorizontalApertureAttr(), cam.GetVerticalApertureAttr()))
+    return focal, h_ap, v_ap, near, far
+
+
 def place_scenery(layer, scenery: str | os.PathLike, at: str, relative_to: str | os.PathLike) -> dict:
     """Reference ``scenery``'s default (or first) root prim at ``at`` in ``layer``, corrected to its frame.
 

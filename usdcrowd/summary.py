@@ -19,7 +19,7 @@ def summarize(path: str | os.PathLike, stage=None, limits=None) -> dict:
     """Collect the summary of a stage as plain JSON-able data."""
     from pxr import Usd, UsdGeom, UsdLux
 
-    from .scenery import authoring_meters_per_unit, lens_mm
+    from .scenery import camera_lens
 
     from .scenario import load_scenario, open_stage, stage_frame
     from .scenario.events import read_events
@@ -62,13 +62,10 @@ def summarize(path: str | os.PathLike, stage=None, limits=None) -> dict:
         if prim.IsA(UsdGeom.Camera):
             cam = UsdGeom.Camera(prim)
             xf = UsdGeom.Xformable(prim)
-            t = Usd.TimeCode.Default()
+            focal, h_ap, v_ap, near, far = camera_lens(cam, Usd.TimeCode.Default(), frame)
             cams.append({
-                "path": str(prim.GetPath()), "focalLengthMm": lens_mm(cam.GetFocalLengthAttr(), t, frame),
-                "apertureMm": [lens_mm(cam.GetHorizontalApertureAttr(), t, frame),
-                               lens_mm(cam.GetVerticalApertureAttr(), t, frame)],
-                "clipping": [float(v) * authoring_meters_per_unit(cam.GetClippingRangeAttr(), t, frame)
-                             for v in cam.GetClippingRangeAttr().Get()],
+                "path": str(prim.GetPath()), "focalLengthMm": focal, "apertureMm": [h_ap, v_ap],
+                "clipping": [near, far],
                 "animated": bool(xf.TransformMightBeTimeVarying()),
                 "cameraAgent": prim.HasAPI(schema.CAMERA_AGENT_API)})
         elif prim.HasAPI(UsdLux.LightAPI):

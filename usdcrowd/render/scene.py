@@ -24,7 +24,7 @@ from ..geometry import MeshData, mesh_of
 # The shared types live in the pure core; imported here for renderers and old imports.
 from ..poses import AgentPoses
 from ..shading import SCENERY_ID_BASE, Light, Material
-from ..scenery import authoring_meters_per_unit, lens_mm
+from ..scenery import camera_lens
 from ..view import CameraView
 
 __all__ = ["SCENERY_ID_BASE", "AgentPoses", "CameraView", "Light", "Material", "SceneryItem", "ShotScene",
@@ -157,12 +157,8 @@ class ShotScene:
         m = self._world(prim, time)
         # Remove scale from the camera's frame: lenses do not scale with units.
         m[:3, :3] /= np.linalg.norm(m[:3, :3], axis=1, keepdims=True)
-        # Scene units of the layer that authored the range (a camera referenced from a centimetre file).
-        clip = cam.GetClippingRangeAttr()
-        near, far = np.array(clip.Get(time), dtype=np.float64) * authoring_meters_per_unit(clip, time, self.frame)
-        # Tenths of a scene unit of the layer that authored each value -> millimetres.
-        focal, h_ap, v_ap = (lens_mm(a, time, self.frame) for a in (
-            cam.GetFocalLengthAttr(), cam.GetHorizontalApertureAttr(), cam.GetVerticalApertureAttr()))
+        # In the units of the layers that authored them (a camera referenced from a centimetre file).
+        focal, h_ap, v_ap, near, far = camera_lens(cam, time, self.frame)
         _check_lens(prim, time, focal=focal, horizontalAperture=h_ap, verticalAperture=v_ap,
                     near=float(near), far=float(far), matrix=m)
         state = prim.GetAttribute("crowd:camera:state")

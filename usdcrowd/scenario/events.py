@@ -188,7 +188,7 @@ def read_camera_agents(stage, time: float | None = None) -> model.CameraAgentTab
     """
     from pxr import Usd, UsdGeom
 
-    from ..scenery import authoring_meters_per_unit, lens_mm
+    from ..scenery import camera_lens
     from ..view import lens_problem
     from .read import range_problem
 
@@ -205,9 +205,6 @@ def read_camera_agents(stage, time: float | None = None) -> model.CameraAgentTab
             raise ScenarioError("not a finite value", file=stage.GetRootLayer().identifier,
                                 prim=str(prim.GetPath()), attribute=_bad_op(prim, t))
         m[:3, :3] /= np.linalg.norm(m[:3, :3], axis=1, keepdims=True)
-        clip = cam.GetClippingRangeAttr()
-        # In the scene units of the layer that authored them, as the renderers read them.
-        near, far = (float(v) * authoring_meters_per_unit(clip, t, frame) for v in clip.Get(t))
 
         def fail(message, attribute):
             raise ScenarioError(message, file=stage.GetRootLayer().identifier, prim=str(prim.GetPath()),
@@ -241,12 +238,11 @@ def read_camera_agents(stage, time: float | None = None) -> model.CameraAgentTab
                                 attribute="crowd:camera:mode")
         target = prim.GetRelationship("crowd:camera:target")
         targets = target.GetTargets() if target else []
+        # In the units of the layers that authored them, as the renderers read them.
+        focal, h_ap, v_ap, near, far = camera_lens(cam, t, frame)
         rows.append(dict(
             path=str(prim.GetPath()), cam_to_world=m,
-            focal_length=lens_mm(cam.GetFocalLengthAttr(), t, frame),
-            horizontal_aperture=lens_mm(cam.GetHorizontalApertureAttr(), t, frame),
-            vertical_aperture=lens_mm(cam.GetVerticalApertureAttr(), t, frame),
-            near=near, far=far,
+            focal_length=focal, horizontal_aperture=h_ap, vertical_aperture=v_ap, near=near, far=far,
             mode=model.code(model.CAMERA_MODES, mode), max_speed=float(get("maxSpeed")),
             max_force=float(get("maxForce")), max_angular_speed=math.radians(get("maxAngularSpeed")),
             arrival_distance=float(get("arrivalDistance")),
