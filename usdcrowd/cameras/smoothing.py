@@ -21,11 +21,10 @@ def _box(x: np.ndarray, window: int) -> np.ndarray:
     if window <= 1 or len(x) < 2:
         return x
     half = window // 2
-    pad = np.concatenate([x[half:0:-1], x, x[-2:-half - 2:-1]]) if len(x) > half + 1 else \
-        np.pad(x, [(half, window - 1 - half)] + [(0, 0)] * (x.ndim - 1), mode="edge")
+    pad = np.pad(x, [(half, window - 1 - half)] + [(0, 0)] * (x.ndim - 1),
+                 mode="reflect" if len(x) > half + 1 else "edge")
     kernel = np.ones(window) / window
-    out = np.apply_along_axis(lambda c: np.convolve(c, kernel, mode="valid"), 0, pad)
-    return out[:len(x)]
+    return np.apply_along_axis(lambda c: np.convolve(c, kernel, mode="valid"), 0, pad)
 
 
 def _yaw_pitch_roll(rot: np.ndarray) -> np.ndarray:

@@ -183,6 +183,7 @@ class Manifest:
         self.path = Path(out_dir) / MANIFEST
         self.header = header
         self.frames: dict[str, dict] = {}
+        self._dirty, self._saved_at = False, float("-inf")
         if self.path.exists():
             try:
                 old = json.loads(self.path.read_text())
@@ -198,7 +199,6 @@ class Manifest:
     # Rewriting the whole manifest after every frame would make a long
     # sequence's writes grow with the square of its length: at most this often.
     SAVE_EVERY_S = 2.0
-    _saved_at = 0.0
 
     def add(self, entry: dict) -> None:
         """Record a finished frame; saved now if the last save is SAVE_EVERY_S old (else by :meth:`flush`)."""
@@ -213,7 +213,7 @@ class Manifest:
         """Save if frames were added since the last save (a frame not saved is rendered again on resume)."""
         import time
 
-        if getattr(self, "_dirty", False):
+        if self._dirty:
             self.save()
             self._dirty = False
             self._saved_at = time.monotonic()
