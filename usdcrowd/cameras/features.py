@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..character.rig import wrap_angle
 from .toric import ToricError, pose_to_toric
 
 NAMES = ("pA_x", "pA_y", "pB_x", "pB_y", "theta", "phi", "dAB", "sA", "sB", "sAB")
@@ -53,10 +54,6 @@ class CinematicFeatures:
         cols = np.column_stack([self.p_a, self.p_b, self.theta, self.phi, self.d_ab, self.s_a, self.s_b, self.s_ab])
         return [{"time": float(t), **{n: (None if np.isnan(v) else float(v)) for n, v in zip(NAMES, row)},
                  "M": "A" if self.main == 0 else "B"} for t, row in zip(self.times, cols)]
-
-
-def _wrap(a):
-    return np.mod(np.asarray(a) + np.pi, 2.0 * np.pi) - np.pi
 
 
 def head_and_facing(joints_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -99,11 +96,11 @@ def cinematic_features(times, heads_a, heads_b, yaw_a, yaw_b, ground_a, ground_b
             pass                # a head behind the camera, or the two heads on one vertical
     back = np.asarray(cam_to_world)[:, 2, :2]         # the camera's back axis, on the ground
     view_yaw = np.arctan2(-back[:, 1], -back[:, 0])
-    s_a, s_b = _wrap(np.asarray(yaw_a) - view_yaw), _wrap(np.asarray(yaw_b) - view_yaw)
+    s_a, s_b = wrap_angle(np.asarray(yaw_a) - view_yaw), wrap_angle(np.asarray(yaw_b) - view_yaw)
     d_ab = np.linalg.norm((np.asarray(ground_b) - np.asarray(ground_a))[:, :2], axis=1)
     main = int(np.nanmean(boxes_b) > np.nanmean(boxes_a))
     return CinematicFeatures(np.asarray(times, dtype=np.float64), p_a, p_b, theta, phi, d_ab, s_a, s_b,
-                             _wrap(s_b - s_a), main)
+                             wrap_angle(s_b - s_a), main)
 
 
 def write_features(features: CinematicFeatures, csv_path, json_path=None, **about) -> list[str]:

@@ -20,7 +20,7 @@ import numpy as np
 
 from ..model import ANIM_CLASSES, CrowdFrames
 from .rig import (EYE_HEIGHT, HEAD_TOP, PELVIS_HEIGHT, REST_TRANSLATIONS, quat_conjugate,
-                  quat_from_axis_angle, quat_multiply, quat_rotate, quat_slerp)
+                  quat_from_axis_angle, quat_multiply, quat_rotate, quat_slerp, wrap_angle)
 
 IDLE, WALK, RUN, STRIDE_LEFT, STRIDE_RIGHT = range(len(ANIM_CLASSES))
 
@@ -260,10 +260,6 @@ def blend_transitions(anim_class: np.ndarray, rotations: np.ndarray, translation
     return rot, tr
 
 
-def _wrap(a):
-    return (a + np.pi) % (2.0 * np.pi) - np.pi
-
-
 @dataclass
 class LookState:
     """Head-turn angles and weight at the frame before a chunk, (n,) float each."""
@@ -316,7 +312,7 @@ def apply_look_at(rotations: np.ndarray, position: np.ndarray, heading: np.ndarr
     eye = position + (EYE_HEIGHT / HEAD_TOP) * height[..., None] * _Z
     d = target - eye
     has = np.all(np.isfinite(d), axis=-1)
-    yaw = np.where(has, _wrap(np.arctan2(d[..., 1], d[..., 0]) - heading), 0.0)
+    yaw = np.where(has, wrap_angle(np.arctan2(d[..., 1], d[..., 0]) - heading), 0.0)
     pitch = np.where(has, np.arctan2(d[..., 2], np.hypot(d[..., 0], d[..., 1])), 0.0)
     yaw = np.clip(yaw, -HEAD_YAW_LIMIT, HEAD_YAW_LIMIT)
     pitch = np.clip(pitch, -HEAD_PITCH_LIMIT, HEAD_PITCH_LIMIT)

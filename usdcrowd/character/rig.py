@@ -69,6 +69,11 @@ def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
+def wrap_angle(a):
+    """Angles (radians) wrapped into [-pi, pi)."""
+    return np.mod(np.asarray(a) + np.pi, 2.0 * np.pi) - np.pi
+
+
 def quat_conjugate(q: np.ndarray) -> np.ndarray:
     """Conjugate (the inverse of a unit quaternion), (..., 4)."""
     return np.asarray(q) * np.array([1.0, -1.0, -1.0, -1.0])

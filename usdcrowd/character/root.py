@@ -15,7 +15,7 @@ import numpy as np
 
 from .animation import (BLEND_FRAMES, BREATH, LEG_PITCH, LEG_ROLL, LEG_YAW, REF_SPEED, STRIDE_SCALE_RANGE,
                         TORSO_LEAN, _ease, pose)
-from .rig import HEAD_TOP, quat_from_axis_angle, quat_multiply, quat_rotate, quat_slerp
+from .rig import HEAD_TOP, quat_from_axis_angle, quat_multiply, quat_rotate, quat_slerp, wrap_angle
 
 
 def root_scale(height) -> np.ndarray:
@@ -224,12 +224,12 @@ def recover_root_motion(root_rot: np.ndarray, root_trans: np.ndarray, torso_rot:
             hz = 0.5 * x[:, 0]
             qz = np.stack([np.cos(hz), np.zeros_like(hz), np.zeros_like(hz), np.sin(hz)], -1)
             d = np.stack([*_zyx(quat_multiply(qz, lg)), *_zyx(quat_multiply(lg, to))[1:]], -1) - obs[m]
-            d[:, 0] = np.mod(d[:, 0] + np.pi, 2.0 * np.pi) - np.pi
+            d[:, 0] = wrap_angle(d[:, 0])
             return d
 
         # Start from the key frame, final by now: the phase runs on through a class change.
         x = np.stack([heading[before, aa], k[before, aa], s[before, aa]], -1)
-        x[:, 0] += np.mod(yaw[tt, aa] - yaw[before, aa] + np.pi, 2.0 * np.pi) - np.pi
+        x[:, 0] += wrap_angle(yaw[tt, aa] - yaw[before, aa])
         todo = np.arange(len(tt))
         for _ in range(iterations):
             xt = x[todo]
@@ -250,4 +250,4 @@ def recover_root_motion(root_rot: np.ndarray, root_trans: np.ndarray, torso_rot:
         legs[tt, aa], torso[tt, aa], pz[tt, aa] = _model(c, x[:, 1], x[:, 2], key, wa)
     position = trans.copy()
     position[..., 2] -= scale * pz
-    return position, np.mod(heading + np.pi, 2.0 * np.pi) - np.pi
+    return position, wrap_angle(heading)

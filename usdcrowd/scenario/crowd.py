@@ -168,6 +168,7 @@ def read_crowd(shot, frames=None) -> tuple[model.CrowdFrames, CrowdInfo]:
     from pxr import Usd, UsdGeom
 
     from ..character.animation import BLEND_FRAMES
+    from ..character.rig import wrap_angle
     from ..character.root import blend_weight, frames_since_change, recover_root_motion
 
     stage = shot if isinstance(shot, Usd.Stage) else open_stage(os.fspath(shot))
@@ -232,7 +233,7 @@ def read_crowd(shot, frames=None) -> tuple[model.CrowdFrames, CrowdInfo]:
                              prim=str(prim.GetPath()))
         position[:, a] = position[:, a] @ r3 + m[3, :3]
         heading[:, a] += np.arctan2(r3[0, 1], r3[0, 0])
-    heading = np.mod(heading + np.pi, 2.0 * np.pi) - np.pi
+    heading = wrap_angle(heading)
 
     fps = shot_time.fps
     velocity = np.zeros(position.shape[:2] + (2,))
