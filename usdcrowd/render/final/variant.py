@@ -129,8 +129,9 @@ def single_threaded_build():
     intersections in their last bits: 21-49 of 230,400 pixels of a
     640x360 frame differed between identical renders on this 2-core
     machine while another job ran, none with a one-thread build (measured
-    over 16 renders each). The build is a small part of a frame (a few ms
-    for 200 characters); the rays still trace on every thread.
+    over 16 renders each). It costs 0.19 s a frame for the benchmark's 200
+    characters at 640x360 (update 0.28 -> 0.47 s, 2.39 -> 2.59 s a frame on
+    2 cores, tools/bench.py render); the rays still trace on every thread.
     """
     import drjit as dr
 
