@@ -158,7 +158,7 @@ def refilm_shot(shot_path: str | os.PathLike, count: int | None = None, static: 
     path = write_camera_tracks(sc.out_dir, tracks, sc.frame, sc.default_prim, sc.scenario.time,
                                defined=set(sc.scenario.cameras.path),
                                extra={"seed": int(sc.scenario.seed if seed is None else seed),
-                                      "events": len(sc.events)}, events_writer=writer)
+                                      "events": len(sc.events)}, events_writer=writer, keep_toric=True)
     return path, tracks, sc
 
 

@@ -17,6 +17,7 @@ BEHAVIOR_LAYER = "BehaviorLayer"
 INTEREST_POINT = "InterestPoint"
 EVENT = "CrowdEvent"
 CAMERA_AGENT_API = "CameraAgentAPI"
+TORIC_CAMERA_API = "ToricCameraAPI"
 SCENERY_API = "CrowdSceneryAPI"
 
 # What a tool without our schemas should see each typed schema as (USD's

@@ -94,6 +94,10 @@ class CameraView:
         For camera agents: "scouting" or "tracking" at this time.
     tracked_event : str or None
         For camera agents: the CrowdEvent tracked ("" while scouting).
+    toric : dict or None
+        For toric cameras (ToricCameraAPI): ``behavior``, ``shot_size``,
+        ``smoothed``, ``target_a``, ``target_b``, and the authored ``p_a``,
+        ``p_b`` (NDC) and ``theta``, ``phi`` (degrees) at this time.
     """
 
     path: str
@@ -106,6 +110,7 @@ class CameraView:
     far: float
     agent_state: str | None = None
     tracked_event: str | None = None
+    toric: dict | None = None
 
     @property
     def world_to_cam(self) -> np.ndarray:
@@ -186,6 +191,8 @@ def camera_record(cam: CameraView, width: int, height: int) -> dict:
         "clipping_range": [cam.near, cam.far],
         # What the camera was doing and why (seed 000's camera agents; None for other cameras).
         "agent_state": cam.agent_state, "tracked_event": cam.tracked_event,
+        # A toric camera's authored intent (seed 002; None for other cameras).
+        "toric": cam.toric,
     }
 
 

@@ -144,20 +144,11 @@ def shot_features(shot, camera: str | None, agent_a: str, agent_b: str, times=No
     about : dict
         Camera and agent paths, field of view and aspect (for the JSON).
     """
-    from ..errors import StageError
     from ..render.scene import ShotScene
 
     scene = shot if isinstance(shot, ShotScene) else ShotScene(shot)
     paths = scene.agent_paths
-
-    def row(name):
-        hits = [i for i, p in enumerate(paths) if p == name or p.rsplit("/", 1)[-1] == name]
-        if len(hits) != 1:
-            raise StageError(f"{'no' if not hits else 'more than one'} agent named {name!r} "
-                             f"(give its prim path)", file=scene.path, prim=name)
-        return hits[0]
-
-    ia, ib = row(agent_a), row(agent_b)
+    ia, ib = scene.agent_row(agent_a), scene.agent_row(agent_b)
     times = np.asarray(scene.time_codes if times is None else times, dtype=np.float64)
     scene.check_times(times)
     heads, yaws, grounds, boxes, mats = [], [], [], [], []
@@ -181,3 +172,57 @@ def shot_features(shot, camera: str | None, agent_a: str, agent_b: str, times=No
     about = {"shot": scene.path, "camera": view.path, "A": paths[ia], "B": paths[ib],
              "fov_x_deg": float(np.degrees(fov_x)), "aspect": aspect}
     return features, about
+
+
+def frame_intent(view, poses, width: int, height: int) -> dict | None:
+    """Camera-intent ground truth of one rendered frame of a toric camera, or None for other cameras.
+
+    The features are measured on the frame as rendered (the camera's pose,
+    the characters' posed rigs), beside the authored intent
+    (``view.toric``): a smoothed or edited camera differs from what was
+    asked, and this says by how much.
+
+    Parameters
+    ----------
+    view : CameraView
+    poses : AgentPoses
+        The frame's posed agents (must include the two targets).
+    width, height : int
+        Image size (its aspect is the framing's).
+
+    Returns
+    -------
+    dict or None
+        ``behavior``, ``shot_size``, ``targets`` [A, B], ``pA``, ``pB``
+        (NDC), ``theta``, ``phi`` (degrees; None where a head is behind the
+        camera), ``dAB`` (m), ``sA``, ``sB``, ``sAB`` (degrees),
+        ``main_height`` (A's on-screen height over the image's, from its
+        keypoints), and ``authored`` (the camera's own values).
+    """
+    intent = view.toric
+    if intent is None:
+        return None
+    rows = {p: i for i, p in enumerate(poses.paths)}
+    a, b = intent["target_a"], intent["target_b"]
+    out = {"behavior": intent["behavior"], "shot_size": intent["shot_size"], "targets": [a, b],
+           "authored": {k: intent[k] for k in ("p_a", "p_b", "theta", "phi")}}
+    if a not in rows or b not in rows:
+        return {**out, "pA": None, "pB": None, "theta": None, "phi": None}
+    idx = [rows[a], rows[b]]
+    head, yaw = head_and_facing(poses.joints_world[idx])
+    key = poses.keypoints()[idx]
+    fov_x, aspect = np.radians(view.fov_x()), width / height
+    try:
+        p_a, p_b, theta, phi = pose_to_toric(view.cam_to_world, head[0], head[1], fov_x, aspect)
+        toric = {"pA": [float(v) for v in p_a], "pB": [float(v) for v in p_b],
+                 "theta": float(np.degrees(theta)), "phi": float(np.degrees(phi))}
+    except ToricError:
+        toric = {"pA": None, "pB": None, "theta": None, "phi": None}
+    back = view.cam_to_world[2, :2]
+    view_yaw = np.arctan2(-back[1], -back[0])
+    s_a, s_b = (float(wrap_angle(y - view_yaw)) for y in yaw)
+    uv, z = view.project(key[0], width, height)
+    main_height = float(np.ptp(uv[:, 1]) / height) if (z > 0).all() else None
+    return {**out, **toric, "dAB": float(np.linalg.norm((key[1, -1] - key[0, -1])[:2])),
+            "sA": float(np.degrees(s_a)), "sB": float(np.degrees(s_b)),
+            "sAB": float(np.degrees(wrap_angle(s_b - s_a))), "main_height": main_height}

@@ -16,7 +16,7 @@ WINDOW = 20
 PASSES = 3
 
 
-def _box(x: np.ndarray, window: int) -> np.ndarray:
+def moving_average(x: np.ndarray, window: int) -> np.ndarray:
     """Centred moving average along axis 0; the ends are padded by reflection (no pull toward zero)."""
     if window <= 1 or len(x) < 2:
         return x
@@ -74,8 +74,8 @@ def smooth_track(cam_to_world: np.ndarray, window: int = WINDOW, passes: int = P
     ypr = _yaw_pitch_roll(m[:, :3, :3])
     ypr = np.unwrap(ypr, axis=0)            # a turn through +-pi stays a turn
     for _ in range(passes):
-        eye = _box(eye, window)
-        ypr = _box(ypr, window)
+        eye = moving_average(eye, window)
+        ypr = moving_average(ypr, window)
     out = np.zeros_like(m)
     out[:, :3, :3] = _rotation(ypr)
     out[:, 3, :3] = eye

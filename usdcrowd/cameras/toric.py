@@ -43,55 +43,74 @@ class ToricError(ValueError):
     """A configuration no camera can meet, or for which toric coordinates are undefined."""
 
 
+def screen_rays(p, fov_x: float, aspect: float) -> np.ndarray:
+    """(..., 3) unit camera-space directions through screen positions ``p`` (..., 2) (module conventions)."""
+    p = np.asarray(p, dtype=np.float64)
+    t = np.tan(0.5 * float(fov_x))
+    d = np.stack([p[..., 0] * t, p[..., 1] * t / float(aspect), -np.ones(p.shape[:-1])], -1)
+    return d / np.linalg.norm(d, axis=-1, keepdims=True)
+
+
 def screen_ray(p, fov_x: float, aspect: float) -> np.ndarray:
     """(3,) unit camera-space direction through screen position ``p`` (see the module's conventions)."""
-    x, y = (float(v) for v in p)
-    t = np.tan(0.5 * float(fov_x))
-    d = np.array([x * t, y * t / float(aspect), -1.0])
-    return d / np.linalg.norm(d)
+    return screen_rays(np.asarray(p, dtype=np.float64).reshape(2), fov_x, aspect)
 
 
-def framing_angle(p_a, p_b, fov_x: float, aspect: float) -> float:
-    """The angle alpha between the rays through ``p_a`` and ``p_b``, radians."""
-    a, b = screen_ray(p_a, fov_x, aspect), screen_ray(p_b, fov_x, aspect)
-    return float(np.arctan2(np.linalg.norm(np.cross(a, b)), np.dot(a, b)))
+def _angle(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Angle between vectors along the last axis, radians (atan2: exact near 0 and pi)."""
+    return np.arctan2(np.linalg.norm(np.cross(u, v), axis=-1), np.einsum("...i,...i->...", u, v))
+
+
+def framing_angle(p_a, p_b, fov_x: float, aspect: float):
+    """The angle alpha between the rays through ``p_a`` and ``p_b``, radians (float, or (t,) for (t, 2) inputs)."""
+    alpha = _angle(screen_rays(p_a, fov_x, aspect), screen_rays(p_b, fov_x, aspect))
+    return float(alpha) if np.ndim(alpha) == 0 else alpha
 
 
 def _axes(a: np.ndarray, b: np.ndarray, up: np.ndarray):
-    """x along AB, y = up x AB (horizontal), z the up direction made orthogonal to AB; and |AB|."""
+    """(t, 3) x along AB, y = up x AB (horizontal), z the up direction made orthogonal to AB; (t,) |AB|."""
     ab = b - a
-    d = float(np.linalg.norm(ab))
-    if not np.isfinite(d) or d < MIN_TARGET_DISTANCE:
-        raise ToricError(f"targets {d:.3g} m apart: toric coordinates need two distinct targets")
-    x = ab / d
+    d = np.linalg.norm(ab, axis=-1)
+    bad = ~np.isfinite(d) | (d < MIN_TARGET_DISTANCE)
+    if bad.any():
+        k = int(np.argmax(bad))
+        raise ToricError(f"targets {d[k]:.3g} m apart{_at(k, len(d))}: toric coordinates need two distinct targets")
+    x = ab / d[:, None]
     u = up / np.linalg.norm(up)
-    if abs(float(np.dot(x, u))) > MAX_VERTICAL_COS:
-        raise ToricError("the targets are one above the other: phi is undefined for a vertical AB")
-    z = u - np.dot(u, x) * x
-    z /= np.linalg.norm(z)
+    vertical = np.abs(x @ u) > MAX_VERTICAL_COS
+    if vertical.any():
+        raise ToricError(f"the targets are one above the other{_at(int(np.argmax(vertical)), len(d))}: "
+                         "phi is undefined for a vertical AB")
+    z = u - (x @ u)[:, None] * x
+    z /= np.linalg.norm(z, axis=-1, keepdims=True)
     y = np.cross(z, x)
     return x, y, z, d
 
 
-def _frame(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """(3, 3) orthonormal basis (as columns) from u and the part of v orthogonal to it."""
-    e1 = u / np.linalg.norm(u)
-    e2 = v - np.dot(v, e1) * e1
-    e2 /= np.linalg.norm(e2)
-    return np.stack([e1, e2, np.cross(e1, e2)], axis=1)
+def _at(k: int, n: int) -> str:
+    return f" (frame index {k})" if n > 1 else ""
 
 
-def toric_to_pose(a, b, p_a, p_b, theta: float, phi: float, fov_x: float, aspect: float,
-                  up=_Z_UP) -> np.ndarray:
-    """The camera that frames targets ``a`` and ``b`` at ``p_a`` and ``p_b`` from toric angles (theta, phi).
+def _frames(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """(t, 3, 3) orthonormal bases (as columns) from u and the part of v orthogonal to it."""
+    e1 = u / np.linalg.norm(u, axis=-1, keepdims=True)
+    e2 = v - np.einsum("ti,ti->t", v, e1)[:, None] * e1
+    e2 /= np.linalg.norm(e2, axis=-1, keepdims=True)
+    return np.stack([e1, e2, np.cross(e1, e2)], axis=-1)
+
+
+def toric_to_poses(a, b, p_a, p_b, theta, phi, fov_x: float, aspect: float, up=_Z_UP) -> np.ndarray:
+    """The cameras that frame targets ``a`` and ``b`` at ``p_a`` and ``p_b`` from toric angles (theta, phi).
+
+    Vectorised over frames: one camera per row.
 
     Parameters
     ----------
-    a, b : (3,) float
+    a, b : (t, 3) float
         Target positions, metres.
-    p_a, p_b : (2,) float
+    p_a, p_b : (t, 2) float
         Where they appear on screen (normalised device coordinates).
-    theta, phi : float
+    theta, phi : (t,) float
         Toric angles, radians (module conventions).
     fov_x, aspect : float
         Horizontal field of view (radians) and width / height.
@@ -100,35 +119,55 @@ def toric_to_pose(a, b, p_a, p_b, theta: float, phi: float, fov_x: float, aspect
 
     Returns
     -------
-    (4, 4) float64
-        Row-vector camera-to-world matrix.
+    (t, 4, 4) float64
+        Row-vector camera-to-world matrices.
 
     Raises
     ------
     ToricError
         Targets too close together or one above the other, screen positions
-        too close together, or theta outside (0, 2 (pi - alpha)).
+        too close together, or theta outside (0, 2 (pi - alpha)); the
+        message names the first frame at fault.
     """
-    a, b, up = (np.asarray(v, dtype=np.float64) for v in (a, b, up))
-    alpha = framing_angle(p_a, p_b, fov_x, aspect)
-    if alpha < MIN_ALPHA:
-        raise ToricError(f"screen positions {tuple(p_a)} and {tuple(p_b)} coincide: no angle between the targets")
-    beta = 0.5 * float(theta)
-    if not 0.0 < beta < np.pi - alpha:
-        raise ToricError(f"theta {theta:.6g} is outside (0, {2 * (np.pi - alpha):.6g}) for these screen positions")
+    a, b = (np.atleast_2d(np.asarray(v, dtype=np.float64)) for v in (a, b))
+    n = len(a)
+    p_a, p_b = (np.broadcast_to(np.asarray(v, dtype=np.float64), (n, 2)) for v in (p_a, p_b))
+    theta, phi = (np.broadcast_to(np.asarray(v, dtype=np.float64), (n,)) for v in (theta, phi))
+    up = np.asarray(up, dtype=np.float64)
+    ray_a, ray_b = screen_rays(p_a, fov_x, aspect), screen_rays(p_b, fov_x, aspect)
+    alpha = _angle(ray_a, ray_b)
+    close = ~(alpha >= MIN_ALPHA)
+    if close.any():
+        k = int(np.argmax(close))
+        raise ToricError(f"screen positions {tuple(p_a[k])} and {tuple(p_b[k])} coincide{_at(k, n)}: "
+                         "no angle between the targets")
+    beta = 0.5 * theta
+    outside = ~((beta > 0.0) & (beta < np.pi - alpha))
+    if outside.any():
+        k = int(np.argmax(outside))
+        raise ToricError(f"theta {theta[k]:.6g} is outside (0, {2 * (np.pi - alpha[k]):.6g}) for these screen "
+                         f"positions{_at(k, n)}")
     x, y, z, d = _axes(a, b, up)
     # Law of sines in ABC: the angle at C is alpha, at A beta, at B pi - alpha - beta.
     ac = d * np.sin(alpha + beta) / np.sin(alpha)
-    direction = np.cos(beta) * x + np.sin(beta) * (np.cos(phi) * y + np.sin(phi) * z)
-    eye = a + ac * direction
+    direction = (np.cos(beta)[:, None] * x
+                 + np.sin(beta)[:, None] * (np.cos(phi)[:, None] * y + np.sin(phi)[:, None] * z))
+    eye = a + ac[:, None] * direction
     # The rotation taking the camera-space rays onto the world directions of A and B.
-    cam = _frame(screen_ray(p_a, fov_x, aspect), screen_ray(p_b, fov_x, aspect))
-    world = _frame(a - eye, b - eye)
-    rot = world @ cam.T                      # column vectors: world = rot @ camera
-    m = np.eye(4)
-    m[:3, :3] = rot.T                        # row-vector convention: rows are the camera axes in world
-    m[3, :3] = eye
+    cam = _frames(ray_a, ray_b)
+    world = _frames(a - eye, b - eye)
+    m = np.zeros((n, 4, 4))
+    m[:, :3, :3] = cam @ np.swapaxes(world, 1, 2)     # row vectors: rows are the camera axes in world
+    m[:, 3, :3] = eye
+    m[:, 3, 3] = 1.0
     return m
+
+
+def toric_to_pose(a, b, p_a, p_b, theta: float, phi: float, fov_x: float, aspect: float,
+                  up=_Z_UP) -> np.ndarray:
+    """One camera of :func:`toric_to_poses`: (3,) targets, (2,) screen positions, scalar angles -> (4, 4)."""
+    return toric_to_poses(np.reshape(a, (1, 3)), np.reshape(b, (1, 3)), np.reshape(p_a, (1, 2)),
+                          np.reshape(p_b, (1, 2)), [theta], [phi], fov_x, aspect, up)[0]
 
 
 def pose_to_toric(cam_to_world, a, b, fov_x: float, aspect: float, up=_Z_UP):
@@ -151,8 +190,8 @@ def pose_to_toric(cam_to_world, a, b, fov_x: float, aspect: float, up=_Z_UP):
         if c[2] >= 0:
             raise ToricError("a target is behind the camera: no screen position")
         screen.append(np.array([c[0] / (-c[2] * t), c[1] * float(aspect) / (-c[2] * t)]))
-    x, y, z, _ = _axes(a, b, up)
+    x, y, z, _ = (v[0] for v in _axes(a[None], b[None], up))
     ac = eye - a
-    beta = float(np.arctan2(np.linalg.norm(np.cross(x, ac)), np.dot(x, ac)))
+    beta = float(_angle(x, ac))
     phi = float(np.arctan2(np.dot(ac, z), np.dot(ac, y)))
     return screen[0], screen[1], 2.0 * beta, phi

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..cameras.features import frame_intent
 from ..model import EVENT_KINDS, EventTable
 from ..shading import SCENERY_ID_BASE
 from ..view import camera_record
@@ -194,5 +195,6 @@ def annotate_frame(result, metadata: AgentMetadata | None = None, keypoint_names
         agents.append(entry)
     agents.sort(key=lambda a: a["track_id"])
     return {"time": result.time, "width": int(w), "height": int(h), "camera": camera_record(cam, w, h),
+            "camera_intent": frame_intent(cam, poses, w, h),
             "keypoint_names": list(names), "id_table": {str(k): v for k, v in sorted(result.id_paths.items())},
             "agents": agents}

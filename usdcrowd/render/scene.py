@@ -165,7 +165,8 @@ class ShotScene:
         tracked = prim.GetAttribute("crowd:camera:trackedEvent")
         return CameraView(str(prim.GetPath()), float(time), m, focal, h_ap, v_ap, near, far,
                           str(state.Get(time)) if state and state.HasValue() else None,
-                          str(tracked.Get(time) or "") if tracked and tracked.HasValue() else None)
+                          str(tracked.Get(time) or "") if tracked and tracked.HasValue() else None,
+                          _toric_of(prim, time))
 
     # --------------------------------------------------------------- scenery
     @cached_property
@@ -247,11 +248,30 @@ class ShotScene:
     def agent_paths(self) -> list[str]:
         return self._agent_static[0]
 
-    def agents(self, time) -> AgentPoses:
-        """Every agent's joints in the world at ``time``."""
+    def agent_row(self, name: str) -> int:
+        """Row in :attr:`agent_paths` of an agent given by prim path, or by its name when that is unique.
+
+        Raises
+        ------
+        StageError
+            No such agent, or more than one with that name.
+        """
+        from ..errors import StageError
+
+        hits = [i for i, p in enumerate(self.agent_paths) if p == name or p.rsplit("/", 1)[-1] == name]
+        if len(hits) != 1:
+            raise StageError(f"{'no' if not hits else 'more than one'} agent named {name!r} "
+                             f"({'give its prim path' if hits else 'not an agent of this shot'})",
+                             file=self.path, prim=name)
+        return hits[0]
+
+    def agents(self, time, rows=None) -> AgentPoses:
+        """Every agent's joints in the world at ``time`` (or only those at ``rows`` of :attr:`agent_paths`)."""
         from pxr import UsdGeom
 
         paths, ids, colors = self._agent_static
+        rows = np.arange(len(paths)) if rows is None else np.asarray(rows, dtype=np.int64)
+        paths, ids, colors = [paths[k] for k in rows], ids[rows], colors[rows]
         n = len(paths)
         rot = np.zeros((n, 3, 4))
         trans = np.zeros((n, 3, 3))
@@ -259,7 +279,8 @@ class ShotScene:
         root = np.zeros((n, 4, 4))
         visible = np.zeros(n, dtype=bool)
         t = float(time)
-        for i, (prim, rq, tq, sq) in enumerate(self._agent_queries):
+        for i, k in enumerate(rows):
+            prim, rq, tq, sq = self._agent_queries[k]
             r, tr, s = rq.Get(t), tq.Get(t), sq.Get(t)
             rot[i] = [(q.GetReal(), *q.GetImaginary()) for q in r]
             trans[i] = np.array(tr)
@@ -270,23 +291,23 @@ class ShotScene:
         bad = ~(np.isfinite(rot).all(axis=(1, 2)) & np.isfinite(trans).all(axis=(1, 2))
                 & np.isfinite(scale).all(axis=(1, 2)) & np.isfinite(root).all(axis=(1, 2)))
         if bad.any():
-            self._fail_pose(int(np.argmax(bad)), t, rot, trans, scale)
+            self._fail_pose(int(rows[np.argmax(bad)]), int(np.argmax(bad)), t, rot, trans, scale)
         local = rig.compose_local(rot, trans)
         local[..., :3, :3] *= scale[..., :, None]        # UsdSkel: scale, then rotate, then translate
         joints = rig.local_to_skel(local) @ root[:, None]
         return AgentPoses(t, paths, ids, visible, colors, joints)
 
-    def _fail_pose(self, i: int, t: float, rot, trans, scale) -> None:
+    def _fail_pose(self, row: int, i: int, t: float, rot, trans, scale) -> None:
         """A damaged animation (NaN or inf) is one line naming its layer, prim, attribute and time."""
         from ..errors import StageError
 
-        _prim, rq, tq, sq = self._agent_queries[i]
+        _prim, rq, tq, sq = self._agent_queries[row]
         for values, query in ((rot[i], rq), (trans[i], tq), (scale[i], sq)):
             if not np.isfinite(values).all():
                 attr = query.GetAttribute()
                 raise StageError.at(attr.GetPrim(), attr.GetName(), f"not a finite value at time {t:g}")
         raise StageError(f"the agent's transform is not finite at time {t:g}", file=self.path,
-                         prim=self.agent_paths[i])
+                         prim=self.agent_paths[row])
 
     def skinned_vertices(self, poses: AgentPoses) -> np.ndarray:
         """(n, v, 3) float32 world positions of every agent's body vertices."""
@@ -318,6 +339,25 @@ def _check_lens(prim, time, *, focal, horizontalAperture, verticalAperture, near
             fail(name, problem)
     if not np.isfinite(matrix).all():
         fail("xformOp:transform", "the camera's transform is not finite")
+
+
+def _toric_of(prim, time) -> dict | None:
+    """A toric camera's authored intent at ``time`` (ToricCameraAPI), or None for other cameras."""
+    from .. import schema
+
+    if not prim.HasAPI(schema.TORIC_CAMERA_API):
+        return None
+
+    def get(name, default=None):
+        attr = prim.GetAttribute(f"crowd:toric:{name}")
+        value = attr.Get(time) if attr else None
+        return default if value is None else value
+
+    return {"behavior": str(get("behavior", "")), "shot_size": str(get("shotSize", "")),
+            "smoothed": bool(get("smoothed", False)), "target_a": str(get("targetA", "")),
+            "target_b": str(get("targetB", "")), "p_a": [float(v) for v in get("pA", (0.0, 0.0))],
+            "p_b": [float(v) for v in get("pB", (0.0, 0.0))], "theta": float(get("theta", 0.0)),
+            "phi": float(get("phi", 0.0))}
 
 
 def _ancestors_animated(prim) -> bool:

@@ -20,7 +20,7 @@ import os
 
 import numpy as np
 
-from .. import __version__, model
+from .. import __version__, model, schema
 from ..atomic import export_layer
 from ..scenario.stageio import StageFrame
 from ..view import mm_per_lens_unit
@@ -43,7 +43,7 @@ def _changes(values: list) -> list[int]:
 
 def write_camera_tracks(out_dir: str | os.PathLike, tracks: list[model.CameraTrack], frame: StageFrame,
                         default_prim: str, time: model.TimeRange, defined: set[str] = frozenset(),
-                        extra: dict | None = None, events_writer=None) -> str:
+                        extra: dict | None = None, events_writer=None, keep_toric: bool = False) -> str:
     """Write cameras.usda atomically.
 
     Parameters
@@ -57,8 +57,11 @@ def write_camera_tracks(out_dir: str | os.PathLike, tracks: list[model.CameraTra
     events_writer : callable(layer), optional
         Authors more prims into the layer before it is saved (events detected
         when re-filming a shot whose crowd layer has none).
+    keep_toric : bool
+        Keep the toric cameras (``usdcrowd frame``'s) of the cameras.usda
+        being replaced.
     """
-    from pxr import Gf, Sdf, Vt
+    from pxr import Sdf
 
     out_dir = os.fspath(out_dir)
     final = os.path.join(out_dir, CAMERAS)
@@ -70,44 +73,121 @@ def write_camera_tracks(out_dir: str | os.PathLike, tracks: list[model.CameraTra
     layer.pseudoRoot.SetInfo("metersPerUnit", frame.meters_per_unit)
     layer.customLayerData = {"usdcrowd": {"generator": "usdcrowd cameras", "version": __version__,
                                           "cameras": len(tracks), **(extra or {})}}
+    with Sdf.ChangeBlock():
+        for track in tracks:
+            _write_track(layer, track, frame, track.path in defined)
+        if events_writer is not None:
+            events_writer(layer)
+        if keep_toric and os.path.exists(final):
+            _copy_toric(Sdf.Layer.OpenAsAnonymous(final), layer, {t.path for t in tracks})
+    return export_layer(layer, final)
+
+
+def _write_track(layer, track: model.CameraTrack, frame: StageFrame, over: bool):
+    """Author one camera track into ``layer`` (inside the caller's change block); returns its prim spec."""
+    from pxr import Gf, Sdf, Vt
+
     T = Sdf.ValueTypeNames
     mpu = frame.meters_per_unit
     lens = mm_per_lens_unit(mpu)            # lenses in tenths of a scene unit, as USD means them
+    _parents(layer, track.path)
+    spec = Sdf.CreatePrimInLayer(layer, track.path)
+    if over:
+        spec.specifier = Sdf.SpecifierOver
+    else:
+        spec.specifier, spec.typeName = Sdf.SpecifierDef, "Camera"
+        _set(spec, "horizontalAperture", T.Float, float(track.horizontal_aperture) / lens)
+        _set(spec, "verticalAperture", T.Float, float(track.vertical_aperture) / lens)
+        _set(spec, "clippingRange", T.Float2, Gf.Vec2f(track.near / mpu, track.far / mpu))
+        if track.agent is not None:
+            spec.SetInfo("apiSchemas", Sdf.TokenListOp.Create(prependedItems=["CameraAgentAPI"]))
+            _agent_values(spec, track.agent)
+    fl = [float(f) / lens for f in track.focal_length]
+    if not over or len(set(fl)) > 1:     # the user's own lens stays theirs
+        focal = Sdf.AttributeSpec(spec, "focalLength", T.Float)
+        focal.default = fl[0]           # what readers that ask without a time get
+        for i in _changes(fl):
+            layer.SetTimeSample(focal.path, float(track.times[i]), fl[i])
+    op = Sdf.AttributeSpec(spec, "xformOp:transform", T.Matrix4d)
+    for t, m in zip(track.times, stage_poses(track.cam_to_world, frame)):
+        layer.SetTimeSample(op.path, float(t), Gf.Matrix4d(m.tolist()))
+    _set(spec, "xformOpOrder", T.TokenArray, Vt.TokenArray(["!resetXformStack!", "xformOp:transform"]),
+         uniform=True)
+    if track.state is not None:
+        st = Sdf.AttributeSpec(spec, STATE, T.Token)
+        names = [model.CAMERA_MODES[int(s)] for s in track.state]
+        for i in _changes(names):
+            layer.SetTimeSample(st.path, float(track.times[i]), names[i])
+        tr = Sdf.AttributeSpec(spec, TRACKED, T.String)
+        for i in _changes(track.tracked):
+            layer.SetTimeSample(tr.path, float(track.times[i]), track.tracked[i])
+    return spec
+
+
+def _is_toric(spec) -> bool:
+    return schema.TORIC_CAMERA_API in list(spec.GetInfo("apiSchemas").GetAddedOrExplicitItems())
+
+
+def _copy_toric(old, layer, replaced: set[str]) -> None:
+    """Copy the toric cameras of an earlier cameras layer (``usdcrowd frame``'s) into ``layer``."""
+    from pxr import Sdf
+
+    found = []
+    old.Traverse(old.pseudoRoot.path, lambda path: found.append(path) if path.IsPrimPath() else None)
+    for path in found:
+        spec = old.GetPrimAtPath(path)
+        if spec and _is_toric(spec) and str(path) not in replaced:
+            _parents(layer, str(path))
+            Sdf.CopySpec(old, path, layer, path)
+
+
+def add_camera(cameras_path: str | os.PathLike, track: model.CameraTrack, toric: dict) -> str:
+    """Add (or replace) one toric camera in an existing cameras layer, atomically; the others are kept.
+
+    Parameters
+    ----------
+    cameras_path : path-like
+        The shot's cameras.usda.
+    track : CameraTrack
+        Canonical metres.
+    toric : dict
+        ``behavior``, ``shot_size``, ``smoothed`` and per frame ``target_a``,
+        ``target_b`` (lists of prim paths), ``p_a``, ``p_b`` ((t, 2) NDC),
+        ``theta``, ``phi`` ((t,) radians).
+    """
+    from pxr import Gf, Sdf
+
+    from ..scenery import layer_frame
+
+    final = os.fspath(cameras_path)
+    layer = Sdf.Layer.OpenAsAnonymous(final)
+    frame = layer_frame(layer)
+    T = Sdf.ValueTypeNames
     with Sdf.ChangeBlock():
-        for track in tracks:
-            _parents(layer, track.path)
-            spec = Sdf.CreatePrimInLayer(layer, track.path)
-            if track.path in defined:
-                spec.specifier = Sdf.SpecifierOver
-            else:
-                spec.specifier, spec.typeName = Sdf.SpecifierDef, "Camera"
-                _set(spec, "horizontalAperture", T.Float, float(track.horizontal_aperture) / lens)
-                _set(spec, "verticalAperture", T.Float, float(track.vertical_aperture) / lens)
-                _set(spec, "clippingRange", T.Float2, Gf.Vec2f(track.near / mpu, track.far / mpu))
-                if track.agent is not None:
-                    spec.SetInfo("apiSchemas", Sdf.TokenListOp.Create(prependedItems=["CameraAgentAPI"]))
-                    _agent_values(spec, track.agent)
-            fl = [float(f) / lens for f in track.focal_length]
-            if track.path not in defined or len(set(fl)) > 1:     # the user's own lens stays theirs
-                focal = Sdf.AttributeSpec(spec, "focalLength", T.Float)
-                focal.default = fl[0]           # what readers that ask without a time get
-                for i in _changes(fl):
-                    layer.SetTimeSample(focal.path, float(track.times[i]), fl[i])
-            op = Sdf.AttributeSpec(spec, "xformOp:transform", T.Matrix4d)
-            for t, m in zip(track.times, stage_poses(track.cam_to_world, frame)):
-                layer.SetTimeSample(op.path, float(t), Gf.Matrix4d(m.tolist()))
-            _set(spec, "xformOpOrder", T.TokenArray, Vt.TokenArray(["!resetXformStack!", "xformOp:transform"]),
-                 uniform=True)
-            if track.state is not None:
-                st = Sdf.AttributeSpec(spec, STATE, T.Token)
-                names = [model.CAMERA_MODES[int(s)] for s in track.state]
-                for i in _changes(names):
-                    layer.SetTimeSample(st.path, float(track.times[i]), names[i])
-                tr = Sdf.AttributeSpec(spec, TRACKED, T.String)
-                for i in _changes(track.tracked):
-                    layer.SetTimeSample(tr.path, float(track.times[i]), track.tracked[i])
-        if events_writer is not None:
-            events_writer(layer)
+        if layer.GetPrimAtPath(track.path):
+            parent = layer.GetPrimAtPath(track.path).nameParent
+            del parent.nameChildren[track.path.rsplit("/", 1)[-1]]
+        spec = _write_track(layer, track, frame, over=False)
+        spec.SetInfo("apiSchemas", Sdf.TokenListOp.Create(prependedItems=[schema.TORIC_CAMERA_API]))
+        _set(spec, "crowd:toric:behavior", T.Token, toric["behavior"], uniform=True)
+        _set(spec, "crowd:toric:shotSize", T.Token, toric["shot_size"], uniform=True)
+        _set(spec, "crowd:toric:smoothed", T.Bool, bool(toric["smoothed"]), uniform=True)
+        times = [float(t) for t in track.times]
+        for name, key in (("crowd:toric:targetA", "target_a"), ("crowd:toric:targetB", "target_b")):
+            attr = Sdf.AttributeSpec(spec, name, T.String)
+            values = list(toric[key])
+            for i in _changes(values):
+                layer.SetTimeSample(attr.path, times[i], values[i])
+        for name, key in (("crowd:toric:pA", "p_a"), ("crowd:toric:pB", "p_b")):
+            attr = Sdf.AttributeSpec(spec, name, T.Float2)
+            for t, v in zip(times, np.asarray(toric[key], dtype=np.float64)):
+                if np.isfinite(v).all():        # none where a smoothed camera lost a head behind it
+                    layer.SetTimeSample(attr.path, t, Gf.Vec2f(float(v[0]), float(v[1])))
+        for name, key in (("crowd:toric:theta", "theta"), ("crowd:toric:phi", "phi")):
+            attr = Sdf.AttributeSpec(spec, name, T.Float)
+            for t, v in zip(times, np.degrees(np.asarray(toric[key], dtype=np.float64))):
+                if np.isfinite(v):
+                    layer.SetTimeSample(attr.path, t, float(v))
     return export_layer(layer, final)
 
 

@@ -1,0 +1,68 @@
+"""usdcrowd frame SHOT --behavior B --targets A B --shot SIZE [--smooth] [--switch FRAME C D ...]"""
+
+from __future__ import annotations
+
+from .args import add_progress, add_resolution
+
+
+def add_parser(sub):
+    from ..cameras.behaviors import BEHAVIORS, SHOT_SIZES
+
+    p = sub.add_parser("frame", help="add a toric camera that films two characters with a named behavior",
+                       description="Seed 002's camera behaviors in toric space: a camera that frames two "
+                                   "characters of an existing shot (direct, relative or side track, or an "
+                                   "orbit) in a close-up, medium or long shot, added to the shot's cameras.usda "
+                                   "beside the other cameras (which stay as they are).")
+    p.add_argument("shot", help="the shot stage (shot.usda)")
+    p.add_argument("--behavior", required=True, choices=BEHAVIORS, help="how the camera moves with the pair")
+    p.add_argument("--targets", nargs=2, required=True, metavar=("A", "B"),
+                   help="the two characters (prim paths, or names when unique); A is the main character")
+    p.add_argument("--shot", dest="shot_size", default="medium", choices=tuple(SHOT_SIZES),
+                   help="how large the main character is on screen (default: medium)")
+    p.add_argument("--switch", nargs=3, action="append", default=[], metavar=("FRAME", "A", "B"),
+                   help="from FRAME on, frame another pair (repeatable; the targets are blended over 1 s)")
+    p.add_argument("--smooth", action="store_true",
+                   help="smooth the final track (seed 002, section 7.2: 20-frame average, 3 passes)")
+    p.add_argument("--side", choices=("left", "right"), default="left",
+                   help="side of the pair (side track: of their travel; orbit and direct track: of A to B)")
+    p.add_argument("--offset", type=float, default=35.0, metavar="DEG",
+                   help="relative track: angle from A's facing to the camera (default 35)")
+    p.add_argument("--orbit-speed", type=float, default=15.0, metavar="DEG_PER_S",
+                   help="orbit: degrees per second, positive counter-clockwise from above (default 15)")
+    p.add_argument("--focal-length", type=float, default=50.0, metavar="MM",
+                   help="lens on a 36 mm horizontal aperture (default 50)")
+    p.add_argument("--name", help="camera prim name (default: behavior and characters, e.g. Orbit_A_B)")
+    add_resolution(p)
+    add_progress(p)
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    import numpy as np
+
+    from ..cameras.behaviors import Behavior
+    from ..errors import UsdcrowdError
+    from ..toric_filming import PairSpan, frame_shot
+
+    if not 1.0 <= args.focal_length <= 2000.0:
+        raise UsdcrowdError(f"--focal-length {args.focal_length:g} mm is not a lens (1 to 2000 mm)")
+    spans = [PairSpan(0.0, *args.targets)]
+    for frame, a, b in args.switch:
+        try:
+            spans.append(PairSpan(float(frame), a, b))
+        except ValueError:
+            raise UsdcrowdError(f"--switch {frame} {a} {b}: {frame!r} is not a frame number") from None
+    behavior = Behavior(args.behavior, args.shot_size, side=1 if args.side == "left" else -1, offset=args.offset,
+                        orbit_speed=args.orbit_speed)
+    width, height = args.resolution or (1920, 1080)
+    path, track, result, signals = frame_shot(args.shot, behavior, spans, name=args.name, smooth=args.smooth,
+                                              focal_length=args.focal_length, aspect=width / height,
+                                              progress=args.progress)
+    screen = np.concatenate([result.p_a, result.p_b], axis=1)
+    inside = np.isfinite(screen).all(axis=1) & (np.abs(screen) <= 1.0).all(axis=1)
+    print(f"wrote {path}: {track.path} ({args.behavior}, {args.shot_size}{', smoothed' if args.smooth else ''}), "
+          f"{len(track.times)} frames")
+    print(f"  targets   {' -> '.join(dict.fromkeys(f'{a} & {b}' for a, b in zip(signals.target_a, signals.target_b)))}")
+    print(f"  on screen both heads in {inside.mean():.0%} of frames; camera {np.nanmin(result.distance):.2f}-"
+          f"{np.nanmax(result.distance):.2f} m from the characters")
+    return 0
