@@ -127,3 +127,15 @@ def test_demo_runs_the_whole_chain(tmp_path, capsys):
     for name in ("shot.usda", "crowd.usdc", "cameras.usda", "trajectories.png"):
         assert (shot / name).stat().st_size > 0, name
     assert "validate  shot: 0 errors" in stdout
+    # One toric camera (seed 002) on the shot, filmed by the preview: two heads in each of its frames.
+    from usdcrowd.render.scene import ShotScene
+
+    scene = ShotScene(shot / "shot.usda")
+    toric = [p for p in scene.camera_paths if scene.camera(p, 1).toric]
+    assert len(toric) == 1 and "/Cameras/Orbit_" in toric[0]
+    assert (tmp_path / "demo" / "preview" / "toric" / "preview.mp4").stat().st_size > 0
+    for t in (1, 120, 240):
+        view = scene.camera(toric[0], t)
+        rows = [scene.agent_row(view.toric["target_a"]), scene.agent_row(view.toric["target_b"])]
+        uv, z = view.project(scene.agents(t, rows).keypoints()[:, 3], 640, 360)      # head tops
+        assert (z > 0).all() and ((uv >= 0) & (uv < [640, 360])).all(), (t, uv)

@@ -349,3 +349,33 @@ def test_the_final_renderers_ground_truth_reports_the_toric_intent_it_measures_o
         assert intent["main_height"] == pytest.approx(np.ptp(rows) / 72, abs=1e-6)
         assert intent["main_height"] > 1.0          # closer than a long shot, where the body fits the frame
         assert intent["dAB"] == pytest.approx(1.5, abs=0.2)
+
+
+def test_auto_targets_pick_the_pair_the_scene_brings_together(dialogue_shot, capsys):
+    """C and D walk closer together (0.8 m) than A and B stand (1.5 m), but A and B talk: a CrowdEvent of two."""
+    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.toric_filming import auto_spans
+
+    spans = auto_spans(ShotScene(dialogue_shot / "shot.usda"), span=2.0)
+    assert [(s.a, s.b) for s in spans] == [("/World/Crowd/Pair/A", "/World/Crowd/Pair/B")]
+    assert _run("frame", dialogue_shot / "shot.usda", "--behavior", "side-track", "--targets", "auto",
+                "--no-progress") == 0
+    assert "SideTrack_A_B" in capsys.readouterr().out
+    assert _run("frame", dialogue_shot / "shot.usda", "--behavior", "orbit", "--targets", "A", "--no-progress") == 2
+    assert "two characters or 'auto'" in capsys.readouterr().err
+
+
+def test_validate_reports_a_toric_camera_whose_target_is_not_an_agent(dialogue_shot, tmp_path):
+    import shutil
+
+    from usdcrowd.validation import validate
+
+    shutil.copytree(dialogue_shot.parent, tmp_path / "copy")      # the shot refers to ../dialogue.usda
+    shot = tmp_path / "copy" / "shot"
+    assert _run("frame", shot / "shot.usda", "--behavior", "orbit", "--targets", "A", "B", "--name", "V",
+                "--no-progress") == 0
+    assert not [p for p in validate(shot / "shot.usda") if p.severity == "error"]
+    text = (shot / "cameras.usda").read_text()
+    (shot / "cameras.usda").write_text(text.replace('1: "/World/Crowd/Pair/B"', '1: "/World/Crowd/Pair/Nobody"'))
+    errors = [p for p in validate(shot / "shot.usda") if p.severity == "error"]
+    assert any(p.attribute == "crowd:toric:targetB" and "Nobody" in p.message for p in errors), errors

@@ -67,7 +67,10 @@ def summarize(path: str | os.PathLike, stage=None, limits=None) -> dict:
                 "path": str(prim.GetPath()), "focalLengthMm": focal, "apertureMm": [h_ap, v_ap],
                 "clipping": [near, far],
                 "animated": bool(xf.TransformMightBeTimeVarying()),
-                "cameraAgent": prim.HasAPI(schema.CAMERA_AGENT_API)})
+                "cameraAgent": prim.HasAPI(schema.CAMERA_AGENT_API),
+                "toric": ({"behavior": str(prim.GetAttribute("crowd:toric:behavior").Get()),
+                           "shotSize": str(prim.GetAttribute("crowd:toric:shotSize").Get())}
+                          if prim.HasAPI(schema.TORIC_CAMERA_API) else None)})
         elif prim.HasAPI(UsdLux.LightAPI):
             light = UsdLux.LightAPI(prim)
             lights.append({"path": str(prim.GetPath()), "type": str(prim.GetTypeName()),
@@ -180,7 +183,8 @@ def format_summary(s: dict) -> str:
         lines.append(f"  {c['path']}  {c['focalLengthMm']:.4g} mm, aperture {c['apertureMm'][0]:.4g}x"
                      f"{c['apertureMm'][1]:.4g} mm, "
                      f"clip {c['clipping'][0]:.4g}-{c['clipping'][1]:.6g} m{', animated' if c['animated'] else ''}"
-                     f"{', camera agent' if c['cameraAgent'] else ''}")
+                     f"{', camera agent' if c['cameraAgent'] else ''}"
+                     + (f", toric camera ({c['toric']['behavior']}, {c['toric']['shotSize']})" if c.get("toric") else ""))
     lines.append(f"lights  {len(s['lights'])}")
     for li in s["lights"]:
         lines.append(f"  {li['path']}  {li['type']}, intensity {li['intensity']:g}, exposure {li['exposure']:g}")

@@ -130,6 +130,82 @@ def target_signals(scene, spans: list[PairSpan], times, transition: float = TRAN
     return TargetSignals(ha, hb, ya, yb, [paths[rows[k][1]] for k in span], [paths[rows[k][2]] for k in span])
 
 
+def auto_spans(scene, span: float = 5.0, step: float = 0.5, reach: float = 4.0, keep: float = 0.5,
+               progress: bool = False) -> list[PairSpan]:
+    """The pair to frame in each ``span`` seconds of a shot with many characters.
+
+    Every ``step`` seconds the visible agents' ground positions are sampled;
+    pairs that come within ``reach`` metres are candidates. A candidate's
+    cost over a span is its mean distance (a sample where either is hidden
+    counts as ``2 * reach``), less ``reach`` for the share of the span they
+    spend together in a CrowdEvent of two (a talk, a trade): the
+    two-character moments the scene itself declares. A span keeps the pair
+    of the span before while its cost is within ``keep`` metres of the
+    best, so the camera does not switch for a small gain.
+
+    Returns
+    -------
+    list[PairSpan]
+        Consecutive spans with the same pair merged; the first starts at the
+        shot's first frame.
+
+    Raises
+    ------
+    StageError
+        No two visible agents ever come within ``reach`` of each other.
+    """
+    from scipy.spatial import cKDTree
+
+    from .pipeline import frame_progress
+    from .scenario.events import read_events
+    from .scenario.stageio import time_range
+
+    times = scene.time_codes
+    fps = float(scene.fps)
+    samples = times[:: max(1, int(round(step * fps)))]
+    n = len(scene.agent_paths)
+    ground = np.zeros((len(samples), n, 2))
+    visible = np.zeros((len(samples), n), dtype=bool)
+    with frame_progress(len(samples), "find pairs", progress) as bar:
+        for i, t in enumerate(samples):
+            poses = scene.agents(t)
+            ground[i], visible[i] = poses.keypoints()[:, -1, :2], poses.visible
+            bar.update(1)
+    pairs = set()
+    for i in range(len(samples)):
+        rows = np.flatnonzero(visible[i])
+        if len(rows) > 1:
+            pairs |= {(int(rows[a]), int(rows[b])) for a, b in cKDTree(ground[i, rows]).query_pairs(reach)}
+    if not pairs:
+        raise StageError(f"no two visible characters come within {reach:g} m of each other: name the pair with "
+                         "--targets A B", file=scene.path)
+    pairs = np.array(sorted(pairs))
+    dist = np.linalg.norm(ground[:, pairs[:, 0]] - ground[:, pairs[:, 1]], axis=-1)
+    dist = np.where(visible[:, pairs[:, 0]] & visible[:, pairs[:, 1]], dist, 2 * reach)
+    together = np.zeros_like(dist)
+    rows = {p: i for i, p in enumerate(scene.agent_paths)}
+    index = {(int(a), int(b)): k for k, (a, b) in enumerate(pairs)}
+    for event in read_events(scene.stage, rows, time_range(scene.stage)):
+        if len(event.members) != 2 or event.start > event.end:
+            continue
+        k = index.get(tuple(sorted(int(m) for m in event.members)))
+        if k is not None:
+            together[:, k] = (samples >= event.start) & (samples <= event.end)
+    cost = dist - reach * together
+    edges = np.arange(times[0], times[-1] + 1e-9, span * fps)
+    out, current = [], None
+    for start in edges:
+        inside = (samples >= start) & (samples < start + span * fps)
+        mean = cost[inside].mean(axis=0) if inside.any() else cost[-1:].mean(axis=0)
+        best = int(np.argmin(mean))
+        if current is None or mean[current] - mean[best] > keep:
+            current = best
+        a, b = (scene.agent_paths[r] for r in pairs[current])
+        if not out or (out[-1].a, out[-1].b) != (a, b):
+            out.append(PairSpan(float(start), a, b))
+    return out
+
+
 def _blend_angle(a: np.ndarray, b: np.ndarray, w: np.ndarray) -> np.ndarray:
     """Angles from a to b by w, the short way round."""
     return np.arctan2((1 - w) * np.sin(a) + w * np.sin(b), (1 - w) * np.cos(a) + w * np.cos(b))
@@ -145,17 +221,18 @@ def shot_obstacles(scene):
     return load_scenario(os.path.join(os.path.dirname(os.path.abspath(scene.path)), ref)).obstacles
 
 
-def camera_name(behavior: str, a: str, b: str) -> str:
-    """A valid prim name for a behavior's camera on A and B, e.g. ``Orbit_A_B``."""
+def camera_name(behavior: str, a: str, b: str, auto: bool = False) -> str:
+    """A valid prim name for a behavior's camera on A and B, e.g. ``Orbit_A_B`` (``Orbit_Pairs`` for many)."""
     from pxr import Tf
 
-    parts = [behavior.replace("-", " ").title().replace(" ", ""), a.rsplit("/", 1)[-1], b.rsplit("/", 1)[-1]]
+    parts = [behavior.replace("-", " ").title().replace(" ", "")]
+    parts += ["Pairs"] if auto else [a.rsplit("/", 1)[-1], b.rsplit("/", 1)[-1]]
     return Tf.MakeValidIdentifier("_".join(parts))
 
 
-def frame_shot(shot_path: str | os.PathLike, behavior, spans: list[PairSpan], name: str | None = None,
+def frame_shot(shot_path: str | os.PathLike, behavior, spans: list[PairSpan] | str, name: str | None = None,
                smooth: bool = False, focal_length: float = FOCAL_LENGTH, aspect: float = 16 / 9,
-               transition: float = TRANSITION, progress: bool = True):
+               transition: float = TRANSITION, span: float = 5.0, progress: bool = True):
     """Add a toric camera following ``behavior`` on the shot's characters to its cameras.usda.
 
     Parameters
@@ -164,8 +241,9 @@ def frame_shot(shot_path: str | os.PathLike, behavior, spans: list[PairSpan], na
         The shot stage (shot.usda).
     behavior : Behavior
         See :mod:`usdcrowd.cameras.behaviors`.
-    spans : list[PairSpan]
-        The pair framed, from each span's start (the first span from the shot's start).
+    spans : list[PairSpan] or "auto"
+        The pair framed, from each span's start (the first span from the
+        shot's start); "auto": chosen per ``span`` seconds (:func:`auto_spans`).
     name : str, optional
         Camera prim name (default from the behavior and the first pair).
     smooth : bool
@@ -195,9 +273,12 @@ def frame_shot(shot_path: str | os.PathLike, behavior, spans: list[PairSpan], na
     if not cameras.is_file():
         raise StageError("the shot has no cameras layer to add a camera to", file=os.fspath(cameras))
     times = scene.time_codes
+    if isinstance(spans, str):
+        spans = auto_spans(scene, span, progress=progress)
     rows = check_spans(scene, spans)
     root = scene.stage.GetDefaultPrim()
-    prim_name = name or camera_name(behavior.name, scene.agent_paths[rows[0][1]], scene.agent_paths[rows[0][2]])
+    prim_name = name or camera_name(behavior.name, scene.agent_paths[rows[0][1]], scene.agent_paths[rows[0][2]],
+                                    auto=len(rows) > 1)
     path = f"{root.GetPath() if root else ''}/Cameras/{prim_name}"
     existing = scene.stage.GetPrimAtPath(path)
     if existing and not existing.HasAPI(schema.TORIC_CAMERA_API):

@@ -166,7 +166,7 @@ def schema_problems(stage, source: str) -> list[Problem]:
         tname = prim.GetTypeName()
         ours = tname in (schema.GROUP, schema.BEHAVIOR_LAYER, schema.INTEREST_POINT, schema.EVENT) \
             or schema.is_agent(prim) or prim.HasAPI(schema.CAMERA_AGENT_API) \
-            or prim.HasAPI(schema.SCENERY_API)
+            or prim.HasAPI(schema.SCENERY_API) or prim.HasAPI(schema.TORIC_CAMERA_API)
         if not ours:
             continue
         for attr in prim.GetAttributes():
@@ -195,6 +195,16 @@ def schema_problems(stage, source: str) -> list[Problem]:
                 t = stage.GetPrimAtPath(target)
                 if not (t and (t.GetTypeName() == schema.EVENT or schema.is_agent(t))):
                     add(prim, "crowd:camera:target", f"target {target} is neither a CrowdEvent nor an agent")
+        if prim.HasAPI(schema.TORIC_CAMERA_API):
+            if not prim.IsA(UsdGeom.Camera):
+                add(prim, "", "ToricCameraAPI is applied to a prim that is not a Camera")
+            for name in ("crowd:toric:targetA", "crowd:toric:targetB"):
+                attr = prim.GetAttribute(name)
+                for target in {str(attr.Get(t)) for t in (attr.GetTimeSamples() or [None])} if attr else ():
+                    t = stage.GetPrimAtPath(target) if target.startswith("/") else None
+                    if target and not (t and schema.is_agent(t)):
+                        add(prim, name, f"target {target} is not an agent of this stage")
+                        break
         if schema.is_agent(prim):
             aid = prim.GetAttribute("crowd:agentId").Get()
             if aid is not None and aid != -1:

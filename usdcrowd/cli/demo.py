@@ -51,7 +51,8 @@ def run(args) -> int:
     if errors:
         return 1
     print("[4] validate  shot: 0 errors")
-    preview = _preview(r, out, args.progress)
+    toric = _toric(r, args.progress)
+    preview = _preview(r, out, args.progress, toric)
     final = _final(r, out)
     print()
     print(format_summary(summarize(r.shot)))
@@ -79,15 +80,33 @@ def _final(r, out: Path) -> dict:
 
         paths = demo_outputs(r.shot, out / "render", camera=r.camera, frames=frames, resolution=(480, 270), spp=32)
     except UsdcrowdError as exc:          # no Mitsuba here: say so, the rest of the demo stands
-        print(f"[6] render    skipped: {exc}")
+        print(f"[7] render    skipped: {exc}")
         return {}
-    print(f"[6] render    {len(frames)} frames with ground truth, Mitsuba {paths['variant']}")
+    print(f"[7] render    {len(frames)} frames with ground truth, Mitsuba {paths['variant']}")
     return {"frame": paths["frame_png"], "exr": paths["exr"], "render sheet": paths["contact_sheet"],
             "mot": paths["mot"], "coco": paths["coco"]}
 
 
-def _preview(r, out: Path, progress: bool) -> dict:
-    """The OpenGL preview of the shot, from the crowd camera, every other frame."""
+def _toric(r, progress: bool) -> str | None:
+    """A toric camera (seed 002) orbiting the two characters the scene brings together, smoothed."""
+    from ..cameras.behaviors import Behavior
+    from ..errors import UsdcrowdError
+    from ..toric_filming import frame_shot
+
+    try:
+        _, track, _, signals = frame_shot(r.shot, Behavior("orbit", "medium"), "auto", smooth=True,
+                                          progress=progress)
+    except UsdcrowdError as exc:           # no two characters ever near each other: the rest stands
+        print(f"[5] frame     skipped: {exc}")
+        return None
+    pairs = dict.fromkeys(f"{a.rsplit('/', 1)[-1]} & {b.rsplit('/', 1)[-1]}"
+                          for a, b in zip(signals.target_a, signals.target_b))
+    print(f"[5] frame     {track.path}: orbit, medium shot, smoothed, on {' then '.join(pairs)}")
+    return track.path
+
+
+def _preview(r, out: Path, progress: bool, toric: str | None = None) -> dict:
+    """The OpenGL preview of the shot, from the crowd camera, every other frame (and the toric camera's)."""
     import numpy as np
 
     from ..errors import UsdcrowdError
@@ -104,9 +123,14 @@ def _preview(r, out: Path, progress: bool) -> dict:
         gallery = camera_gallery(r.shot, out / "preview" / "gallery.png", r.camera_paths,
                                  np.unique(np.linspace(1, r.n_frames, 5).round()), resolution=(320, 180),
                                  progress=progress)
+        toric_paths = (demo_outputs(r.shot, out / "preview" / "toric", camera=toric, frames=frames,
+                                    progress=progress) if toric else None)
     except UsdcrowdError as exc:          # no OpenGL here: say so, the rest of the demo stands
-        print(f"[5] preview   skipped: {exc}")
+        print(f"[6] preview   skipped: {exc}")
         return {}
-    print(f"[5] preview   {paths['mp4']} ({len(frames)} frames from {camera}); gallery of "
-          f"{len(r.camera_paths)} cameras")
-    return {"preview": paths["mp4"], "sheet": paths["contact_sheet"], "gallery": gallery}
+    print(f"[6] preview   {paths['mp4']} ({len(frames)} frames from {camera}); gallery of "
+          f"{len(r.camera_paths)} cameras" + (f"; the toric camera in {toric_paths['mp4']}" if toric_paths else ""))
+    out_paths = {"preview": paths["mp4"], "sheet": paths["contact_sheet"], "gallery": gallery}
+    if toric_paths:
+        out_paths.update({"toric": toric_paths["mp4"], "toric sheet": toric_paths["contact_sheet"]})
+    return out_paths

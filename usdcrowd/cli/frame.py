@@ -15,8 +15,12 @@ def add_parser(sub):
                                    "beside the other cameras (which stay as they are).")
     p.add_argument("shot", help="the shot stage (shot.usda)")
     p.add_argument("--behavior", required=True, choices=BEHAVIORS, help="how the camera moves with the pair")
-    p.add_argument("--targets", nargs=2, required=True, metavar=("A", "B"),
-                   help="the two characters (prim paths, or names when unique); A is the main character")
+    p.add_argument("--targets", nargs="+", required=True, metavar="A B | auto",
+                   help="the two characters (prim paths, or names when unique; A is the main character), or "
+                        "'auto': per span of --span seconds, the pair the scene brings together (a talk or a "
+                        "trade between two, else the closest two)")
+    p.add_argument("--span", type=float, default=5.0, metavar="SECONDS",
+                   help="with --targets auto: how long a pair is kept at least (default 5)")
     p.add_argument("--shot", dest="shot_size", default="medium", choices=tuple(SHOT_SIZES),
                    help="how large the main character is on screen (default: medium)")
     p.add_argument("--switch", nargs=3, action="append", default=[], metavar=("FRAME", "A", "B"),
@@ -46,7 +50,16 @@ def run(args) -> int:
 
     if not 1.0 <= args.focal_length <= 2000.0:
         raise UsdcrowdError(f"--focal-length {args.focal_length:g} mm is not a lens (1 to 2000 mm)")
-    spans = [PairSpan(0.0, *args.targets)]
+    if args.targets == ["auto"]:
+        if args.switch:
+            raise UsdcrowdError("--switch names pairs itself: use it with --targets A B, not auto")
+        if not args.span > 0:
+            raise UsdcrowdError(f"--span {args.span:g}: a span lasts more than 0 seconds")
+        spans = "auto"
+    elif len(args.targets) == 2:
+        spans = [PairSpan(0.0, *args.targets)]
+    else:
+        raise UsdcrowdError(f"--targets takes two characters or 'auto', not {' '.join(args.targets)!r}")
     for frame, a, b in args.switch:
         try:
             spans.append(PairSpan(float(frame), a, b))
@@ -57,7 +70,7 @@ def run(args) -> int:
     width, height = args.resolution or (1920, 1080)
     path, track, result, signals = frame_shot(args.shot, behavior, spans, name=args.name, smooth=args.smooth,
                                               focal_length=args.focal_length, aspect=width / height,
-                                              progress=args.progress)
+                                              span=args.span, progress=args.progress)
     screen = np.concatenate([result.p_a, result.p_b], axis=1)
     inside = np.isfinite(screen).all(axis=1) & (np.abs(screen) <= 1.0).all(axis=1)
     print(f"wrote {path}: {track.path} ({args.behavior}, {args.shot_size}{', smoothed' if args.smooth else ''}), "
