@@ -98,7 +98,7 @@ def test_cinematic_features_give_back_the_framing_and_the_characters_orientation
     asked = [((-0.4, 0.1), (0.35, 0.0), 1.9, 0.2), ((-0.2, -0.1), (0.5, 0.1), 2.2, 0.35), ((-0.6, 0.0), (0.1, 0.2), 1.5, 0.0)]
     cams = [toric_to_pose(a, b, pa, pb, th, ph, FOV_X, ASPECT) for pa, pb, th, ph in asked]
     cams.append(look_at((1.0, -6.0, 1.6), (1.0, 0.0, 1.6))[0])
-    # A faces the camera in the south (-y), B faces north (+y): away from it.
+    # A faces south (-y), B north (+y): each a quarter turn clockwise from facing the other.
     yaw_a, yaw_b = np.full(4, -np.pi / 2), np.full(4, np.pi / 2)
     f = cinematic_features(times, heads_a, heads_b, yaw_a, yaw_b, heads_a * [1, 1, 0], heads_b * [1, 1, 0],
                            np.array([1.0, 2.0, 1.0, 1.0]), np.array([2.0, 2.0, 2.0, 2.0]), np.array(cams),
@@ -106,8 +106,17 @@ def test_cinematic_features_give_back_the_framing_and_the_characters_orientation
     for k, (pa, pb, th, ph) in enumerate(asked):
         np.testing.assert_allclose(np.r_[f.p_a[k], f.p_b[k], f.theta[k], f.phi[k]], np.r_[pa, pb, th, ph], atol=1e-6)
     np.testing.assert_allclose(f.d_ab, 2.0)
-    assert abs(f.s_a[3]) == pytest.approx(np.pi) and f.s_b[3] == pytest.approx(0.0, abs=1e-9)
-    assert abs(f.s_ab[3]) == pytest.approx(np.pi)
+    # Relative to the line AB, whatever the camera (the same for all four cameras).
+    np.testing.assert_allclose(f.s_a, -np.pi / 2)
+    np.testing.assert_allclose(f.s_b, -np.pi / 2)
+    np.testing.assert_allclose(np.abs(f.s_ab), np.pi)
+    # A faces B (east); B faces north, a quarter turn clockwise from facing A: sB = -pi / 2, sAB = pi / 2.
+    from usdcrowd.cameras.features import pair_orientation
+
+    d, sa, sb, sab = pair_orientation(heads_a[:1], heads_b[:1], [0.0], [np.pi / 2])
+    assert sa[0] == pytest.approx(0.0) and sb[0] == pytest.approx(-np.pi / 2) and sab[0] == pytest.approx(np.pi / 2)
+    d, sa, sb, sab = pair_orientation(heads_a[:1], heads_b[:1], [0.0], [np.pi])      # face to face
+    assert sa[0] == pytest.approx(0.0) and sb[0] == pytest.approx(0.0, abs=1e-12)
     assert f.main == 1                                   # B is the larger on screen on average
     written = write_features(f, tmp_path / "f.csv", tmp_path / "f.json", camera="/World/Cameras/Toric")
     rows = list(csv.DictReader(open(written[0])))

@@ -6,10 +6,11 @@ Per frame, for characters A and B and a camera:
   coordinates, as :mod:`usdcrowd.cameras.toric`);
 - ``theta``, ``phi``: the camera's toric angles about the two heads;
 - ``dAB``: the distance between the two characters on the ground, metres;
-- ``sA``, ``sB``: the yaw of each character's shoulders relative to the
-  camera's view direction, radians in [-pi, pi) (0: the character faces
-  away from the camera, looking where it looks; pi: it faces the camera);
-- ``sAB``: the yaw of B's shoulders relative to A's (sB - sA, wrapped);
+- ``sA``, ``sB``: the angle between the line AB and each character's
+  shoulders' front, radians in [-pi, pi), positive counter-clockwise seen
+  from above (0: A faces B, and B faces A; pi: it turns its back on the
+  other). Like the paper's, they do not depend on the camera;
+- ``sAB``: the yaw of B's shoulders relative to A's, wrapped;
 - ``M``: the main character over the sequence, 0 for A and 1 for B: the one
   with the larger mean on-screen box (width x height of its projected
   keypoints), Hitchcock's rule as appendix B applies it.
@@ -94,13 +95,26 @@ def cinematic_features(times, heads_a, heads_b, yaw_a, yaw_b, ground_a, ground_b
             p_a[k], p_b[k], theta[k], phi[k] = pose_to_toric(cam_to_world[k], heads_a[k], heads_b[k], fov_x, aspect)
         except ToricError:
             pass                # a head behind the camera, or the two heads on one vertical
-    back = np.asarray(cam_to_world)[:, 2, :2]         # the camera's back axis, on the ground
-    view_yaw = np.arctan2(-back[:, 1], -back[:, 0])
-    s_a, s_b = wrap_angle(np.asarray(yaw_a) - view_yaw), wrap_angle(np.asarray(yaw_b) - view_yaw)
-    d_ab = np.linalg.norm((np.asarray(ground_b) - np.asarray(ground_a))[:, :2], axis=1)
+    d_ab, s_a, s_b, s_ab = pair_orientation(ground_a, ground_b, yaw_a, yaw_b)
     main = int(np.nanmean(boxes_b) > np.nanmean(boxes_a))
-    return CinematicFeatures(np.asarray(times, dtype=np.float64), p_a, p_b, theta, phi, d_ab, s_a, s_b,
-                             wrap_angle(s_b - s_a), main)
+    return CinematicFeatures(np.asarray(times, dtype=np.float64), p_a, p_b, theta, phi, d_ab, s_a, s_b, s_ab, main)
+
+
+def pair_orientation(ground_a, ground_b, yaw_a, yaw_b):
+    """dAB (m), sA, sB and sAB (radians) of two characters (see the module), one per row.
+
+    Parameters
+    ----------
+    ground_a, ground_b : (t, 3) or (t, 2) float
+        Where they stand, metres.
+    yaw_a, yaw_b : (t,) float
+        Their shoulders' facing in the world, radians.
+    """
+    ab = (np.asarray(ground_b, dtype=np.float64) - np.asarray(ground_a, dtype=np.float64))[:, :2]
+    toward_b = np.arctan2(ab[:, 1], ab[:, 0])
+    yaw_a, yaw_b = np.asarray(yaw_a, dtype=np.float64), np.asarray(yaw_b, dtype=np.float64)
+    return (np.linalg.norm(ab, axis=1), wrap_angle(yaw_a - toward_b), wrap_angle(yaw_b - toward_b - np.pi),
+            wrap_angle(yaw_b - yaw_a))
 
 
 def write_features(features: CinematicFeatures, csv_path, json_path=None, **about) -> list[str]:
@@ -218,11 +232,8 @@ def frame_intent(view, poses, width: int, height: int) -> dict | None:
                  "theta": float(np.degrees(theta)), "phi": float(np.degrees(phi))}
     except ToricError:
         toric = {"pA": None, "pB": None, "theta": None, "phi": None}
-    back = view.cam_to_world[2, :2]
-    view_yaw = np.arctan2(-back[1], -back[0])
-    s_a, s_b = (float(wrap_angle(y - view_yaw)) for y in yaw)
+    d_ab, s_a, s_b, s_ab = (float(v[0]) for v in pair_orientation(key[:1, -1], key[1:, -1], yaw[:1], yaw[1:]))
     uv, z = view.project(key[0], width, height)
     main_height = float(np.ptp(uv[:, 1]) / height) if (z > 0).all() else None
-    return {**out, **toric, "dAB": float(np.linalg.norm((key[1, -1] - key[0, -1])[:2])),
-            "sA": float(np.degrees(s_a)), "sB": float(np.degrees(s_b)),
-            "sAB": float(np.degrees(wrap_angle(s_b - s_a))), "main_height": main_height}
+    return {**out, **toric, "dAB": d_ab, "sA": float(np.degrees(s_a)), "sB": float(np.degrees(s_b)),
+            "sAB": float(np.degrees(s_ab)), "main_height": main_height}
