@@ -27,7 +27,8 @@ def test_wheel_contains_the_data_folders(wheel):
     names = set(zipfile.ZipFile(wheel).namelist())
     for needed in ("usdcrowd/_data/schemas/plugInfo.json", "usdcrowd/_data/schemas/generatedSchema.usda",
                    "usdcrowd/_data/schemas/schema.usda", "usdcrowd/_data/stages/museum.usda",
-                   "usdcrowd/_data/render/README.md", "usdcrowd/cli/__init__.py"):
+                   "usdcrowd/_data/render/README.md", "usdcrowd/cli/__init__.py",
+                   "usdcrowd/cameras/camera_moe.npz"):       # the learned camera behaviors' weights
         assert needed in names, needed
 
 

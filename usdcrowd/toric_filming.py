@@ -21,6 +21,7 @@ import numpy as np
 
 from . import model, schema
 from .errors import StageError
+from .usd.cameras import CAMERAS as CAMERAS_LAYER
 
 FOCAL_LENGTH = 50.0        # mm: a 40 degree horizontal field on 36 mm, within the seed's 30-45 degrees
 APERTURE = 36.0            # mm, horizontal
@@ -262,46 +263,201 @@ def frame_shot(shot_path: str | os.PathLike, behavior, spans: list[PairSpan] | s
         The toric coordinates authored (of the smoothed track when smoothed).
     signals : TargetSignals
     """
-    from .cameras.behaviors import BehaviorTrack, behavior_track
+    from .cameras.behaviors import behavior_track
     from .cameras.smoothing import smooth_track
-    from .cameras.toric import ToricError, pose_to_toric
     from .render.scene import ShotScene
-    from .usd.cameras import CAMERAS, add_camera
 
     scene = ShotScene(shot_path)
-    cameras = Path(scene.path).parent / CAMERAS
-    if not cameras.is_file():
-        raise StageError("the shot has no cameras layer to add a camera to", file=os.fspath(cameras))
     times = scene.time_codes
     if isinstance(spans, str):
         spans = auto_spans(scene, span, progress=progress)
     rows = check_spans(scene, spans)
-    root = scene.stage.GetDefaultPrim()
-    prim_name = name or camera_name(behavior.name, scene.agent_paths[rows[0][1]], scene.agent_paths[rows[0][2]],
-                                    auto=len(rows) > 1)
-    path = f"{root.GetPath() if root else ''}/Cameras/{prim_name}"
-    existing = scene.stage.GetPrimAtPath(path)
-    if existing and not existing.HasAPI(schema.TORIC_CAMERA_API):
-        raise StageError("a camera that is not a toric camera already has this name (choose another with --name)",
-                         file=scene.path, prim=path)
+    path = _camera_path(scene, name or camera_name(behavior.name, scene.agent_paths[rows[0][1]],
+                                                    scene.agent_paths[rows[0][2]], auto=len(rows) > 1))
     signals = target_signals(scene, spans, times, transition, progress)
     fov_x = 2.0 * np.arctan(0.5 * APERTURE / focal_length)
     result = behavior_track(behavior, times, scene.fps, signals.heads_a, signals.heads_b, signals.yaw_a,
                             signals.yaw_b, fov_x, aspect, obstacles=shot_obstacles(scene))
     if smooth:
-        m = smooth_track(result.cam_to_world)
-        toric = np.full((len(times), 6), np.nan)
-        for i in range(len(times)):
-            try:
-                p_a, p_b, theta, phi = pose_to_toric(m[i], signals.heads_a[i], signals.heads_b[i], fov_x, aspect)
-            except ToricError:              # smoothing put a head behind the camera: no screen position
-                continue
-            toric[i] = [*p_a, *p_b, theta, phi]
-        result = BehaviorTrack(m, toric[:, 0:2], toric[:, 2:4], toric[:, 4], toric[:, 5], result.distance)
-    track = model.CameraTrack(path, times.copy(), result.cam_to_world, np.full(len(times), focal_length),
-                              APERTURE, APERTURE / aspect, near=0.05, far=1000.0)
-    written = add_camera(cameras, track, {
-        "behavior": behavior.name, "shot_size": behavior.shot, "smoothed": smooth,
-        "target_a": signals.target_a, "target_b": signals.target_b,
-        "p_a": result.p_a, "p_b": result.p_b, "theta": result.theta, "phi": result.phi})
+        result = _track_features(smooth_track(result.cam_to_world), signals, fov_x, aspect)
+    track = _camera_track(path, times, result.cam_to_world, focal_length, aspect)
+    written = _author(scene, track, result, signals, behavior.name, behavior.shot, smooth)
     return written, track, result, signals
+
+
+def _camera_path(scene, prim_name: str) -> str:
+    """/<default prim>/Cameras/<name>, refusing a name a camera that is not toric already has."""
+    root = scene.stage.GetDefaultPrim()
+    path = f"{root.GetPath() if root else ''}/Cameras/{prim_name}"
+    existing = scene.stage.GetPrimAtPath(path)
+    if existing and not existing.HasAPI(schema.TORIC_CAMERA_API):
+        raise StageError("a camera that is not a toric camera already has this name (choose another with --name)",
+                         file=scene.path, prim=path)
+    cameras = Path(scene.path).parent / CAMERAS_LAYER
+    if not cameras.is_file():
+        raise StageError("the shot has no cameras layer to add a camera to", file=os.fspath(cameras))
+    return path
+
+
+def _track_features(m: np.ndarray, signals: TargetSignals, fov_x: float, aspect: float):
+    """A BehaviorTrack of given poses: their toric coordinates (NaN where a head is behind the camera)."""
+    from .cameras.behaviors import BehaviorTrack
+    from .cameras.toric import ToricError, pose_to_toric
+
+    toric = np.full((len(m), 6), np.nan)
+    for i in range(len(m)):
+        try:
+            p_a, p_b, theta, phi = pose_to_toric(m[i], signals.heads_a[i], signals.heads_b[i], fov_x, aspect)
+        except ToricError:
+            continue
+        toric[i] = [*p_a, *p_b, theta, phi]
+    mid = 0.5 * (signals.heads_a + signals.heads_b)
+    return BehaviorTrack(m, toric[:, 0:2], toric[:, 2:4], toric[:, 4], toric[:, 5],
+                         np.linalg.norm(m[:, 3, :3] - mid, axis=1))
+
+
+def _camera_track(path: str, times, m: np.ndarray, focal_length: float, aspect: float) -> model.CameraTrack:
+    return model.CameraTrack(path, np.array(times, dtype=np.float64), m, np.full(len(times), focal_length),
+                             APERTURE, APERTURE / aspect, near=0.05, far=1000.0)
+
+
+def _author(scene, track, result, signals: TargetSignals, behavior: str, shot_size: str, smooth: bool,
+            extra: dict | None = None) -> str:
+    from .usd.cameras import add_camera
+
+    return add_camera(Path(scene.path).parent / CAMERAS_LAYER, track, {
+        "behavior": behavior, "shot_size": shot_size, "smoothed": smooth,
+        "target_a": signals.target_a, "target_b": signals.target_b,
+        "p_a": result.p_a, "p_b": result.p_b, "theta": result.theta, "phi": result.phi, **(extra or {})})
+
+
+# ------------------------------------------------------------------ learned behaviors (section 5)
+@dataclass
+class Reference:
+    """A reference clip read from a stage: a camera filming two characters."""
+
+    path: str
+    camera: str
+    a: str
+    b: str
+    character: np.ndarray      # (t, 9)
+    camera_features: np.ndarray  # (t, 6)
+    shot_size: str
+
+
+def read_reference(shot_path, camera: str | None = None, targets: tuple[str, str] | None = None,
+                   progress: bool = False) -> Reference:
+    """The cinematic features of a reference stage's camera filming two characters.
+
+    Without ``targets`` the camera must be a toric camera (its first targets
+    are taken). Frames where a head is behind the camera carry the last
+    frame's camera features.
+
+    Raises
+    ------
+    StageError
+        No such camera, no targets to take, or no frame that frames both heads.
+    """
+    from .cameras.features import head_and_facing
+    from .cameras.moe import camera_features, character_features
+    from .cameras.toric import ToricError, pose_to_toric
+    from .pipeline import frame_progress
+    from .render.scene import ShotScene
+
+    scene = ShotScene(shot_path)
+    times = scene.time_codes
+    first = scene.camera(camera, times[0])
+    if targets is None:
+        if first.toric is None:
+            raise StageError("the reference camera is not a toric camera: name its two characters with "
+                             "--like-targets A B", file=scene.path, prim=first.path)
+        targets = (first.toric["target_a"], first.toric["target_b"])
+    rows = [scene.agent_row(targets[0]), scene.agent_row(targets[1])]
+    if rows[0] == rows[1]:
+        raise StageError("the reference's two characters are the same agent", file=scene.path, prim=targets[0])
+    heads = np.zeros((len(times), 2, 3))
+    yaws = np.zeros((len(times), 2))
+    toric = np.full((len(times), 6), np.nan)
+    fov_x, aspect = np.radians(first.fov_x()), first.horizontal_aperture / first.vertical_aperture
+    with frame_progress(len(times), "read reference", progress) as bar:
+        for i, t in enumerate(times):
+            heads[i], yaws[i] = head_and_facing(scene.agents(t, rows).joints_world)
+            view = scene.camera(first.path, t)
+            try:
+                p_a, p_b, theta, phi = pose_to_toric(view.cam_to_world, heads[i, 0], heads[i, 1], fov_x, aspect)
+                toric[i] = [*p_a, *p_b, theta, phi]
+            except ToricError:
+                pass
+            bar.update(1)
+    ok = np.isfinite(toric).all(axis=1)
+    if not ok.any():
+        raise StageError("the reference camera never has both characters in front of it", file=scene.path,
+                         prim=first.path)
+    last = np.maximum.accumulate(np.where(ok, np.arange(len(ok)), -1))
+    toric = toric[np.where(last >= 0, last, int(np.argmax(ok)))]
+    cam = camera_features(toric[:, 0:2], toric[:, 2:4], toric[:, 4], toric[:, 5])
+    char = character_features(heads[:, 0], heads[:, 1], yaws[:, 0], yaws[:, 1], scene.fps)
+    size = first.toric["shot_size"] if first.toric and first.toric["shot_size"] else _shot_size_of(
+        heads[:, 0], np.array([scene.camera(first.path, t).cam_to_world for t in times[:: max(1, len(times) // 24)]]),
+        times, fov_x, aspect)
+    return Reference(scene.path, first.path, scene.agent_paths[rows[0]], scene.agent_paths[rows[1]], char, cam, size)
+
+
+def _shot_size_of(heads_a: np.ndarray, cams: np.ndarray, times, fov_x: float, aspect: float) -> str:
+    """The shot size whose span is nearest (in ratio) the one the camera's distance to A gives."""
+    from .cameras.behaviors import SHOT_SIZES, fov_y
+
+    idx = np.linspace(0, len(heads_a) - 1, len(cams)).round().astype(int)
+    dist = np.linalg.norm(cams[:, 3, :3] - heads_a[idx], axis=1).mean()
+    span = 2 * dist * np.tan(0.5 * fov_y(fov_x, aspect))
+    return min(SHOT_SIZES, key=lambda k: abs(np.log(SHOT_SIZES[k].span / span)))
+
+
+def frame_like(shot_path, reference: Reference, spans: list[PairSpan] | str, name: str | None = None,
+               smooth: bool = False, focal_length: float = FOCAL_LENGTH, aspect: float = 16 / 9,
+               span: float = 5.0, model=None, progress: bool = True):
+    """Add a camera that films the shot's pair the way the reference's camera filmed its own (section 5).
+
+    The gating network reads the reference's features once (the behavior mix
+    it shows); the prediction network, with the experts blended by it, is
+    rolled out over the new pair's character features from the reference's
+    first framing.
+
+    Returns
+    -------
+    path, track, features, signals, weights
+        As :func:`frame_shot`, and the (m,) expert weights.
+    """
+    from .cameras.behaviors import clear_of_obstacles
+    from .cameras.moe import CameraMoE, character_features, toric_of_features
+    from .cameras.smoothing import smooth_track
+    from .cameras.toric import toric_to_poses
+    from .render.scene import ShotScene
+
+    model = model or CameraMoE()
+    scene = ShotScene(shot_path)
+    times = scene.time_codes
+    if isinstance(spans, str):
+        spans = auto_spans(scene, span, progress=progress)
+    rows = check_spans(scene, spans)
+    path = _camera_path(scene, name or camera_name("learned", scene.agent_paths[rows[0][1]],
+                                                    scene.agent_paths[rows[0][2]], auto=len(rows) > 1))
+    signals = target_signals(scene, spans, times, TRANSITION, progress)
+    weights = model.gate(reference.character, reference.camera_features)
+    char = character_features(signals.heads_a, signals.heads_b, signals.yaw_a, signals.yaw_b, scene.fps)
+    cam = model.rollout(weights, char, reference.camera_features[0])
+    fov_x = 2.0 * np.arctan(0.5 * APERTURE / focal_length)
+    p_a, p_b, theta, phi = toric_of_features(cam, fov_x, aspect)
+    m = toric_to_poses(signals.heads_a, signals.heads_b, p_a, p_b, theta, phi, fov_x, aspect)
+    obstacles = shot_obstacles(scene)
+    if obstacles is not None and len(obstacles):
+        # In front of a wall, on the line from the pair: the pair keeps its place on screen.
+        m[:, 3, :3] = clear_of_obstacles(0.5 * (signals.heads_a + signals.heads_b), m[:, 3, :3], obstacles)
+    if smooth:
+        m = smooth_track(m)
+    result = _track_features(m, signals, fov_x, aspect)
+    track = _camera_track(path, times, result.cam_to_world, focal_length, aspect)
+    written = _author(scene, track, result, signals, "learned", reference.shot_size, smooth,
+                      {"expert_weights": weights, "reference": os.path.relpath(reference.path,
+                                                                                os.path.dirname(scene.path))})
+    return written, track, result, signals, weights

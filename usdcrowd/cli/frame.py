@@ -1,4 +1,4 @@
-"""usdcrowd frame SHOT --behavior B --targets A B --shot SIZE [--smooth] [--switch FRAME C D ...]"""
+"""usdcrowd frame SHOT (--behavior B | --like REF.usda) --targets A B|auto --shot SIZE [--smooth] [--switch F C D]"""
 
 from __future__ import annotations
 
@@ -14,7 +14,14 @@ def add_parser(sub):
                                    "orbit) in a close-up, medium or long shot, added to the shot's cameras.usda "
                                    "beside the other cameras (which stay as they are).")
     p.add_argument("shot", help="the shot stage (shot.usda)")
-    p.add_argument("--behavior", required=True, choices=BEHAVIORS, help="how the camera moves with the pair")
+    how = p.add_mutually_exclusive_group(required=True)
+    how.add_argument("--behavior", choices=BEHAVIORS, help="how the camera moves with the pair")
+    how.add_argument("--like", metavar="REFERENCE.usda",
+                     help="film the pair the way a camera of another stage films two characters (seed 002's "
+                          "learned behaviors: the behavior mix is read from it and retargeted here)")
+    p.add_argument("--camera", metavar="PATH", help="with --like: the reference's camera (default: its first)")
+    p.add_argument("--like-targets", nargs=2, metavar=("A", "B"),
+                   help="with --like: the reference's two characters (default: its toric camera's targets)")
     p.add_argument("--targets", nargs="+", required=True, metavar="A B | auto",
                    help="the two characters (prim paths, or names when unique; A is the main character), or "
                         "'auto': per span of --span seconds, the pair the scene brings together (a talk or a "
@@ -65,16 +72,32 @@ def run(args) -> int:
             spans.append(PairSpan(float(frame), a, b))
         except ValueError:
             raise UsdcrowdError(f"--switch {frame} {a} {b}: {frame!r} is not a frame number") from None
-    behavior = Behavior(args.behavior, args.shot_size, side=1 if args.side == "left" else -1, offset=args.offset,
-                        orbit_speed=args.orbit_speed)
     width, height = args.resolution or (1920, 1080)
-    path, track, result, signals = frame_shot(args.shot, behavior, spans, name=args.name, smooth=args.smooth,
-                                              focal_length=args.focal_length, aspect=width / height,
-                                              span=args.span, progress=args.progress)
+    if args.like:
+        from ..toric_filming import frame_like, read_reference
+
+        reference = read_reference(args.like, args.camera, tuple(args.like_targets) if args.like_targets else None,
+                                   progress=args.progress)
+        path, track, result, signals, weights = frame_like(
+            args.shot, reference, spans, name=args.name, smooth=args.smooth, focal_length=args.focal_length,
+            aspect=width / height, span=args.span, progress=args.progress)
+        what = f"like {reference.camera} of {args.like} ({reference.shot_size})"
+        mix = ", ".join(f"{w:.2f}" for w in weights)
+        detail = f"  experts   {mix} (the gating network's reading of the reference)"
+    else:
+        if args.camera or args.like_targets:
+            raise UsdcrowdError("--camera and --like-targets name the reference of --like")
+        behavior = Behavior(args.behavior, args.shot_size, side=1 if args.side == "left" else -1,
+                            offset=args.offset, orbit_speed=args.orbit_speed)
+        path, track, result, signals = frame_shot(args.shot, behavior, spans, name=args.name, smooth=args.smooth,
+                                                  focal_length=args.focal_length, aspect=width / height,
+                                                  span=args.span, progress=args.progress)
+        what, detail = f"{args.behavior}, {args.shot_size}", None
     screen = np.concatenate([result.p_a, result.p_b], axis=1)
     inside = np.isfinite(screen).all(axis=1) & (np.abs(screen) <= 1.0).all(axis=1)
-    print(f"wrote {path}: {track.path} ({args.behavior}, {args.shot_size}{', smoothed' if args.smooth else ''}), "
-          f"{len(track.times)} frames")
+    print(f"wrote {path}: {track.path} ({what}{', smoothed' if args.smooth else ''}), {len(track.times)} frames")
+    if detail:
+        print(detail)
     print(f"  targets   {' -> '.join(dict.fromkeys(f'{a} & {b}' for a, b in zip(signals.target_a, signals.target_b)))}")
     print(f"  on screen both heads in {inside.mean():.0%} of frames; camera {np.nanmin(result.distance):.2f}-"
           f"{np.nanmax(result.distance):.2f} m from the characters")

@@ -153,9 +153,10 @@ def add_camera(cameras_path: str | os.PathLike, track: model.CameraTrack, toric:
     toric : dict
         ``behavior``, ``shot_size``, ``smoothed`` and per frame ``target_a``,
         ``target_b`` (lists of prim paths), ``p_a``, ``p_b`` ((t, 2) NDC),
-        ``theta``, ``phi`` ((t,) radians).
+        ``theta``, ``phi`` ((t,) radians); for a learned camera also
+        ``expert_weights`` and ``reference`` (the reference stage's path).
     """
-    from pxr import Gf, Sdf
+    from pxr import Gf, Sdf, Vt
 
     from ..scenery import layer_frame
 
@@ -172,6 +173,10 @@ def add_camera(cameras_path: str | os.PathLike, track: model.CameraTrack, toric:
         _set(spec, "crowd:toric:behavior", T.Token, toric["behavior"], uniform=True)
         _set(spec, "crowd:toric:shotSize", T.Token, toric["shot_size"], uniform=True)
         _set(spec, "crowd:toric:smoothed", T.Bool, bool(toric["smoothed"]), uniform=True)
+        if toric.get("expert_weights") is not None:
+            _set(spec, "crowd:toric:expertWeights", T.FloatArray,
+                 Vt.FloatArray([float(v) for v in toric["expert_weights"]]), uniform=True)
+            _set(spec, "crowd:toric:reference", T.Asset, Sdf.AssetPath(toric["reference"]), uniform=True)
         times = [float(t) for t in track.times]
         for name, key in (("crowd:toric:targetA", "target_a"), ("crowd:toric:targetB", "target_b")):
             attr = Sdf.AttributeSpec(spec, name, T.String)

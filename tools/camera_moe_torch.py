@@ -1,0 +1,285 @@
+"""PyTorch side of the learned camera behaviors (seed 002, section 5): train, and run for comparison.
+
+Runs in its own venv (torch==2.13.0, numpy, scikit-learn), without usdcrowd:
+``tools/train_camera_moe.py`` makes the dataset with usdcrowd and calls
+
+    python tools/camera_moe_torch.py train DATA.npz OUT_DIR [--epochs N] [--seed S]
+    python tools/camera_moe_torch.py forward WEIGHTS.npz INPUTS.npz OUT.npz
+
+``train`` writes OUT_DIR/camera_moe.npz (the weights usdcrowd ships, float32,
+in the layout :class:`usdcrowd.cameras.moe.CameraMoE` reads), history.csv
+(losses and the silhouette coefficient of the gating outputs on labelled
+test clips, per epoch: Figure 10), errors.csv (per test sample, behavior,
+MoE and shared-bottom errors: Figure 9) and gates.npz (the final gating
+outputs). ``forward`` runs the gating and prediction networks of a weights
+file on given inputs, for the test that numpy's inference equals PyTorch's.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+
+N_CHAR, N_CAM = 9, 6
+
+
+class Gate(nn.Module):
+    """LSTM over the reference features, its last state through FC and softmax."""
+
+    def __init__(self, hidden: int, experts: int):
+        super().__init__()
+        self.lstm = nn.LSTM(N_CHAR + N_CAM, hidden, batch_first=True)
+        self.fc = nn.Linear(hidden, experts)
+
+    def forward(self, x):
+        _, (h, _) = self.lstm(x)
+        return torch.softmax(self.fc(h[-1]), dim=-1)
+
+
+class Experts(nn.Module):
+    """Three layers whose weights are the gated blend of ``experts`` sets (ELU between)."""
+
+    def __init__(self, experts: int, n_in: int, hidden: int, n_out: int):
+        super().__init__()
+        sizes = [(n_in, hidden), (hidden, hidden), (hidden, n_out)]
+        for k, (i, o) in enumerate(sizes, 1):
+            w = torch.empty(experts, i, o)
+            for e in range(experts):
+                nn.init.kaiming_uniform_(w[e].T, a=np.sqrt(5))
+            setattr(self, f"w{k}", nn.Parameter(w))
+            setattr(self, f"b{k}", nn.Parameter(torch.zeros(experts, o)))
+
+    def forward(self, x, weights):
+        out = x
+        for k in (1, 2, 3):
+            per = torch.einsum("bi,mio->bmo", out, getattr(self, f"w{k}")) + getattr(self, f"b{k}")[None]
+            out = torch.einsum("bm,bmo->bo", weights, per)
+            if k < 3:
+                out = nn.functional.elu(out)
+        return out
+
+
+class MoE(nn.Module):
+    def __init__(self, cfg: dict):
+        super().__init__()
+        self.gate = Gate(cfg["gate_hidden"], cfg["experts"])
+        n_in = cfg["past"] * N_CAM + (cfg["char_past"] + cfg["char_future"]) * N_CHAR
+        self.experts = Experts(cfg["experts"], n_in, cfg["hidden"], cfg["out"] * N_CAM)
+
+    def forward(self, gate_x, x):
+        w = self.gate(gate_x)
+        return self.experts(x, w), w
+
+
+class SharedBottom(nn.Module):
+    """The paper's baseline: one shared layer, then a branch (Appendix A), no gating."""
+
+    def __init__(self, cfg: dict):
+        super().__init__()
+        n_in = cfg["past"] * N_CAM + (cfg["char_past"] + cfg["char_future"]) * N_CHAR
+        h = cfg["hidden"]
+        self.net = nn.Sequential(nn.Linear(n_in, 2 * h), nn.ELU(), nn.Linear(2 * h, h), nn.ELU(),
+                                 nn.Linear(h, cfg["out"] * N_CAM))
+
+    def forward(self, gate_x, x):
+        return self.net(x), None
+
+
+# ------------------------------------------------------------------------------------ samples
+class Windows:
+    """Training samples cut from clips: prediction windows and, from the same clip, a reference window."""
+
+    def __init__(self, data, cfg: dict, stats: dict, rng, stride: int = 4):
+        self.cfg, self.rng = cfg, rng
+        self.char = (data["character"] - stats["char_mean"]) / stats["char_std"]      # (c, t, 9)
+        self.cam = (data["camera"] - stats["cam_mean"]) / stats["cam_std"]            # (c, t, 6)
+        self.cam_raw = data["camera"]
+        self.labels = data["behavior"]
+        c, t, _ = self.char.shape
+        lo = (cfg["past"] - 1) * cfg["step"]
+        hi = t - 1 - cfg["out"] * cfg["step"]
+        frames = np.arange(lo, hi, stride)
+        self.index = np.array([(i, f) for i in range(c) for f in frames])
+
+    def __len__(self):
+        return len(self.index)
+
+    def gate_inputs(self, clips, random=True):
+        cfg = self.cfg
+        t = self.char.shape[1]
+        span = (cfg["gate_len"] - 1) * cfg["gate_step"]
+        if random:
+            start = self.rng.integers(0, t - span, len(clips))
+        else:
+            start = np.full(len(clips), (t - 1 - span) // 2)
+        idx = start[:, None] + np.arange(cfg["gate_len"]) * cfg["gate_step"]
+        return np.concatenate([self.char[clips[:, None], idx], self.cam[clips[:, None], idx]], axis=-1)
+
+    def batch(self, rows, noise=0.0, random_gate=True):
+        cfg = self.cfg
+        clips, frames = self.index[rows, 0], self.index[rows, 1]
+        t = self.char.shape[1]
+        past_idx = frames[:, None] + np.arange(-(cfg["past"] - 1), 1) * cfg["step"]
+        char_idx = np.clip(frames[:, None] + np.arange(-(cfg["char_past"] - 1), cfg["char_future"] + 1) * cfg["step"],
+                           0, t - 1)
+        past = self.cam[clips[:, None], past_idx]
+        if noise:
+            past = past + self.rng.normal(0.0, noise, past.shape)
+            # Some samples see no past camera at all: the framing must then come from the characters and
+            # the gate, which is what makes the gate learn the behavior (and roll-outs not drift).
+            blind = self.rng.random(len(rows)) < self.cfg.get("blind", 0.0)
+            past[blind] = 0.0
+        x = np.concatenate([past.reshape(len(rows), -1), self.char[clips[:, None], char_idx].reshape(len(rows), -1)], 1)
+        out_idx = np.clip(frames[:, None] + np.arange(1, cfg["out"] + 1) * cfg["step"], 0, t - 1)
+        y = self.cam[clips[:, None], out_idx].reshape(len(rows), -1)
+        return (torch.tensor(self.gate_inputs(clips, random_gate), dtype=torch.float32),
+                torch.tensor(x, dtype=torch.float32), torch.tensor(y, dtype=torch.float32))
+
+
+def _stats(data) -> dict:
+    char, cam = data["character"], data["camera"]
+    return {"char_mean": char.reshape(-1, N_CHAR).mean(0), "char_std": char.reshape(-1, N_CHAR).std(0) + 1e-6,
+            "cam_mean": cam.reshape(-1, N_CAM).mean(0), "cam_std": cam.reshape(-1, N_CAM).std(0) + 1e-6}
+
+
+def _errors(model, windows: Windows, stats, batch=2048):
+    """Per sample: mean absolute error of the predicted camera features, in their units."""
+    model.eval()
+    errs = []
+    with torch.no_grad():
+        for lo in range(0, len(windows), batch):
+            rows = np.arange(lo, min(lo + batch, len(windows)))
+            g, x, y = windows.batch(rows, random_gate=False)
+            pred, _ = model(g, x)
+            diff = (pred - y).numpy().reshape(len(rows), -1, N_CAM) * stats["cam_std"]
+            errs.append(np.abs(diff).mean(axis=1))
+    model.train()
+    return np.concatenate(errs)                        # (n, 6)
+
+
+def _gate_outputs(model, windows: Windows):
+    clips = np.arange(windows.char.shape[0])
+    with torch.no_grad():
+        return model.gate(torch.tensor(windows.gate_inputs(clips, random=False), dtype=torch.float32)).numpy()
+
+
+def train(data_path: str, out_dir: str, epochs: int, seed: int, batch: int = 256, lr: float = 2e-3) -> None:
+    from sklearn.metrics import silhouette_score
+
+    torch.manual_seed(seed)
+    torch.set_num_threads(max(1, torch.get_num_threads()))
+    rng = np.random.default_rng(seed)
+    data = np.load(data_path)
+    cfg = json.loads(str(data["config"]))
+    split = data["test"]                                # 1 for test clips
+    train_d = {k: data[k][split == 0] for k in ("character", "camera", "behavior")}
+    test_d = {k: data[k][split == 1] for k in ("character", "camera", "behavior")}
+    train_d["config"] = test_d["config"] = data["config"]
+    stats = _stats(train_d)
+    tr, te = Windows(train_d, cfg, stats, rng), Windows(test_d, cfg, stats, np.random.default_rng(seed + 1), stride=8)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    history = []
+    models = {"moe": MoE(cfg), "shared_bottom": SharedBottom(cfg)}
+    for name, model in models.items():
+        opt = torch.optim.Adam(model.parameters(), lr=lr)
+        sched = torch.optim.lr_scheduler.ExponentialLR(opt, 0.95)
+        for epoch in range(1, epochs + 1):
+            t0 = time.perf_counter()
+            order = rng.permutation(len(tr))
+            total = 0.0
+            for lo in range(0, len(order), batch):
+                g, x, y = tr.batch(order[lo:lo + batch], noise=cfg.get("noise", 0.2))
+                pred, _ = model(g, x)
+                loss = torch.mean((pred - y) ** 2)
+                opt.zero_grad()
+                loss.backward()
+                opt.step()
+                total += float(loss.detach()) * len(y)
+            sched.step()
+            test_err = _errors(model, te, stats).mean(axis=0)
+            row = {"model": name, "epoch": epoch, "train_loss": total / len(tr),
+                   "test_error": float(test_err.mean()), "seconds": time.perf_counter() - t0}
+            if name == "moe":
+                gates = _gate_outputs(model, te)
+                row["silhouette"] = float(silhouette_score(gates, te.labels)) if len(set(te.labels)) > 1 else 0.0
+            history.append(row)
+            print(json.dumps(row), flush=True)
+    # Errors per test sample and behavior, both models.
+    with open(out / "errors.csv", "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["model", "behavior", "clip", *[f"err_{k}" for k in range(N_CAM)]])
+        for name, model in models.items():
+            errs = _errors(model, te, stats)
+            for (clip, _), e in zip(te.index, errs):
+                w.writerow([name, int(te.labels[clip]), int(clip), *[f"{v:.6g}" for v in e]])
+    with open(out / "history.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=["model", "epoch", "train_loss", "test_error", "silhouette", "seconds"])
+        w.writeheader()
+        w.writerows(history)
+    moe = models["moe"]
+    np.savez(out / "gates.npz", gates=_gate_outputs(moe, te), labels=te.labels)
+    save_weights(moe, cfg, stats, out / "camera_moe.npz",
+                 about={"epochs": epochs, "seed": seed, "train_clips": int((split == 0).sum()),
+                        "test_clips": int((split == 1).sum()), "train_samples": len(tr), "torch": torch.__version__})
+
+
+def save_weights(model: MoE, cfg: dict, stats: dict, path, about: dict) -> None:
+    sd = {k: v.detach().numpy().astype(np.float32) for k, v in model.state_dict().items()}
+    arrays = {k.replace("_l0", ""): v for k, v in sd.items()}
+    arrays.update({k: np.asarray(v, dtype=np.float32) for k, v in stats.items()})
+    np.savez(path, config=json.dumps(cfg), about=json.dumps(about), **arrays)
+
+
+def load_weights(path) -> tuple[MoE, dict]:
+    data = np.load(path)
+    cfg = json.loads(str(data["config"]))
+    model = MoE(cfg)
+    sd = {}
+    for k in model.state_dict():
+        sd[k] = torch.tensor(data[k.replace("_l0", "")])
+    model.load_state_dict(sd)
+    return model, cfg
+
+
+def forward(weights: str, inputs: str, out: str) -> None:
+    model, _ = load_weights(weights)
+    model.eval()
+    data = np.load(inputs)
+    torch.set_default_dtype(torch.float64)
+    model = model.double()
+    with torch.no_grad():
+        gate = model.gate(torch.tensor(data["gate_x"], dtype=torch.float64))
+        pred = model.experts(torch.tensor(data["x"], dtype=torch.float64), torch.tensor(data["w"], dtype=torch.float64))
+    np.savez(out, gate=gate.numpy(), pred=pred.numpy())
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = p.add_subparsers(dest="cmd", required=True)
+    t = sub.add_parser("train")
+    t.add_argument("data")
+    t.add_argument("out")
+    t.add_argument("--epochs", type=int, default=20)
+    t.add_argument("--seed", type=int, default=0)
+    f = sub.add_parser("forward")
+    f.add_argument("weights")
+    f.add_argument("inputs")
+    f.add_argument("out")
+    a = p.parse_args()
+    if a.cmd == "train":
+        train(a.data, a.out, a.epochs, a.seed)
+    else:
+        forward(a.weights, a.inputs, a.out)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

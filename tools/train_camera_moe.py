@@ -1,0 +1,187 @@
+"""Train the learned camera behaviors (seed 002, section 5) and evaluate them as the paper does.
+
+    python tools/train_camera_moe.py [--epochs 20] [--per-behavior 60] [--seed 0] [--out build/camera_moe]
+                                     [--install]
+
+1. makes a seeded dataset with usdcrowd: two-character motions filmed by the
+   four controllers with drawn parameters (usdcrowd.cameras.moe_data);
+2. trains the mixture of experts and the shared-bottom baseline with PyTorch
+   in its own venv (tools/camera_moe_torch.py; torch==2.13.0, numpy,
+   scikit-learn; $USDCROWD_TORCH_VENV or one made in the temporary folder);
+3. evaluates in numpy: prediction error per behavior against the shared
+   bottom (Figure 9), the silhouette coefficient of the gating outputs over
+   training (Figure 10), and retargeting: each test clip's behavior, read by
+   the gating network from that clip, rolled out on another clip's
+   characters and compared with the controller filming them itself;
+4. writes CSV and plots to --out, and with --install copies the weights to
+   usdcrowd/cameras/camera_moe.npz (what the package ships).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+TORCH_PACKAGES = ["torch==2.13.0", "numpy", "scikit-learn"]
+CONFIG = {"step": 2, "past": 4, "char_past": 12, "char_future": 12, "out": 6, "gate_step": 4, "gate_len": 60,
+          "experts": 9, "hidden": 128, "gate_hidden": 32, "noise": 0.2, "blind": 0.3}
+
+
+def torch_python() -> str:
+    """The venv with PyTorch ($USDCROWD_TORCH_VENV, else made once in the temporary folder)."""
+    venv = Path(os.environ.get("USDCROWD_TORCH_VENV", Path(tempfile.gettempdir()) / "usdcrowd-torch-venv"))
+    python = venv / "bin" / "python"
+    if not python.exists():
+        print(f"making the PyTorch venv in {venv} ({' '.join(TORCH_PACKAGES)})", flush=True)
+        subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
+        subprocess.run([str(python), "-m", "pip", "install", "-q", *TORCH_PACKAGES], check=True)
+    return str(python)
+
+
+def make_dataset(path: Path, per_behavior: int, seed: int, frames: int = 480):
+    from usdcrowd.cameras.moe_data import make_clips
+
+    train = make_clips(seed, per_behavior, frames)
+    test = make_clips(seed + 1000, max(4, per_behavior // 4), frames)
+    clips = train + test
+    np.savez(path, config=json.dumps(CONFIG), character=np.array([c.character for c in clips], dtype=np.float32),
+             camera=np.array([c.camera for c in clips], dtype=np.float32),
+             behavior=np.array([c.behavior for c in clips]), test=np.array([0] * len(train) + [1] * len(test)))
+    return train, test
+
+
+def retarget_errors(weights: Path, test) -> list[dict]:
+    """Each test clip's behavior, gated from the clip, rolled out: on its own characters, on another
+    clip's characters doing the same kind of motion, and on a clip of another kind of motion; each
+    compared with the controller (same parameters) filming those characters itself."""
+    from usdcrowd.cameras.moe import CameraMoE
+    from usdcrowd.cameras.moe_data import refilm
+
+    model = CameraMoE(weights)
+    rows = []
+    for k, ref in enumerate(test):
+        w = model.gate(ref.character, ref.camera)
+        same = next(c for c in test[k + 1:] + test[:k] if c.motion == ref.motion)
+        other = next(c for c in test[k + 1:] + test[:k] if c.motion != ref.motion)
+        row = {"behavior": ref.behavior, "shot": ref.shot, "motion": ref.motion,
+               "gate": " ".join(f"{v:.3f}" for v in w)}
+        for name, target in (("own_clip", ref), ("same_motion", same), ("other_motion", other)):
+            truth = ref.camera if target is ref else refilm(target, ref.params)
+            pred = model.rollout(w, target.character, truth[0])
+            dphi = np.angle(np.exp(1j * (np.arctan2(pred[:, 4], pred[:, 5]) - np.arctan2(truth[:, 4], truth[:, 5]))))
+            row[f"{name}_features"] = float(np.abs(pred - truth).mean())
+            row[f"{name}_theta_deg"] = float(np.degrees(np.pi * np.abs(pred[:, 3] - truth[:, 3])).mean())
+            row[f"{name}_phi_deg"] = float(np.degrees(np.abs(dphi)).mean())
+        rows.append(row)
+    return rows
+
+
+def plots(out: Path, errors_csv: Path, history_csv: Path) -> list[str]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from usdcrowd.cameras.behaviors import BEHAVIORS
+
+    err = list(csv.DictReader(open(errors_csv)))
+    hist = list(csv.DictReader(open(history_csv)))
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4))
+    data, labels = [], []
+    for b, name in enumerate(BEHAVIORS):
+        for model in ("moe", "shared_bottom"):
+            v = [np.mean([float(r[f"err_{k}"]) for k in (3,)]) * 180 for r in err
+                 if r["model"] == model and int(r["behavior"]) == b]
+            data.append(v)
+            labels.append(f"{name.replace('-track', '')}\n{'MoE' if model == 'moe' else 'shared'}")
+    bp = ax[0].boxplot(data, showfliers=False, patch_artist=True)
+    for k, box in enumerate(bp["boxes"]):
+        box.set_facecolor("#4c72b0" if k % 2 == 0 else "#dd8452")
+    ax[0].set_xticks(range(1, len(labels) + 1), labels, fontsize=8)
+    ax[0].set_ylabel("theta error over the 6 predicted samples (deg)")
+    ax[0].set_title("Prediction error per behavior (cf. seed 002, Fig. 9)")
+    moe = [r for r in hist if r["model"] == "moe"]
+    ax[1].plot([int(r["epoch"]) for r in moe], [float(r["silhouette"]) for r in moe], "o-")
+    ax[1].set_xlabel("epoch")
+    ax[1].set_ylabel("silhouette of gating outputs")
+    ax[1].set_title("Silhouette of the gating outputs by behavior (cf. Fig. 10)")
+    fig.tight_layout()
+    path = out / "camera_moe_evaluation.png"
+    fig.savefig(path, dpi=110)
+    return [str(path)]
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--epochs", type=int, default=20)
+    p.add_argument("--per-behavior", type=int, default=60, help="training clips per behavior (20 s each)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", default="build/camera_moe")
+    p.add_argument("--install", action="store_true", help="copy the weights into the package")
+    p.add_argument("--evaluate-only", action="store_true",
+                   help="evaluate the weights, CSV and history already in --out (no training)")
+    a = p.parse_args()
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    train, test = make_dataset(out / "dataset.npz", a.per_behavior, a.seed)
+    print(f"dataset: {len(train)} training and {len(test)} test clips in {time.perf_counter() - t0:.1f} s", flush=True)
+    if not a.evaluate_only:
+        python = torch_python()
+        t1 = time.perf_counter()
+        subprocess.run([python, str(ROOT / "tools" / "camera_moe_torch.py"), "train", str(out / "dataset.npz"),
+                        str(out), "--epochs", str(a.epochs), "--seed", str(a.seed)], check=True)
+        print(f"trained in {time.perf_counter() - t1:.0f} s", flush=True)
+    rows = retarget_errors(out / "camera_moe.npz", test)
+    with open(out / "retarget.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    from usdcrowd.cameras.behaviors import BEHAVIORS
+
+    err = list(csv.DictReader(open(out / "errors.csv")))
+    summary = []
+    for b, name in enumerate(BEHAVIORS):
+        line = {"behavior": name}
+        for model in ("moe", "shared_bottom"):
+            sel = np.array([[float(r[f"err_{k}"]) for k in range(6)] for r in err
+                            if r["model"] == model and int(r["behavior"]) == b])
+            line[f"{model}_theta_deg"] = float(sel[:, 3].mean() * 180)
+            line[f"{model}_screen"] = float(sel[:, :3].mean())
+        ret = [r for r in rows if r["behavior"] == b]
+        for name in ("own_clip", "same_motion", "other_motion"):
+            for what in ("features", "theta_deg", "phi_deg"):
+                line[f"rollout_{name}_{what}"] = float(np.mean([r[f"{name}_{what}"] for r in ret]))
+        summary.append(line)
+    with open(out / "summary.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(summary[0]))
+        w.writeheader()
+        w.writerows(summary)
+    for line in summary:
+        print("  ".join(f"{k}={v:.3f}" if isinstance(v, float) else f"{k}={v}" for k, v in line.items()))
+    hist = list(csv.DictReader(open(out / "history.csv")))
+    sil = [float(r["silhouette"]) for r in hist if r["model"] == "moe"]
+    print(f"silhouette of the gating outputs: first epoch {sil[0]:.3f}, last {sil[-1]:.3f}")
+    print("plots:", *plots(out, out / "errors.csv", out / "history.csv"))
+    if a.install:
+        dest = ROOT / "usdcrowd" / "cameras" / "camera_moe.npz"
+        shutil.copy(out / "camera_moe.npz", dest)
+        print(f"installed {dest} ({dest.stat().st_size / 1e6:.2f} MB)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

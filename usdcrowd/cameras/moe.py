@@ -1,0 +1,259 @@
+"""Learned camera behaviors (seed 002, section 5): a mixture of experts, run in plain numpy.
+
+A *gating* network reads a reference clip's cinematic features (an LSTM over
+them, then a softmax over ``m`` experts): the mix of behaviors the clip
+shows. The *prediction* network's weights are that mix of the experts'
+weights; from the camera's recent toric features and the two characters'
+features around the present it predicts the camera's next ones. Rolled out
+over a new scene, it films a new pair the way the reference was filmed.
+
+Training is PyTorch's (``tools/train_camera_moe.py``, in its own venv); the
+weights ship in the package (``camera_moe.npz``, float32) and everything
+here is numpy: using a trained model needs no PyTorch.
+
+Features per frame
+------------------
+character, 9 (they do not depend on any camera):
+    dAB (m), sin and cos of sA, sB and sAB (the paper's shoulder angles,
+    :func:`usdcrowd.cameras.features.pair_orientation`), and the pair's
+    velocity along AB and across it (m/s, the heads' midpoint, smoothed
+    over half a second).
+camera, 6 (the paper's five, with phi as its sine and cosine: phi wraps
+round at +-pi where a level camera passes to the other side of AB, which
+a regression cannot follow):
+    pA.x, pB.x, the heads' mean screen height, theta / pi, sin phi, cos phi.
+
+The paper's sizes are 60 past and 60 future frames, 30 predicted, hidden
+512 and 9 experts at 60 fps; here the windows are sampled every ``step``
+frames and the sizes are read from the weights file (see
+:class:`CameraMoE`; the tool states what it trained).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+
+N_CHARACTER = 9
+N_CAMERA = 6
+WEIGHTS = Path(__file__).with_name("camera_moe.npz")
+CLIP = 4.0          # standard deviations a fed-back camera feature may reach
+
+
+# ------------------------------------------------------------------------------------ features
+def character_features(heads_a, heads_b, yaw_a, yaw_b, fps: float) -> np.ndarray:
+    """(t, 9) float64 character features of A and B (see the module).
+
+    Parameters
+    ----------
+    heads_a, heads_b : (t, 3) float
+        Head points, metres, Z up.
+    yaw_a, yaw_b : (t,) float
+        Shoulder facings, radians.
+    fps : float
+        Frames per second (for the velocities).
+    """
+    from .features import pair_orientation
+    from .smoothing import moving_average
+
+    heads_a, heads_b = (np.asarray(v, dtype=np.float64) for v in (heads_a, heads_b))
+    d, s_a, s_b, s_ab = pair_orientation(heads_a, heads_b, yaw_a, yaw_b)
+    mid = 0.5 * (heads_a + heads_b)[:, :2]
+    vel = np.gradient(mid, axis=0) * fps if len(mid) > 1 else np.zeros_like(mid)
+    vel = moving_average(vel, max(1, int(round(0.5 * fps))))
+    ab = (heads_b - heads_a)[:, :2]
+    along = ab / np.maximum(np.linalg.norm(ab, axis=1, keepdims=True), 1e-9)
+    across = np.stack([-along[:, 1], along[:, 0]], -1)
+    return np.column_stack([d, np.sin(s_a), np.cos(s_a), np.sin(s_b), np.cos(s_b), np.sin(s_ab), np.cos(s_ab),
+                            np.einsum("ti,ti->t", vel, along), np.einsum("ti,ti->t", vel, across)])
+
+
+def camera_features(p_a, p_b, theta, phi) -> np.ndarray:
+    """(t, 6) float64 camera features from toric coordinates (see the module)."""
+    p_a, p_b = np.asarray(p_a, dtype=np.float64), np.asarray(p_b, dtype=np.float64)
+    theta, phi = np.asarray(theta, dtype=np.float64), np.asarray(phi, dtype=np.float64)
+    return np.column_stack([p_a[:, 0], p_b[:, 0], 0.5 * (p_a[:, 1] + p_b[:, 1]), theta / np.pi,
+                            np.sin(phi), np.cos(phi)])
+
+
+def toric_of_features(cam: np.ndarray, fov_x: float, aspect: float):
+    """Toric coordinates (p_a, p_b, theta, phi) of camera features, made valid.
+
+    The two heads share the predicted mean screen height; they are kept at
+    least 0.02 apart horizontally and theta is kept inside (0, 2 (pi - alpha))
+    with a margin, so every frame is a camera (a prediction is not exact).
+    """
+    from .toric import framing_angle
+
+    cam = np.asarray(cam, dtype=np.float64)
+    y = np.clip(cam[:, 2], -0.95, 0.95)
+    x_a, x_b = np.clip(cam[:, 0], -0.95, 0.95), np.clip(cam[:, 1], -0.95, 0.95)
+    apart = np.abs(x_b - x_a) < 0.02
+    mid = np.clip(0.5 * (x_a + x_b), -0.94, 0.94)
+    sign = np.where(x_b >= x_a, 1.0, -1.0)
+    x_a = np.where(apart, mid - 0.01 * sign, x_a)
+    x_b = np.where(apart, mid + 0.01 * sign, x_b)
+    p_a, p_b = np.stack([x_a, y], -1), np.stack([x_b, y], -1)
+    alpha = framing_angle(p_a, p_b, fov_x, aspect)
+    margin = np.radians(2.0)
+    theta = np.clip(cam[:, 3] * np.pi, 2 * margin, 2 * (np.pi - alpha - margin))
+    return p_a, p_b, theta, np.arctan2(cam[:, 4], cam[:, 5])
+
+
+# ---------------------------------------------------------------------------------- the network
+def _sigmoid(x):
+    return 0.5 * (1.0 + np.tanh(0.5 * x))
+
+
+def _elu(x):
+    return np.where(x > 0, x, np.expm1(np.minimum(x, 0.0)))
+
+
+@dataclass
+class Config:
+    """Sizes of a trained model (stored in its weights file)."""
+
+    step: int             # frames between the samples of the prediction windows
+    past: int             # camera samples fed back
+    char_past: int        # character samples up to the present (included)
+    char_future: int      # character samples after it
+    out: int              # camera samples predicted
+    gate_step: int        # frames between the samples of the reference clip
+    gate_len: int         # reference samples the gating network reads
+    experts: int
+    hidden: int
+    gate_hidden: int
+    noise: float = 0.0    # training: noise added to the past camera input (robust roll-outs)
+    blind: float = 0.0    # training: share of samples shown no past camera (the gate must carry the behavior)
+
+    @property
+    def n_in(self) -> int:
+        return self.past * N_CAMERA + (self.char_past + self.char_future) * N_CHARACTER
+
+
+class CameraMoE:
+    """The gating and prediction networks, from a weights file (numpy arrays, float32).
+
+    Arrays (PyTorch's layouts, so a state dict saves straight into it):
+    ``gate.lstm.weight_ih`` (4H, 15), ``weight_hh`` (4H, H), ``bias_ih``,
+    ``bias_hh`` (4H,) with gates in the order i, f, g, o; ``gate.fc.weight``
+    (m, H), ``bias`` (m,); ``experts.w1`` (m, n_in, h), ``b1`` (m, h),
+    ``w2`` (m, h, h), ``b2``, ``w3`` (m, h, out * 6), ``b3``; and the
+    normalisation ``char_mean``, ``char_std`` (9,), ``cam_mean``, ``cam_std``
+    (6,).
+    """
+
+    def __init__(self, path: str | Path = WEIGHTS):
+        from ..errors import UsdcrowdError
+
+        try:
+            data = np.load(path, allow_pickle=False)
+        except (OSError, ValueError) as exc:
+            raise UsdcrowdError(f"cannot read the camera model's weights: {exc}", file=str(path)) from None
+        self.path = str(path)
+        self.config = Config(**json.loads(str(data["config"])))
+        self.w = {k: data[k].astype(np.float64) for k in data.files if k not in ("config", "about")}
+        self.about = json.loads(str(data["about"])) if "about" in data.files else {}
+
+    @cached_property
+    def size_bytes(self) -> int:
+        return int(sum(v.size * 4 for v in self.w.values()))
+
+    # ------------------------------------------------------------------ gating
+    def gate_input(self, char: np.ndarray, cam: np.ndarray) -> np.ndarray:
+        """(gate_len, 15) normalised reference features: the middle of the clip, sampled every gate_step frames."""
+        c = self.config
+        feats = np.column_stack([(char - self.w["char_mean"]) / self.w["char_std"],
+                                 (cam - self.w["cam_mean"]) / self.w["cam_std"]])
+        idx = np.arange(c.gate_len) * c.gate_step
+        start = max(0, (len(feats) - 1 - idx[-1]) // 2)
+        return feats[np.clip(start + idx, 0, len(feats) - 1)]
+
+    def gate(self, char: np.ndarray, cam: np.ndarray) -> np.ndarray:
+        """(m,) expert weights (sum 1) for a reference clip's (t, 9) character and (t, 6) camera features."""
+        return self.gate_sequence(self.gate_input(char, cam)[None])[0]
+
+    def gate_sequence(self, x: np.ndarray) -> np.ndarray:
+        """(b, m) expert weights of (b, gate_len, 15) normalised sequences: the LSTM's last state, FC, softmax."""
+        w = self.w
+        h_size = w["gate.lstm.weight_hh"].shape[1]
+        h = np.zeros((len(x), h_size))
+        cell = np.zeros_like(h)
+        for k in range(x.shape[1]):
+            z = x[:, k] @ w["gate.lstm.weight_ih"].T + w["gate.lstm.bias_ih"] + h @ w["gate.lstm.weight_hh"].T \
+                + w["gate.lstm.bias_hh"]
+            i, f, g, o = np.split(z, 4, axis=1)
+            cell = _sigmoid(f) * cell + _sigmoid(i) * np.tanh(g)
+            h = _sigmoid(o) * np.tanh(cell)
+        logits = h @ w["gate.fc.weight"].T + w["gate.fc.bias"]
+        e = np.exp(logits - logits.max(axis=1, keepdims=True))
+        return e / e.sum(axis=1, keepdims=True)
+
+    # -------------------------------------------------------------- prediction
+    def blend(self, weights: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+        """The prediction network's three layers for one expert mix: [(W (in, out), b (out,)), ...]."""
+        wt = np.asarray(weights, dtype=np.float64)
+        return [(np.tensordot(wt, self.w[f"experts.w{k}"], 1), wt @ self.w[f"experts.b{k}"]) for k in (1, 2, 3)]
+
+    def predict(self, layers, x: np.ndarray) -> np.ndarray:
+        """(b, out * 6) normalised camera features of the next ``out`` samples from (b, n_in) normalised inputs."""
+        (w1, b1), (w2, b2), (w3, b3) = layers
+        return _elu(_elu(x @ w1 + b1) @ w2 + b2) @ w3 + b3
+
+    def predict_experts(self, weights: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """As :meth:`predict` with a mix per row ((b, m) weights): the training's form, for the tests."""
+        out = x
+        for k in (1, 2, 3):
+            per = np.einsum("bi,mio->bmo", out, self.w[f"experts.w{k}"]) + self.w[f"experts.b{k}"][None]
+            out = np.einsum("bm,bmo->bo", weights, per)
+            if k < 3:
+                out = _elu(out)
+        return out
+
+    def inputs(self, char_n: np.ndarray, past_n: np.ndarray, frame: int) -> np.ndarray:
+        """(n_in,) prediction input at ``frame``: normalised character features around it, camera before it.
+
+        ``char_n`` is (t, 9) normalised, ``past_n`` (past, 6) normalised camera samples ending at ``frame``.
+        """
+        c = self.config
+        idx = frame + np.arange(-(c.char_past - 1), c.char_future + 1) * c.step
+        window = char_n[np.clip(idx, 0, len(char_n) - 1)]
+        return np.concatenate([past_n.ravel(), window.ravel()])
+
+    def rollout(self, weights: np.ndarray, char: np.ndarray, start_cam: np.ndarray) -> np.ndarray:
+        """(t, 6) camera features filming characters ``char`` (t, 9) in the style of ``weights``.
+
+        Parameters
+        ----------
+        weights : (m,) float
+            Expert mix (:meth:`gate`).
+        char : (t, 9) float
+            The new scene's character features.
+        start_cam : (6,) float
+            Camera features to start from (held over the first past window).
+
+        The network predicts ``out`` samples (``out * step`` frames) at a
+        time, which become the past of the next prediction; frames between
+        samples are interpolated linearly.
+        """
+        c = self.config
+        layers = self.blend(weights)
+        char_n = (np.asarray(char, dtype=np.float64) - self.w["char_mean"]) / self.w["char_std"]
+        cam_n = np.clip((np.asarray(start_cam, dtype=np.float64) - self.w["cam_mean"]) / self.w["cam_std"], -CLIP, CLIP)
+        samples = [cam_n] * c.past
+        frame, t = 0, len(char_n)
+        while frame < t - 1:
+            x = self.inputs(char_n, np.array(samples[-c.past:]), frame)
+            # Fed back, a prediction must stay within what the network has seen, or a roll-out can diverge.
+            samples.extend(np.clip(self.predict(layers, x[None])[0].reshape(c.out, N_CAMERA), -CLIP, CLIP))
+            frame += c.out * c.step
+        known = np.array(samples[c.past - 1:]) * self.w["cam_std"] + self.w["cam_mean"]
+        at = np.arange(len(known)) * c.step
+        out = np.column_stack([np.interp(np.arange(t), at, known[:, k]) for k in range(N_CAMERA)])
+        norm = np.hypot(out[:, 4], out[:, 5])
+        out[:, 4:6] /= np.maximum(norm, 1e-9)[:, None]
+        return out
