@@ -379,3 +379,37 @@ def test_validate_reports_a_toric_camera_whose_target_is_not_an_agent(dialogue_s
     (shot / "cameras.usda").write_text(text.replace('1: "/World/Crowd/Pair/B"', '1: "/World/Crowd/Pair/Nobody"'))
     errors = [p for p in validate(shot / "shot.usda") if p.severity == "error"]
     assert any(p.attribute == "crowd:toric:targetB" and "Nobody" in p.message for p in errors), errors
+
+
+def test_features_follow_a_zooming_camera_frame_by_frame(dialogue_shot, tmp_path):
+    """A camera whose focal length changes: each frame's pA, pB are measured with that frame's lens."""
+    import shutil
+
+    from pxr import Sdf
+
+    from usdcrowd.cameras.features import shot_features
+    from usdcrowd.render.scene import ShotScene
+
+    shutil.copytree(dialogue_shot.parent, tmp_path / "copy")
+    shot = tmp_path / "copy" / "shot"
+    assert _run("frame", shot / "shot.usda", "--behavior", "orbit", "--targets", "A", "B", "--name", "Zoom",
+                "--shot", "long", "--no-progress") == 0
+    layer = Sdf.Layer.FindOrOpen(str(shot / "shot.usda"))
+    spec = Sdf.CreatePrimInLayer(layer, "/World/Cameras/Zoom")
+    spec.specifier = Sdf.SpecifierOver
+    focal = Sdf.AttributeSpec(spec, "focalLength", Sdf.ValueTypeNames.Float)
+    layer.SetTimeSample(focal.path, 1.0, 0.35)          # 35 mm ...
+    layer.SetTimeSample(focal.path, 120.0, 0.70)        # ... to 70 mm
+    layer.Save()
+    features, about = shot_features(shot / "shot.usda", "/World/Cameras/Zoom", "A", "B", [1, 60, 120], 1920, 1080)
+    assert isinstance(about["fov_x_deg"], list) and about["fov_x_deg"][0] > about["fov_x_deg"][2]
+    scene = ShotScene(shot / "shot.usda")
+    rows = [scene.agent_row("A"), scene.agent_row("B")]
+    from usdcrowd.cameras.features import head_and_facing
+
+    for k, t in enumerate((1, 60, 120)):
+        view = scene.camera("/World/Cameras/Zoom", t)
+        heads, _ = head_and_facing(scene.agents(t, rows).joints_world)
+        uv, _ = view.project(heads, 1920, 1080)
+        ndc = np.stack([uv[:, 0] / 1920 * 2 - 1, 1 - uv[:, 1] / 1080 * 2], -1)
+        np.testing.assert_allclose([features.p_a[k], features.p_b[k]], ndc, atol=1e-6)

@@ -68,7 +68,7 @@ def head_and_facing(joints_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def cinematic_features(times, heads_a, heads_b, yaw_a, yaw_b, ground_a, ground_b, boxes_a, boxes_b,
-                       cam_to_world, fov_x: float, aspect: float) -> CinematicFeatures:
+                       cam_to_world, fov_x, aspect: float) -> CinematicFeatures:
     """Features of a camera filming A and B.
 
     Parameters
@@ -84,15 +84,18 @@ def cinematic_features(times, heads_a, heads_b, yaw_a, yaw_b, ground_a, ground_b
         On-screen box areas (any unit; only their means are compared).
     cam_to_world : (t, 4, 4) float
         Row-vector camera-to-world matrices.
-    fov_x, aspect : float
-        Horizontal field of view (radians) and width / height.
+    fov_x : float or (t,) float
+        Horizontal field of view, radians (per frame for a zooming camera).
+    aspect : float
+        Width / height.
     """
     t = len(times)
+    fovs = np.broadcast_to(np.asarray(fov_x, dtype=np.float64), (t,))
     p_a, p_b = np.full((t, 2), np.nan), np.full((t, 2), np.nan)
     theta, phi = np.full(t, np.nan), np.full(t, np.nan)
     for k in range(t):
         try:
-            p_a[k], p_b[k], theta[k], phi[k] = pose_to_toric(cam_to_world[k], heads_a[k], heads_b[k], fov_x, aspect)
+            p_a[k], p_b[k], theta[k], phi[k] = pose_to_toric(cam_to_world[k], heads_a[k], heads_b[k], fovs[k], aspect)
         except ToricError:
             pass                # a head behind the camera, or the two heads on one vertical
     d_ab, s_a, s_b, s_ab = pair_orientation(ground_a, ground_b, yaw_a, yaw_b)
@@ -165,13 +168,13 @@ def shot_features(shot, camera: str | None, agent_a: str, agent_b: str, times=No
     ia, ib = scene.agent_row(agent_a), scene.agent_row(agent_b)
     times = np.asarray(scene.time_codes if times is None else times, dtype=np.float64)
     scene.check_times(times)
-    heads, yaws, grounds, boxes, mats = [], [], [], [], []
+    heads, yaws, grounds, boxes, mats, fovs = [], [], [], [], [], []
     view = None
     for t in times:
         view = scene.camera(camera, t)
-        poses = scene.agents(t)
-        head, yaw = head_and_facing(poses.joints_world[[ia, ib]])
-        key = poses.keypoints()[[ia, ib]]
+        poses = scene.agents(t, [ia, ib])
+        head, yaw = head_and_facing(poses.joints_world)
+        key = poses.keypoints()
         uv, z = view.project(key, width, height)
         size = np.where((z > 0).all(axis=1), np.ptp(uv[..., 0], axis=1) * np.ptp(uv[..., 1], axis=1), 0.0)
         heads.append(head)
@@ -179,12 +182,14 @@ def shot_features(shot, camera: str | None, agent_a: str, agent_b: str, times=No
         grounds.append(key[:, -1])
         boxes.append(size)
         mats.append(view.cam_to_world)
-    heads, yaws, grounds, boxes = (np.array(v) for v in (heads, yaws, grounds, boxes))
-    fov_x, aspect = np.radians(view.fov_x()), width / height
+        fovs.append(np.radians(view.fov_x()))          # per frame: a zooming camera's lens changes
+    heads, yaws, grounds, boxes, fovs = (np.array(v) for v in (heads, yaws, grounds, boxes, fovs))
+    aspect = width / height
     features = cinematic_features(times, heads[:, 0], heads[:, 1], yaws[:, 0], yaws[:, 1], grounds[:, 0],
-                                  grounds[:, 1], boxes[:, 0], boxes[:, 1], np.array(mats), fov_x, aspect)
+                                  grounds[:, 1], boxes[:, 0], boxes[:, 1], np.array(mats), fovs, aspect)
     about = {"shot": scene.path, "camera": view.path, "A": paths[ia], "B": paths[ib],
-             "fov_x_deg": float(np.degrees(fov_x)), "aspect": aspect}
+             "fov_x_deg": [float(v) for v in np.degrees(fovs)] if np.ptp(fovs) > 0 else float(np.degrees(fovs[0])),
+             "aspect": aspect}
     return features, about
 
 
