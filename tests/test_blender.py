@@ -198,3 +198,54 @@ def test_blender_keeps_groups_axes_and_units_of_a_y_up_centimetre_shot(blender_p
     assert sorted(agents) == sorted(info.agent_id[info.visible].tolist())
     assert {p["crowd:group"] for p in agents.values()} == {"/World/Crowd"}
     assert props["Crowd"]["crowd:clones"] == 3 and props["Crowd"]["crowd:agents"] == len(info.agent_id)
+
+
+TORIC_SCRIPT = '''
+import bpy, json, sys
+from bpy_extras.object_utils import world_to_camera_view
+from mathutils import Vector
+bpy.ops.wm.read_factory_settings(use_empty=True)
+bpy.ops.wm.usd_import(filepath=sys.argv[1])
+heads = json.loads(open(sys.argv[2]).read())
+scene = bpy.context.scene
+scene.render.resolution_x, scene.render.resolution_y = 1920, 1080
+cam = bpy.data.objects[sys.argv[3]]
+out = {}
+for f, hs in heads.items():
+    scene.frame_set(int(f))
+    out[f] = [list(world_to_camera_view(scene, cam, Vector(h)))[:2] for h in hs]
+print("RESULT " + json.dumps(out))
+'''
+
+
+def test_blender_sees_the_two_heads_where_the_toric_camera_says(blender_python, tmp_path):
+    """Blender's own projection, through the toric camera it imports, puts the heads at crowd:toric:pA and pB."""
+    import shutil
+
+    from usdcrowd.cameras.features import head_and_facing
+    from usdcrowd.cli import main
+    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.resources import data_dir
+
+    shutil.copy(data_dir("stages") / "dialogue.usda", tmp_path / "dialogue.usda")
+    shot = tmp_path / "shot"
+    assert main(["simulate", str(tmp_path / "dialogue.usda"), "-o", str(shot), "--frames", "1:120",
+                 "--no-progress"]) == 0
+    assert main(["frame", str(shot / "shot.usda"), "--behavior", "orbit", "--targets", "A", "B", "--shot",
+                 "close-up", "--smooth", "--no-progress"]) == 0
+    scene = ShotScene(shot / "shot.usda")
+    rows = [scene.agent_row("A"), scene.agent_row("B")]
+    frames = (1, 45, 90, 120)
+    heads = {t: head_and_facing(scene.agents(t, rows).joints_world)[0].tolist() for t in frames}
+    (tmp_path / "heads.json").write_text(json.dumps(heads))
+    script = tmp_path / "toric.py"
+    script.write_text(TORIC_SCRIPT)
+    run = subprocess.run([blender_python, str(script), str(shot / "shot.usda"), str(tmp_path / "heads.json"),
+                          "Orbit_A_B"], capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr[-2000:]
+    got = json.loads(next(ln for ln in run.stdout.splitlines() if ln.startswith("RESULT "))[len("RESULT "):])
+    prim = scene.stage.GetPrimAtPath("/World/Cameras/Orbit_A_B")
+    for t in frames:
+        blender_ndc = np.array(got[str(t)]) * 2 - 1
+        authored = [prim.GetAttribute("crowd:toric:pA").Get(t), prim.GetAttribute("crowd:toric:pB").Get(t)]
+        np.testing.assert_allclose(blender_ndc, np.array(authored, dtype=float), atol=1e-4)
