@@ -1,6 +1,6 @@
 """Train the learned camera behaviors (seed 002, section 5) and evaluate them as the paper does.
 
-    python tools/train_camera_moe.py [--epochs 20] [--per-behavior 60] [--seed 0] [--out build/camera_moe]
+    python tools/train_camera_moe.py [--epochs 40] [--per-behavior 100] [--seed 0] [--out build/camera_moe]
                                      [--install]
 
 1. makes a seeded dataset with usdcrowd: two-character motions filmed by the
@@ -126,8 +126,8 @@ def plots(out: Path, errors_csv: Path, history_csv: Path) -> list[str]:
 
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--epochs", type=int, default=20)
-    p.add_argument("--per-behavior", type=int, default=60, help="training clips per behavior (20 s each)")
+    p.add_argument("--epochs", type=int, default=40)
+    p.add_argument("--per-behavior", type=int, default=100, help="training clips per behavior (20 s each)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default="build/camera_moe")
     p.add_argument("--install", action="store_true", help="copy the weights into the package")
