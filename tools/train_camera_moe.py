@@ -1,6 +1,6 @@
 """Train the learned camera behaviors (seed 002, section 5) and evaluate them as the paper does.
 
-    python tools/train_camera_moe.py [--epochs 40] [--per-behavior 100] [--seed 0] [--out build/camera_moe]
+    python tools/train_camera_moe.py [--epochs 50] [--per-behavior 100] [--seed 0] [--out build/camera_moe]
                                      [--install]
 
 1. makes a seeded dataset with usdcrowd: two-character motions filmed by the
@@ -37,7 +37,7 @@ sys.path.insert(0, str(ROOT))
 
 TORCH_PACKAGES = ["torch==2.13.0", "numpy", "scikit-learn"]
 CONFIG = {"step": 2, "past": 4, "char_past": 12, "char_future": 12, "out": 6, "gate_step": 4, "gate_len": 60,
-          "experts": 9, "hidden": 128, "gate_hidden": 32, "noise": 0.2, "blind": 0.3}
+          "experts": 9, "hidden": 128, "gate_hidden": 32, "noise": 0.3, "blind": 0.6}
 
 
 def torch_python() -> str:
@@ -126,7 +126,7 @@ def plots(out: Path, errors_csv: Path, history_csv: Path) -> list[str]:
 
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--epochs", type=int, default=40)
+    p.add_argument("--epochs", type=int, default=50)
     p.add_argument("--per-behavior", type=int, default=100, help="training clips per behavior (20 s each)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default="build/camera_moe")
