@@ -22,14 +22,15 @@ def add_parser(sub):
     p.add_argument("--camera", metavar="PATH", help="with --like: the reference's camera (default: its first)")
     p.add_argument("--like-targets", nargs=2, metavar=("A", "B"),
                    help="with --like: the reference's two characters (default: its toric camera's targets)")
-    p.add_argument("--targets", nargs="+", required=True, metavar="A B | auto",
+    p.add_argument("--targets", nargs="+", required=True, metavar="NAME",
                    help="the two characters (prim paths, or names when unique; A is the main character), or "
                         "'auto': per span of --span seconds, the pair the scene brings together (a talk or a "
                         "trade between two, else the closest two)")
     p.add_argument("--span", type=float, default=5.0, metavar="SECONDS",
                    help="with --targets auto: how long a pair is kept at least (default 5)")
     p.add_argument("--shot", dest="shot_size", default="medium", choices=tuple(SHOT_SIZES),
-                   help="how large the main character is on screen (default: medium)")
+                   help="how large the main character is on screen (default: medium; with --like, the "
+                        "reference's)")
     p.add_argument("--switch", nargs=3, action="append", default=[], metavar=("FRAME", "A", "B"),
                    help="from FRAME on, frame another pair (repeatable; the targets are blended over 1 s)")
     p.add_argument("--smooth", action="store_true",
