@@ -77,6 +77,12 @@ class MoE(nn.Module):
         w = self.gate(gate_x)
         return self.experts(x, w), w
 
+    def weights(self, gate_x):
+        return self.gate(gate_x)
+
+    def step(self, x, w):
+        return self.experts(x, w)
+
 
 class SharedBottom(nn.Module):
     """The paper's baseline: one shared layer, then a branch (Appendix A), no gating."""
@@ -91,6 +97,12 @@ class SharedBottom(nn.Module):
     def forward(self, gate_x, x):
         return self.net(x), None
 
+    def weights(self, gate_x):
+        return None
+
+    def step(self, x, w):
+        return self.net(x)
+
 
 # ------------------------------------------------------------------------------------ samples
 class Windows:
@@ -104,7 +116,7 @@ class Windows:
         self.labels = data["behavior"]
         c, t, _ = self.char.shape
         lo = (cfg["past"] - 1) * cfg["step"]
-        hi = t - 1 - cfg["out"] * cfg["step"]
+        hi = t - 1 - cfg.get("unroll", 1) * cfg["out"] * cfg["step"]
         frames = np.arange(lo, hi, stride)
         self.index = np.array([(i, f) for i in range(c) for f in frames])
 
@@ -141,6 +153,27 @@ class Windows:
         y = self.cam[clips[:, None], out_idx].reshape(len(rows), -1)
         return (torch.tensor(self.gate_inputs(clips, random_gate), dtype=torch.float32),
                 torch.tensor(x, dtype=torch.float32), torch.tensor(y, dtype=torch.float32))
+
+
+    def unrolled(self, rows, steps: int, noise: float):
+        """A batch for ``steps`` predictions in a row: gate input, the first past (noised, sometimes
+        hidden), and per step the character window and the truth; later steps' past is the model's own."""
+        cfg = self.cfg
+        clips, frames = self.index[rows, 0], self.index[rows, 1]
+        t = self.char.shape[1]
+        past_idx = frames[:, None] + np.arange(-(cfg["past"] - 1), 1) * cfg["step"]
+        past = self.cam[clips[:, None], past_idx] + self.rng.normal(0.0, noise, (len(rows), cfg["past"], N_CAM))
+        past[self.rng.random(len(rows)) < cfg.get("blind", 0.0)] = 0.0
+        chars, ys = [], []
+        for r in range(steps):
+            at = frames + r * cfg["out"] * cfg["step"]
+            char_idx = np.clip(at[:, None] + np.arange(-(cfg["char_past"] - 1), cfg["char_future"] + 1) * cfg["step"],
+                               0, t - 1)
+            chars.append(self.char[clips[:, None], char_idx].reshape(len(rows), -1))
+            out_idx = np.clip(at[:, None] + np.arange(1, cfg["out"] + 1) * cfg["step"], 0, t - 1)
+            ys.append(self.cam[clips[:, None], out_idx].reshape(len(rows), -1))
+        f32 = lambda a: torch.tensor(np.asarray(a), dtype=torch.float32)  # noqa: E731
+        return (f32(self.gate_inputs(clips)), f32(past.reshape(len(rows), -1)), f32(chars), f32(ys))
 
 
 def _stats(data) -> dict:
@@ -195,10 +228,17 @@ def train(data_path: str, out_dir: str, epochs: int, seed: int, batch: int = 256
             t0 = time.perf_counter()
             order = rng.permutation(len(tr))
             total = 0.0
+            steps = cfg.get("unroll", 1)
             for lo in range(0, len(order), batch):
-                g, x, y = tr.batch(order[lo:lo + batch], noise=cfg.get("noise", 0.2))
-                pred, _ = model(g, x)
-                loss = torch.mean((pred - y) ** 2)
+                # Trained on its own roll-outs: after the first step the past camera is the model's prediction.
+                g, past, chars, ys = tr.unrolled(order[lo:lo + batch], steps, cfg.get("noise", 0.2))
+                w = model.weights(g)
+                loss = 0.0
+                for r in range(steps):
+                    pred = model.step(torch.cat([past, chars[r]], 1), w)
+                    loss = loss + torch.mean((pred - ys[r]) ** 2) / steps
+                    past = pred.view(len(pred), cfg["out"], N_CAM)[:, -cfg["past"]:].reshape(len(pred), -1)
+                y = ys[0]
                 opt.zero_grad()
                 loss.backward()
                 opt.step()

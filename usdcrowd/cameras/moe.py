@@ -129,6 +129,7 @@ class Config:
     gate_hidden: int
     noise: float = 0.0    # training: noise added to the past camera input (robust roll-outs)
     blind: float = 0.0    # training: share of samples shown no past camera (the gate must carry the behavior)
+    unroll: int = 1       # training: predictions in a row, each fed the one before (as a roll-out)
 
     @property
     def n_in(self) -> int:
