@@ -114,7 +114,9 @@ def test_beauty_sees_the_box_where_the_camera_model_puts_it(box_frame):
     # Mitsuba's Gaussian filter reaches 2 pixels: look 3 pixels away from the edge.
     core, outside = binary_erosion(inside, iterations=3), binary_erosion(~inside, iterations=3)
     assert np.allclose(lum[outside], 1.0, atol=1e-3)
-    assert lum[core].mean() == pytest.approx(0.5 * 0.96, abs=0.05)    # the lit side of a principled grey
+    # The lit side of a principled grey under a white sky: albedo 0.5 plus the specular layer (0.538-0.540
+    # at 256 spp with the independent, multijitter, stratified and low-discrepancy samplers alike).
+    assert lum[core].mean() == pytest.approx(0.54, abs=0.03)
     assert lum[core].max() < 0.8
 
 

@@ -33,6 +33,14 @@ def add_parser(sub):
     p.add_argument("--address", help="Ray cluster address (default: start a local Ray instance)")
     p.add_argument("--mp4", action="store_true", help="also write render.mp4 (needs imageio-ffmpeg)")
     p.add_argument("--seed", type=int, default=0, help="sampler seed of the beauty pass")
+    p.add_argument("--sampler", choices=("independent", "stratified", "multijitter", "orthogonal", "ldsampler"),
+                   help="Mitsuba sampler of the beauty (default: the preset's, multijitter)")
+    denoise = p.add_mutually_exclusive_group()
+    denoise.add_argument("--denoise", dest="denoise", action="store_const", const=True, default=None,
+                         help="denoise the beauty with Intel Open Image Denoise (EXR R, G, B; the path-traced "
+                              "beauty as raw.R, raw.G, raw.B)")
+    denoise.add_argument("--no-denoise", dest="denoise", action="store_const", const=False,
+                         help="keep the path-traced beauty as it is (every preset denoises)")
     add_progress(p)
     p.set_defaults(run=run)
 
@@ -43,7 +51,8 @@ def run(args) -> int:
 
     settings = settings_from_preset(args.preset, resolution=args.resolution, spp=args.spp,
                                     max_depth=args.max_depth, ground_truth=args.ground_truth,
-                                    exposure=args.exposure, working_space=args.working_space, seed=args.seed)
+                                    exposure=args.exposure, working_space=args.working_space, seed=args.seed,
+                                    sampler=args.sampler, denoise=args.denoise)
     settings.variant = choose_variant(args.variant)
     print(describe(settings.variant))
     r = render_sequence(args.shot, args.output, camera=args.camera, frames=args.frames, settings=settings,

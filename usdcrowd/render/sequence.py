@@ -58,6 +58,8 @@ class RenderSettings:
     exposure: float = 0.0
     seed: int = 0
     variant: str | None = None
+    sampler: str = "multijitter"
+    denoise: bool = False
 
     def fingerprint(self) -> dict:
         """The settings that change output pixels (variant excluded: same picture, other noise)."""
@@ -98,6 +100,10 @@ def settings_from_preset(name: str = "groundtruth", **overrides) -> RenderSettin
 
     if values.get("working_space", "sRGB") not in WORKING_SPACES:
         raise UsdcrowdError(f"working space must be one of {', '.join(WORKING_SPACES)}")
+    from .final.camera import SAMPLERS
+
+    if values.get("sampler", RenderSettings.sampler) not in SAMPLERS:
+        raise UsdcrowdError(f"sampler must be one of {', '.join(SAMPLERS)}, not {values['sampler']!r}")
     known = set(RenderSettings.__dataclass_fields__)
     return RenderSettings(**{k: v for k, v in values.items() if k in known})
 
@@ -132,9 +138,11 @@ def _file_record(out: Path, rel: str) -> dict:
 
 
 def expected_channels(settings: RenderSettings) -> list[str]:
-    from .final.exr import BEAUTY, GROUND_TRUTH
+    from .final.exr import BEAUTY, GROUND_TRUTH, RAW_BEAUTY
 
     names = list(BEAUTY)
+    if settings.denoise:
+        names += list(RAW_BEAUTY)
     if settings.ground_truth:
         names += [c for c in GROUND_TRUTH if c.split(".")[0] in settings.aovs]
     return names
@@ -158,7 +166,8 @@ def render_frame_to_disk(renderer, metadata, t: float, out_dir, settings: Render
     result = renderer.render(t)
     w0 = _time.perf_counter()
     beauty = convert(result.beauty, "sRGB", settings.working_space)
-    channels = channels_of(beauty, result.gt)
+    raw = convert(result.raw, "sRGB", settings.working_space) if result.raw is not None else None
+    channels = channels_of(beauty, result.gt, raw)
     keep = set(expected_channels(settings))
     channels = {k: v for k, v in channels.items() if k in keep}
     write_frame_exr(out / files["exr"], channels, result.id_paths,
@@ -281,7 +290,8 @@ def _build_worker(shot_path, camera, settings_dict, threads):
     settings = RenderSettings(**settings_dict)
     shot = ShotScene(shot_path)
     _WORKER["renderer"] = FrameRenderer(shot, camera, settings.resolution, settings.spp, settings.max_depth,
-                                        settings.variant, settings.ground_truth, settings.seed, threads)
+                                        settings.variant, settings.ground_truth, settings.seed, threads,
+                                        sampler=settings.sampler, denoise=settings.denoise)
     _WORKER["metadata"] = AgentMetadata.from_shot(shot) if settings.ground_truth else None
     _WORKER["settings"] = settings
 

@@ -26,7 +26,11 @@ def sensor_to_world(cam: CameraView) -> np.ndarray:
     return (_MITSUBA_TO_USD @ cam.cam_to_world).T
 
 
-def sensor_dict(cam: CameraView, width: int, height: int, spp: int, rfilter: str = "box") -> dict:
+SAMPLERS = ("independent", "stratified", "multijitter", "orthogonal", "ldsampler")
+
+
+def sensor_dict(cam: CameraView, width: int, height: int, spp: int, rfilter: str = "box",
+                sampler: str = "independent") -> dict:
     """Mitsuba ``perspective`` sensor for ``cam`` on a ``width`` x ``height`` linear RGB film.
 
     Parameters
@@ -45,6 +49,8 @@ def sensor_dict(cam: CameraView, width: int, height: int, spp: int, rfilter: str
         their last bits between identical runs); its noise is also
         uncorrelated between pixels, which a denoiser needs, and it renders
         about a quarter faster.
+    sampler : str
+        Mitsuba sampler of the beauty (one of SAMPLERS).
     """
     import mitsuba as mi
 
@@ -55,7 +61,7 @@ def sensor_dict(cam: CameraView, width: int, height: int, spp: int, rfilter: str
         "near_clip": max(cam.near, 1e-4),
         "far_clip": cam.far,
         "to_world": mi.ScalarTransform4f(sensor_to_world(cam).tolist()),
-        "sampler": {"type": "independent", "sample_count": int(spp)},
+        "sampler": {"type": sampler, "sample_count": int(spp)},
         "film": {"type": "hdrfilm", "width": int(width), "height": int(height), "pixel_format": "rgb",
                  "rfilter": {"type": rfilter}},
     }

@@ -28,6 +28,7 @@ from ...atomic import atomic_path
 from ...errors import UsdcrowdError
 
 BEAUTY = ("R", "G", "B")
+RAW_BEAUTY = ("raw.R", "raw.G", "raw.B")        # the path-traced beauty, where R, G, B hold it denoised
 GROUND_TRUTH = ("depth.z", "depth.distance", "normal.X", "normal.Y", "normal.Z", "position.X", "position.Y",
                 "position.Z", "albedo.R", "albedo.G", "albedo.B", "id")
 ID_TABLE = "usdcrowd:idTable"
@@ -42,15 +43,20 @@ def require_openexr():
     return OpenEXR
 
 
-def channels_of(beauty: np.ndarray, gt=None) -> dict[str, np.ndarray]:
+def channels_of(beauty: np.ndarray, gt=None, raw: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Name -> (h, w) array for :func:`write_frame_exr`.
 
     Parameters
     ----------
     beauty : (h, w, 3) float
+        The final beauty (denoised where it was).
     gt : GroundTruth, optional
+    raw : (h, w, 3) float, optional
+        The path-traced beauty before denoising (``raw.R``, ``raw.G``, ``raw.B``).
     """
     ch = {name: np.ascontiguousarray(beauty[..., k], dtype=np.float32) for k, name in enumerate(BEAUTY)}
+    if raw is not None:
+        ch.update({name: np.ascontiguousarray(raw[..., k], dtype=np.float32) for k, name in enumerate(RAW_BEAUTY)})
     if gt is not None:
         ch["depth.z"] = gt.depth_z.astype(np.float32)
         ch["depth.distance"] = gt.depth_distance.astype(np.float32)

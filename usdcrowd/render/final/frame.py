@@ -32,7 +32,10 @@ from ...view import CameraView
 from ..scene import ShotScene
 from . import variant as _variant
 from .build import AGENTS_KEY, SENSOR_KEY, BuiltScene, agent_vertices, build_scene, posed_scenery
-from .camera import pixel_rays, sensor_to_world
+from .camera import SAMPLERS, pixel_rays, sensor_to_world
+
+SAMPLER = "multijitter"             # the least noise per second on the demo's frames (tools/bench.py render)
+SQUARE_SAMPLERS = ("stratified", "multijitter")
 from .meshes import GTID_ATTRIBUTE, decode_ids, float_buffer
 
 # Peeling stops after this many surfaces along a ray (a body is two).
@@ -87,7 +90,9 @@ class FrameResult:
     id_paths : dict[int, str]
         Ground-truth id -> prim path.
     seconds : dict[str, float]
-        Wall time of "update", "beauty" and "ground_truth".
+        Wall time of "update", "beauty", "denoise" and "ground_truth".
+    raw : (h, w, 3) float32 or None
+        The beauty as path traced, when ``beauty`` is its denoised version.
     """
 
     time: float
@@ -98,6 +103,45 @@ class FrameResult:
     vertices: np.ndarray
     id_paths: dict[int, str]
     seconds: dict[str, float]
+    raw: np.ndarray | None = None       # (h, w, 3) float32 beauty before denoising (None when not denoised)
+
+
+def sample_passes(spp: int, sampler: str) -> list[int]:
+    """The sample counts of the passes that make ``spp`` (see :meth:`FrameRenderer._beauty`)."""
+    base = 4 if sampler in SQUARE_SAMPLERS else 2
+    parts, k = [], 0
+    while base ** (k + 1) <= spp:
+        k += 1
+    left = int(spp)
+    for e in range(k, -1, -1):
+        while left >= base ** e:
+            parts.append(base ** e)
+            left -= base ** e
+    return parts
+
+
+def require_denoiser():
+    """Intel Open Image Denoise's Python binding, or a one-line error saying how to install it."""
+    from ...errors import UsdcrowdError
+
+    try:
+        import pyoidn
+    except ImportError:
+        raise UsdcrowdError("denoising needs Intel Open Image Denoise: pip install 'usdcrowd[final]' (pyoidn), "
+                            "or render with --no-denoise") from None
+    return pyoidn
+
+
+def denoise(color: np.ndarray, albedo: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """(h, w, 3) float32 beauty denoised by OIDN's RT filter (HDR), guided by albedo and normal.
+
+    The guides are the beauty's own samples' averages (noisy where the beauty
+    is, at edges and through glossy reflections), so OIDN prefilters them.
+    """
+    pyoidn = require_denoiser()
+    out = pyoidn.denoise(np.ascontiguousarray(color, np.float32), np.ascontiguousarray(np.clip(albedo, 0, 1), np.float32),
+                         np.ascontiguousarray(np.clip(normal, -1, 1), np.float32), hdr=True)
+    return np.asarray(out, dtype=np.float32)
 
 
 class FrameRenderer:
@@ -122,11 +166,18 @@ class FrameRenderer:
         Base seed of the beauty sampler; frame ``t`` uses ``seed + round(t * 1000)``.
     threads : int, optional
         Dr.Jit worker threads (LLVM), e.g. cores / workers.
+    sampler : str
+        Mitsuba sampler of the beauty (default multijitter: the least noise
+        per second measured on the demo's frames).
+    denoise : bool
+        Denoise the beauty with Intel Open Image Denoise, guided by albedo
+        and normal averaged over the beauty's own samples; the path-traced
+        beauty is kept as ``FrameResult.raw``.
     """
 
     def __init__(self, shot, camera: str | None = None, resolution=(640, 360), spp: int = 64,
                  max_depth: int = 6, variant: str | None = None, ground_truth: bool = True, seed: int = 0,
-                 threads: int | None = None):
+                 threads: int | None = None, sampler: str = SAMPLER, denoise: bool = False):
         self.shot = shot if isinstance(shot, ShotScene) else ShotScene(os.fspath(shot))
         self.variant = _variant.choose_variant(variant)
         mi = _variant.activate(self.variant)
@@ -137,11 +188,17 @@ class FrameRenderer:
         self.camera_path = camera
         self.width, self.height = int(resolution[0]), int(resolution[1])
         self.spp, self.max_depth, self.ground_truth, self.seed = int(spp), int(max_depth), ground_truth, int(seed)
+        if sampler not in SAMPLERS:
+            raise ValueError(f"unknown sampler {sampler!r} (one of {', '.join(SAMPLERS)})")
+        self.sampler, self.denoise = sampler, bool(denoise)
+        if self.denoise:
+            require_denoiser()
         t0 = float(self.shot.time_codes[0]) if len(self.shot.time_codes) else 0.0
         cam = self.shot.camera(camera, t0)
         self.camera_path = cam.path
         start = _time.perf_counter()
-        self.built: BuiltScene = build_scene(self.shot, cam, self.width, self.height, self.spp, self.max_depth, t0)
+        self.built: BuiltScene = build_scene(self.shot, cam, self.width, self.height, self.spp, self.max_depth, t0,
+                                             sampler=self.sampler, guides=self.denoise)
         self.build_seconds = _time.perf_counter() - start
         self._mi = mi
 
@@ -170,29 +227,35 @@ class FrameRenderer:
         s0 = _time.perf_counter()
         cam, poses, vertices = self._update(float(t))
         s1 = _time.perf_counter()
-        beauty = self._beauty(mi, self.seed + int(round(float(t) * 1000)))
+        film = self._beauty(mi, self.seed + int(round(float(t) * 1000)))
         s2 = _time.perf_counter()
-        gt = self.cast_ground_truth(cam, vertices, poses) if self.ground_truth else None
+        raw = np.ascontiguousarray(film[..., :3])
+        beauty = denoise(raw, film[..., 3:6], film[..., 6:9]) if self.denoise else raw
         s3 = _time.perf_counter()
+        gt = self.cast_ground_truth(cam, vertices, poses) if self.ground_truth else None
+        s4 = _time.perf_counter()
         return FrameResult(float(t), beauty, gt, cam, poses, vertices, dict(self.built.id_paths),
-                           {"update": s1 - s0, "beauty": s2 - s1, "ground_truth": s3 - s2})
+                           {"update": s1 - s0, "beauty": s2 - s1, "denoise": s3 - s2, "ground_truth": s4 - s3},
+                           raw if self.denoise else None)
 
     def _beauty(self, mi, seed: int) -> np.ndarray:
-        """(h, w, 3) float32 beauty, the same bytes run after run.
+        """(h, w, c) float32 film (beauty R, G, B, then the denoiser's guides), the same bytes run after run.
 
         With the box filter each pixel's samples are consecutive lanes, summed
         by one thread as long as they do not straddle two of the JIT's blocks
         of lanes (a power of two): so the samples are taken in passes of
         powers of two (48 spp: 32 then 16), each deterministic, added up here
-        in a fixed order.
+        in a fixed order. Stratified samplers need square counts: their passes
+        are powers of four (48 spp: 16, 16, 16).
         """
-        parts = [1 << k for k in range(self.spp.bit_length() - 1, -1, -1) if self.spp & (1 << k)]
+        parts = sample_passes(self.spp, self.sampler)
+        channels = 9 if self.denoise else 3
         if len(parts) == 1:
-            return np.array(mi.render(self.built.scene, spp=self.spp, seed=seed), dtype=np.float32)[..., :3]
+            return np.array(mi.render(self.built.scene, spp=self.spp, seed=seed), dtype=np.float32)[..., :channels]
         total = None
         for k, n in enumerate(parts):
-            img = np.array(mi.render(self.built.scene, spp=n, seed=seed + 7919 * k), dtype=np.float64)[..., :3] * n
-            total = img if total is None else total + img
+            img = np.array(mi.render(self.built.scene, spp=n, seed=seed + 7919 * k), dtype=np.float64)[..., :channels]
+            total = img * n if total is None else total + img * n
         return (total / self.spp).astype(np.float32)
 
     # ----------------------------------------------------------- ground truth

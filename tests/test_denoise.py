@@ -1,0 +1,122 @@
+"""Less noise per second (issue 14, point 1): the sampler chosen by measurement, and OIDN on the beauty."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from usdcrowd.render.final.frame import FrameRenderer, sample_passes
+
+pytest.importorskip("mitsuba")
+pytest.importorskip("pyoidn")
+
+W, H = 128, 72
+FRAME = 6
+
+
+def relative_mse(x: np.ndarray, ref: np.ndarray) -> float:
+    """Mean of (x - ref)^2 / (ref^2 + 0.01): the error measure of the render benchmark."""
+    return float(np.mean((x - ref) ** 2 / (ref ** 2 + 1e-2)))
+
+
+@pytest.fixture(scope="module")
+def museum_shot(tmp_path_factory):
+    """The museum shot with straight-walking agents (12 frames)."""
+    from frames_factory import straight_walk
+
+    import usdcrowd.resources as res
+    from usdcrowd.pipeline import author_shot
+
+    out = tmp_path_factory.mktemp("shot")
+    return author_shot(res.data_dir("stages") / "museum.usda", out, lambda sc: [straight_walk(sc.agents, sc.time)],
+                       frames=(1, 12), progress=False).shot
+
+
+@pytest.fixture(scope="module")
+def reference(museum_shot):
+    """The frame at 1,024 spp (independent sampler, another seed): what the noisy frames converge to."""
+    return FrameRenderer(museum_shot, None, (W, H), spp=1024, max_depth=4, ground_truth=False,
+                         sampler="independent", seed=12345).render(FRAME).beauty
+
+
+def _save_failure(name: str, *images):
+    from pathlib import Path
+
+    from PIL import Image
+
+    out = Path(__file__).parent / "_failures"
+    out.mkdir(exist_ok=True)
+    strip = np.concatenate([np.clip(im, 0, 1) ** (1 / 2.2) for im in images], axis=1)
+    Image.fromarray((strip * 255).astype(np.uint8)).save(out / f"{name}.png")
+    return out / f"{name}.png"
+
+
+def test_the_chosen_sampler_has_less_noise_than_independent_samples(museum_shot, reference):
+    """Averaged over three seeds, multijitter's 16-spp frame is at least 1.5 times closer than independent's."""
+    err = {}
+    for sampler in ("independent", "multijitter"):
+        err[sampler] = np.mean([relative_mse(FrameRenderer(museum_shot, None, (W, H), spp=16, max_depth=4,
+                                                           ground_truth=False, sampler=sampler, seed=s)
+                                             .render(FRAME).beauty, reference) for s in (1, 2, 3)])
+    assert err["multijitter"] * 1.5 < err["independent"], err
+
+
+def test_denoising_brings_a_16_spp_frame_three_times_closer(museum_shot, reference):
+    noisy = FrameRenderer(museum_shot, None, (W, H), spp=16, max_depth=4, ground_truth=False, denoise=True, seed=1)
+    r = noisy.render(FRAME)
+    e_raw, e_den = relative_mse(r.raw, reference), relative_mse(r.beauty, reference)
+    if not e_den * 3 < e_raw:
+        where = _save_failure("denoise", r.raw, r.beauty, reference)
+        pytest.fail(f"relative MSE raw {e_raw:.5f}, denoised {e_den:.5f}; raw, denoised, reference in {where}")
+    # The picture's level is kept: mean within 3 % of the converged frame's.
+    assert r.beauty.mean() == pytest.approx(reference.mean(), rel=0.03)
+
+
+def test_denoising_leaves_the_ground_truth_exact(museum_shot):
+    plain = FrameRenderer(museum_shot, None, (W, H), spp=4, max_depth=2).render(FRAME)
+    den = FrameRenderer(museum_shot, None, (W, H), spp=4, max_depth=2, denoise=True).render(FRAME)
+    assert plain.raw is None and den.raw is not None
+    np.testing.assert_array_equal(den.gt.ids, plain.gt.ids)
+    np.testing.assert_array_equal(den.gt.depth_z, plain.gt.depth_z)
+    # The raw beauty is the same path tracing, with the guides rendered beside it.
+    np.testing.assert_allclose(den.raw, plain.beauty, atol=1e-5)
+    assert not np.allclose(den.beauty, den.raw, atol=1e-3)
+
+
+def test_the_exr_holds_the_denoised_beauty_and_the_raw_one_beside_it(museum_shot, tmp_path):
+    from usdcrowd.cli import main
+    from usdcrowd.render.final.exr import read_frame_exr
+
+    out = tmp_path / "render"
+    assert main(["render", str(museum_shot), "--frames", "3:4", "--resolution", "96x54", "--spp", "8", "-o",
+                 str(out), "--no-progress"]) == 0
+    header, ch = read_frame_exr(out / "exr" / "frame.0003.exr")
+    for name in ("R", "G", "B", "raw.R", "raw.G", "raw.B", "id", "albedo.R"):
+        assert name in ch, name
+    assert not np.allclose(ch["R"], ch["raw.R"])
+    off = tmp_path / "plain"
+    assert main(["render", str(museum_shot), "--frames", "3:4", "--resolution", "96x54", "--spp", "8", "-o",
+                 str(off), "--no-progress", "--no-denoise"]) == 0
+    _, plain = read_frame_exr(off / "exr" / "frame.0003.exr")
+    assert "raw.R" not in plain
+    np.testing.assert_array_equal(plain["id"], ch["id"])
+    np.testing.assert_allclose(plain["R"], ch["raw.R"], atol=1e-5)
+
+
+def test_sample_passes_are_powers_of_two_and_squares_where_the_sampler_needs_them():
+    for spp in range(1, 300):
+        for sampler, ok in (("independent", lambda n: n & (n - 1) == 0),
+                            ("multijitter", lambda n: n & (n - 1) == 0 and int(np.sqrt(n)) ** 2 == n)):
+            parts = sample_passes(spp, sampler)
+            assert sum(parts) == spp and all(ok(n) for n in parts), (spp, sampler, parts)
+
+
+def test_a_missing_denoiser_is_one_clear_line(monkeypatch):
+    import sys
+
+    from usdcrowd.errors import UsdcrowdError
+    from usdcrowd.render.final.frame import require_denoiser
+
+    monkeypatch.setitem(sys.modules, "pyoidn", None)
+    with pytest.raises(UsdcrowdError, match="pip install 'usdcrowd\\[final\\]'"):
+        require_denoiser()
