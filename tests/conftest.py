@@ -50,3 +50,16 @@ def write_stage(tmp_path):
         return path
 
     return _write
+
+
+@pytest.fixture(scope="session")
+def walking_museum(tmp_path_factory):
+    """The museum stage's agents walking straight for 12 frames, as a shot (read-only: share it)."""
+    from frames_factory import straight_walk
+
+    import usdcrowd.resources as res
+    from usdcrowd.pipeline import author_shot
+
+    out = tmp_path_factory.mktemp("walking_museum")
+    return author_shot(res.data_dir("stages") / "museum.usda", out, lambda sc: [straight_walk(sc.agents, sc.time)],
+                       frames=(1, 12), progress=False).shot

@@ -20,22 +20,9 @@ def relative_mse(x: np.ndarray, ref: np.ndarray) -> float:
 
 
 @pytest.fixture(scope="module")
-def museum_shot(tmp_path_factory):
-    """The museum shot with straight-walking agents (12 frames)."""
-    from frames_factory import straight_walk
-
-    import usdcrowd.resources as res
-    from usdcrowd.pipeline import author_shot
-
-    out = tmp_path_factory.mktemp("shot")
-    return author_shot(res.data_dir("stages") / "museum.usda", out, lambda sc: [straight_walk(sc.agents, sc.time)],
-                       frames=(1, 12), progress=False).shot
-
-
-@pytest.fixture(scope="module")
-def reference(museum_shot):
+def reference(walking_museum):
     """The frame at 1,024 spp (independent sampler, another seed): what the noisy frames converge to."""
-    return FrameRenderer(museum_shot, None, (W, H), spp=1024, max_depth=4, ground_truth=False,
+    return FrameRenderer(walking_museum, None, (W, H), spp=1024, max_depth=4, ground_truth=False,
                          sampler="independent", seed=12345).render(FRAME).beauty
 
 
@@ -51,18 +38,18 @@ def _save_failure(name: str, *images):
     return out / f"{name}.png"
 
 
-def test_the_chosen_sampler_has_less_noise_than_independent_samples(museum_shot, reference):
+def test_the_chosen_sampler_has_less_noise_than_independent_samples(walking_museum, reference):
     """Averaged over three seeds, multijitter's 16-spp frame is at least 1.5 times closer than independent's."""
     err = {}
     for sampler in ("independent", "multijitter"):
-        err[sampler] = np.mean([relative_mse(FrameRenderer(museum_shot, None, (W, H), spp=16, max_depth=4,
+        err[sampler] = np.mean([relative_mse(FrameRenderer(walking_museum, None, (W, H), spp=16, max_depth=4,
                                                            ground_truth=False, sampler=sampler, seed=s)
                                              .render(FRAME).beauty, reference) for s in (1, 2, 3)])
     assert err["multijitter"] * 1.5 < err["independent"], err
 
 
-def test_denoising_brings_a_16_spp_frame_three_times_closer(museum_shot, reference):
-    noisy = FrameRenderer(museum_shot, None, (W, H), spp=16, max_depth=4, ground_truth=False, denoise=True, seed=1)
+def test_denoising_brings_a_16_spp_frame_three_times_closer(walking_museum, reference):
+    noisy = FrameRenderer(walking_museum, None, (W, H), spp=16, max_depth=4, ground_truth=False, denoise=True, seed=1)
     r = noisy.render(FRAME)
     e_raw, e_den = relative_mse(r.raw, reference), relative_mse(r.beauty, reference)
     if not e_den * 3 < e_raw:
@@ -72,9 +59,9 @@ def test_denoising_brings_a_16_spp_frame_three_times_closer(museum_shot, referen
     assert r.beauty.mean() == pytest.approx(reference.mean(), rel=0.03)
 
 
-def test_denoising_leaves_the_ground_truth_exact(museum_shot):
-    plain = FrameRenderer(museum_shot, None, (W, H), spp=4, max_depth=2).render(FRAME)
-    den = FrameRenderer(museum_shot, None, (W, H), spp=4, max_depth=2, denoise=True).render(FRAME)
+def test_denoising_leaves_the_ground_truth_exact(walking_museum):
+    plain = FrameRenderer(walking_museum, None, (W, H), spp=4, max_depth=2).render(FRAME)
+    den = FrameRenderer(walking_museum, None, (W, H), spp=4, max_depth=2, denoise=True).render(FRAME)
     assert plain.raw is None and den.raw is not None
     np.testing.assert_array_equal(den.gt.ids, plain.gt.ids)
     np.testing.assert_array_equal(den.gt.depth_z, plain.gt.depth_z)
@@ -83,19 +70,19 @@ def test_denoising_leaves_the_ground_truth_exact(museum_shot):
     assert not np.allclose(den.beauty, den.raw, atol=1e-3)
 
 
-def test_the_exr_holds_the_denoised_beauty_and_the_raw_one_beside_it(museum_shot, tmp_path):
+def test_the_exr_holds_the_denoised_beauty_and_the_raw_one_beside_it(walking_museum, tmp_path):
     from usdcrowd.cli import main
     from usdcrowd.render.final.exr import read_frame_exr
 
     out = tmp_path / "render"
-    assert main(["render", str(museum_shot), "--frames", "3:4", "--resolution", "96x54", "--spp", "8", "-o",
+    assert main(["render", str(walking_museum), "--frames", "3:4", "--resolution", "96x54", "--spp", "8", "-o",
                  str(out), "--no-progress"]) == 0
     header, ch = read_frame_exr(out / "exr" / "frame.0003.exr")
     for name in ("R", "G", "B", "raw.R", "raw.G", "raw.B", "id", "albedo.R"):
         assert name in ch, name
     assert not np.allclose(ch["R"], ch["raw.R"])
     off = tmp_path / "plain"
-    assert main(["render", str(museum_shot), "--frames", "3:4", "--resolution", "96x54", "--spp", "8", "-o",
+    assert main(["render", str(walking_museum), "--frames", "3:4", "--resolution", "96x54", "--spp", "8", "-o",
                  str(off), "--no-progress", "--no-denoise"]) == 0
     _, plain = read_frame_exr(off / "exr" / "frame.0003.exr")
     assert "raw.R" not in plain

@@ -24,23 +24,11 @@ FRAMES = np.array([1.0, 3.0, 5.0])
 
 
 @pytest.fixture(scope="module")
-def museum_shot(tmp_path_factory):
-    from frames_factory import straight_walk
-
-    import usdcrowd.resources as res
-    from usdcrowd.pipeline import author_shot
-
-    out = tmp_path_factory.mktemp("shot")
-    return author_shot(res.data_dir("stages") / "museum.usda", out, lambda sc: [straight_walk(sc.agents, sc.time)],
-                       frames=(1, 12), progress=False).shot
-
-
-@pytest.fixture(scope="module")
-def sequence(museum_shot, tmp_path_factory):
+def sequence(walking_museum, tmp_path_factory):
     """Three frames through the crowd-following camera, ground truth on."""
     out = tmp_path_factory.mktemp("gt")
     settings = settings_from_preset("groundtruth", resolution=(160, 90), spp=4)
-    return render_sequence(museum_shot, out, camera="/World/Cameras/CrowdCam", frames=FRAMES, settings=settings,
+    return render_sequence(walking_museum, out, camera="/World/Cameras/CrowdCam", frames=FRAMES, settings=settings,
                            executor="inline", progress=False)
 
 
@@ -146,14 +134,14 @@ def test_visibility_boxes_and_keypoints_are_consistent(sequence):
         json.dumps(rec)                                                  # plain JSON all the way down
 
 
-def test_fully_hidden_agent_has_zero_visibility_and_occluded_keypoints(museum_shot):
+def test_fully_hidden_agent_has_zero_visibility_and_occluded_keypoints(walking_museum):
     """An agent behind a wall: in view (alone pixels) but not visible; keypoints flagged occluded."""
     from pxr import Gf, Usd, UsdGeom
 
     from usdcrowd.render.final.frame import FrameRenderer
     from usdcrowd.render.scene import ShotScene
 
-    shot = ShotScene(museum_shot)
+    shot = ShotScene(walking_museum)
     poses = shot.agents(1)
     i = poses.paths.index("/World/Crowd/Visitors/Students/Teacher")
     head = poses.keypoints()[i, 3]
@@ -168,7 +156,7 @@ def test_fully_hidden_agent_has_zero_visibility_and_occluded_keypoints(museum_sh
         wall.GetSizeAttr().Set(1.0)
         UsdGeom.Xformable(wall).AddTranslateOp().Set(Gf.Vec3d(*(head + [0, -3.0, -0.8]).tolist()))
         UsdGeom.Xformable(wall).AddScaleOp().Set(Gf.Vec3f(4, 0.1, 4))
-    shot = ShotScene(museum_shot, stage=shot.stage)
+    shot = ShotScene(walking_museum, stage=shot.stage)
     r = FrameRenderer(shot, "/World/TestCam", (64, 48), spp=1, max_depth=2).render(1)
     rec = annotate_frame(r, AgentMetadata.from_shot(shot))
     teacher = next(a for a in rec["agents"] if a["track_id"] == 100)
@@ -178,12 +166,12 @@ def test_fully_hidden_agent_has_zero_visibility_and_occluded_keypoints(museum_sh
     assert not (r.gt.ids == 100).any()
 
 
-def test_metadata_reads_leaders_and_events(museum_shot):
+def test_metadata_reads_leaders_and_events(walking_museum):
     from pxr import Sdf, Usd
 
     from usdcrowd.render.scene import ShotScene
 
-    shot = ShotScene(museum_shot)
+    shot = ShotScene(walking_museum)
     student = next(p for p in shot.agent_paths if "/Students/" in p and not p.endswith("Teacher"))
     with Usd.EditContext(shot.stage, shot.stage.GetSessionLayer()):
         ev = shot.stage.DefinePrim("/World/Events/Chat", "CrowdEvent")

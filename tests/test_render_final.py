@@ -52,20 +52,6 @@ W, H = 64, 48
 
 
 @pytest.fixture(scope="module")
-def museum_shot(tmp_path_factory):
-    """The museum shot with straight-walking agents (12 frames)."""
-    from frames_factory import straight_walk
-
-    import usdcrowd.resources as res
-    from usdcrowd.pipeline import author_shot
-
-    out = tmp_path_factory.mktemp("shot")
-    r = author_shot(res.data_dir("stages") / "museum.usda", out, lambda sc: [straight_walk(sc.agents, sc.time)],
-                    frames=(1, 12), progress=False)
-    return r.shot
-
-
-@pytest.fixture(scope="module")
 def box_frame(tmp_path_factory):
     from conftest import HEADER
 
@@ -240,7 +226,7 @@ def test_scalar_fallback_gives_the_same_ground_truth(box_frame, tmp_path):
     renderer.render(1)                                                   # switching back works
 
 
-def test_id_pass_is_identical_across_two_runs(museum_shot, tmp_path):
+def test_id_pass_is_identical_across_two_runs(walking_museum, tmp_path):
     """A second process (another shape order inside Mitsuba, its own BVH build) gives the same ids and
     the same beauty, bit for bit."""
     script = tmp_path / "ids.py"
@@ -248,32 +234,32 @@ def test_id_pass_is_identical_across_two_runs(museum_shot, tmp_path):
         "import sys, numpy as np\nimport usdcrowd\nfrom usdcrowd.render.final.frame import FrameRenderer\n"
         "r = FrameRenderer(sys.argv[1], None, (96, 54), spp=4, max_depth=2).render(6)\n"
         "np.save(sys.argv[2], r.gt.ids)\nnp.save(sys.argv[3], r.beauty)\n")
-    subprocess.run([sys.executable, str(script), museum_shot, str(tmp_path / "ids.npy"), str(tmp_path / "b.npy")],
+    subprocess.run([sys.executable, str(script), walking_museum, str(tmp_path / "ids.npy"), str(tmp_path / "b.npy")],
                    check=True)
-    here = FrameRenderer(museum_shot, None, (96, 54), spp=4, max_depth=2).render(6)
+    here = FrameRenderer(walking_museum, None, (96, 54), spp=4, max_depth=2).render(6)
     other = np.load(tmp_path / "ids.npy")
     assert np.array_equal(here.gt.ids, other)
     assert np.array_equal(here.beauty, np.load(tmp_path / "b.npy"))
     agents = set(np.unique(here.gt.ids)) & set(range(1, SCENERY_ID_BASE))
-    assert agents and agents <= set(ShotScene(museum_shot).agents(6).agent_ids.tolist())
+    assert agents and agents <= set(ShotScene(walking_museum).agents(6).agent_ids.tolist())
     assert all(i >= SCENERY_ID_BASE for i in np.unique(here.gt.ids) if i not in agents and i != 0)
 
 
 @pytest.mark.parametrize("spp", [8, 12])
-def test_the_beauty_is_the_same_bytes_run_after_run(museum_shot, spp):
+def test_the_beauty_is_the_same_bytes_run_after_run(walking_museum, spp):
     """Two renders of one frame on two threads: every pixel identical (issue 16: same command, same bytes);
     12 spp is taken as 8 + 4."""
-    r = FrameRenderer(museum_shot, None, (640, 360), spp=spp, max_depth=3, ground_truth=False, threads=2)
+    r = FrameRenderer(walking_museum, None, (640, 360), spp=spp, max_depth=3, ground_truth=False, threads=2)
     first, second = r.render(6).beauty, r.render(6).beauty
     assert first.mean() > 0
     assert np.array_equal(first, second), f"{np.mean(first != second):.1%} of the values differ"
 
 
 @pytest.fixture(scope="module")
-def small_sequence(museum_shot, tmp_path_factory):
+def small_sequence(walking_museum, tmp_path_factory):
     out = tmp_path_factory.mktemp("seq")
     settings = settings_from_preset("groundtruth", resolution=(96, 54), spp=4)
-    r = render_sequence(museum_shot, out, frames=np.array([1.0, 2.0, 3.0, 4.0]), settings=settings,
+    r = render_sequence(walking_museum, out, frames=np.array([1.0, 2.0, 3.0, 4.0]), settings=settings,
                         executor="inline", progress=False)
     return r, settings
 
@@ -290,13 +276,13 @@ def test_exr_has_named_channels_ids_and_the_id_table(small_sequence):
     assert (ch["depth.distance"][finite] >= ch["depth.z"][finite] - 1e-4).all()
 
 
-def test_a_killed_render_resumes_and_only_redoes_what_is_missing(museum_shot, small_sequence):
+def test_a_killed_render_resumes_and_only_redoes_what_is_missing(walking_museum, small_sequence):
     r, settings = small_sequence
     out = Path(r.out_dir)
     (out / frame_files(2, True)["exr"]).unlink()                              # lost
     png = out / frame_files(3, True)["png"]
     png.write_bytes(png.read_bytes()[:100])                                    # damaged
-    again = render_sequence(museum_shot, out, frames=np.array([1.0, 2.0, 3.0, 4.0]), settings=settings,
+    again = render_sequence(walking_museum, out, frames=np.array([1.0, 2.0, 3.0, 4.0]), settings=settings,
                             executor="inline", progress=False)
     assert again.rendered == [2.0, 3.0] and again.skipped == [1.0, 4.0]
     manifest = Manifest(out, json.loads((out / "manifest.json").read_text())["header"])
@@ -325,7 +311,7 @@ def _diff_report(name, got, ref):
 
 
 @pytest.mark.parametrize("name", ["museum_overview_f6"])
-def test_render_matches_the_stored_baseline(museum_shot, name):
+def test_render_matches_the_stored_baseline(walking_museum, name):
     """Statistical comparison: Monte Carlo noise differs between variants and versions, the picture must not."""
     sys.path.insert(0, str(Path(__file__).parent.parent / "tools"))
     import make_baselines
@@ -333,7 +319,7 @@ def test_render_matches_the_stored_baseline(museum_shot, name):
     meta = json.loads((BASELINES / f"{name}.json").read_text())
     _, ref = read_frame_exr(BASELINES / f"{name}.exr")
     ref = np.stack([ref["R"], ref["G"], ref["B"]], -1)
-    got = make_baselines.render_baseline(museum_shot, meta).beauty
+    got = make_baselines.render_baseline(walking_museum, meta).beauty
     diff = np.abs(got - ref).mean(-1)
     scale = max(float(ref.mean()), 1e-3)
     mean_rel, p99_rel = diff.mean() / scale, np.percentile(diff, 99) / scale
@@ -406,34 +392,34 @@ def test_presets_are_read_and_overridden():
         settings_from_preset("nope")
 
 
-def test_cli_render_writes_frames_and_reports_user_errors(museum_shot, tmp_path, capsys):
+def test_cli_render_writes_frames_and_reports_user_errors(walking_museum, tmp_path, capsys):
     from usdcrowd.cli import main
 
     out = tmp_path / "r"
-    assert main(["render", museum_shot, "-o", str(out), "--frames", "2", "--resolution", "48x27", "--spp", "2",
+    assert main(["render", walking_museum, "-o", str(out), "--frames", "2", "--resolution", "48x27", "--spp", "2",
                  "--executor", "inline", "--no-progress"]) == 0
     assert "rendered 1 frame(s)" in capsys.readouterr().out
     assert (out / "exr/frame.0002.exr").exists() and (out / "coco.json").exists()
-    assert main(["render", museum_shot, "-o", str(out), "--camera", "/World/Nope", "--frames", "2"]) == 2
+    assert main(["render", walking_museum, "-o", str(out), "--camera", "/World/Nope", "--frames", "2"]) == 2
     assert "not a camera" in capsys.readouterr().err
-    assert main(["render", museum_shot, "-o", str(out), "--preset", "nope", "--frames", "2"]) == 2
+    assert main(["render", walking_museum, "-o", str(out), "--preset", "nope", "--frames", "2"]) == 2
 
 
-def test_local_worker_processes_render_frames(museum_shot, tmp_path):
+def test_local_worker_processes_render_frames(walking_museum, tmp_path):
     settings = settings_from_preset("groundtruth", resolution=(64, 36), spp=2)
-    r = render_sequence(museum_shot, tmp_path, frames=np.array([1.0, 2.0, 3.0]), settings=settings,
+    r = render_sequence(walking_museum, tmp_path, frames=np.array([1.0, 2.0, 3.0]), settings=settings,
                         executor="local", workers=2, progress=False)
     assert r.rendered == [1.0, 2.0, 3.0]
-    inline = FrameRenderer(museum_shot, None, (64, 36), spp=2).render(2)
+    inline = FrameRenderer(walking_museum, None, (64, 36), spp=2).render(2)
     _, ch = read_frame_exr(tmp_path / frame_files(2, True)["exr"])
     assert np.array_equal(ch["id"], inline.gt.ids)
 
 
 @pytest.mark.slow
-def test_ray_executor_on_a_local_cluster(museum_shot, tmp_path):
+def test_ray_executor_on_a_local_cluster(walking_museum, tmp_path):
     pytest.importorskip("ray")
     settings = settings_from_preset("groundtruth", resolution=(64, 36), spp=2)
-    r = render_sequence(museum_shot, tmp_path, frames=np.array([1.0, 2.0, 3.0, 4.0]), settings=settings,
+    r = render_sequence(walking_museum, tmp_path, frames=np.array([1.0, 2.0, 3.0, 4.0]), settings=settings,
                         executor="ray", workers=2, progress=False)
     assert r.rendered == [1.0, 2.0, 3.0, 4.0]
     manifest = Manifest(tmp_path, json.loads((tmp_path / "manifest.json").read_text())["header"])
