@@ -83,12 +83,8 @@ def agent_vertices(shot: ShotScene, poses) -> np.ndarray:
     return verts.reshape(-1, 3)
 
 
-# What the denoiser is guided by: each pixel's albedo and shading normal, averaged over the beauty's samples.
-DENOISE_AOVS = "albedo:albedo,nn:sh_normal"
-
-
 def build_scene(shot: ShotScene, cam: CameraView, width: int, height: int, spp: int, max_depth: int,
-                time: float, sampler: str = "independent", guides: bool = False) -> BuiltScene:
+                time: float, sampler: str = "independent") -> BuiltScene:
     """Translate the shot at ``time`` into a Mitsuba scene.
 
     Parameters
@@ -106,10 +102,6 @@ def build_scene(shot: ShotScene, cam: CameraView, width: int, height: int, spp: 
         Time code the agents and animated scenery are first posed at.
     sampler : str
         Mitsuba sampler of the beauty.
-    guides : bool
-        Render the denoiser's guides (albedo, shading normal) with the
-        beauty, from the same samples: the film then holds R, G, B and six
-        more channels.
 
     Returns
     -------
@@ -118,8 +110,6 @@ def build_scene(shot: ShotScene, cam: CameraView, width: int, height: int, spp: 
     import mitsuba as mi
 
     integrator = {"type": "path", "max_depth": int(max_depth)}
-    if guides:
-        integrator = {"type": "aov", "aovs": DENOISE_AOVS, "integrator": integrator}
     scene: dict = {"type": "scene", "integrator": integrator,
                    SENSOR_KEY: sensor_dict(cam, width, height, spp, sampler=sampler)}
     id_paths: dict[int, str] = {}

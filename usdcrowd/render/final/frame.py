@@ -35,6 +35,8 @@ from .build import AGENTS_KEY, SENSOR_KEY, BuiltScene, agent_vertices, build_sce
 from .camera import SAMPLERS, pixel_rays, sensor_to_world
 
 SAMPLER = "multijitter"             # the least noise per second on the demo's frames (tools/bench.py render)
+GUIDE_AOVS = "albedo:albedo,nn:sh_normal"
+GUIDE_SPP = 16                      # more guide samples cost time and did not help OIDN (tools/bench.py render)
 SQUARE_SAMPLERS = ("stratified", "multijitter")
 from .meshes import GTID_ATTRIBUTE, decode_ids, float_buffer
 
@@ -107,7 +109,7 @@ class FrameResult:
 
 
 def sample_passes(spp: int, sampler: str) -> list[int]:
-    """The sample counts of the passes that make ``spp`` (see :meth:`FrameRenderer._beauty`)."""
+    """The sample counts of the passes that make ``spp`` (see :meth:`FrameRenderer._film`)."""
     base = 4 if sampler in SQUARE_SAMPLERS else 2
     parts, k = [], 0
     while base ** (k + 1) <= spp:
@@ -171,8 +173,9 @@ class FrameRenderer:
         per second measured on the demo's frames).
     denoise : bool
         Denoise the beauty with Intel Open Image Denoise, guided by albedo
-        and normal averaged over the beauty's own samples; the path-traced
-        beauty is kept as ``FrameResult.raw``.
+        and shading normal averaged over up to GUIDE_SPP samples per pixel
+        through the same box-filtered film; the path-traced beauty is kept
+        as ``FrameResult.raw``.
     """
 
     def __init__(self, shot, camera: str | None = None, resolution=(640, 360), spp: int = 64,
@@ -198,7 +201,10 @@ class FrameRenderer:
         self.camera_path = cam.path
         start = _time.perf_counter()
         self.built: BuiltScene = build_scene(self.shot, cam, self.width, self.height, self.spp, self.max_depth, t0,
-                                             sampler=self.sampler, guides=self.denoise)
+                                             sampler=self.sampler)
+        # The denoiser's guides: albedo and shading normal, a pass of their own through the same film
+        # (box filter), averaged over up to GUIDE_SPP samples per pixel.
+        self._guides = mi.load_dict({"type": "aov", "aovs": GUIDE_AOVS}) if self.denoise else None
         self.build_seconds = _time.perf_counter() - start
         self._mi = mi
 
@@ -227,10 +233,14 @@ class FrameRenderer:
         s0 = _time.perf_counter()
         cam, poses, vertices = self._update(float(t))
         s1 = _time.perf_counter()
-        film = self._beauty(mi, self.seed + int(round(float(t) * 1000)))
+        seed = self.seed + int(round(float(t) * 1000))
+        raw = self._film(mi, seed, self.spp)[..., :3]
         s2 = _time.perf_counter()
-        raw = np.ascontiguousarray(film[..., :3])
-        beauty = denoise(raw, film[..., 3:6], film[..., 6:9]) if self.denoise else raw
+        if self.denoise:
+            guides = self._film(mi, seed + 104729, min(self.spp, GUIDE_SPP), self._guides)
+            beauty = denoise(raw, guides[..., 0:3], guides[..., 3:6])
+        else:
+            beauty = raw
         s3 = _time.perf_counter()
         gt = self.cast_ground_truth(cam, vertices, poses) if self.ground_truth else None
         s4 = _time.perf_counter()
@@ -238,8 +248,8 @@ class FrameRenderer:
                            {"update": s1 - s0, "beauty": s2 - s1, "denoise": s3 - s2, "ground_truth": s4 - s3},
                            raw if self.denoise else None)
 
-    def _beauty(self, mi, seed: int) -> np.ndarray:
-        """(h, w, c) float32 film (beauty R, G, B, then the denoiser's guides), the same bytes run after run.
+    def _film(self, mi, seed: int, spp: int, integrator=None) -> np.ndarray:
+        """(h, w, c) float32 film of the scene's path tracer (or of ``integrator``), the same bytes run after run.
 
         With the box filter each pixel's samples are consecutive lanes, summed
         by one thread as long as they do not straddle two of the JIT's blocks
@@ -248,15 +258,15 @@ class FrameRenderer:
         in a fixed order. Stratified samplers need square counts: their passes
         are powers of four (48 spp: 16, 16, 16).
         """
-        parts = sample_passes(self.spp, self.sampler)
-        channels = 9 if self.denoise else 3
+        parts = sample_passes(spp, self.sampler)
+        kw = {"integrator": integrator} if integrator is not None else {}
         if len(parts) == 1:
-            return np.array(mi.render(self.built.scene, spp=self.spp, seed=seed), dtype=np.float32)[..., :channels]
+            return np.array(mi.render(self.built.scene, spp=spp, seed=seed, **kw), dtype=np.float32)
         total = None
         for k, n in enumerate(parts):
-            img = np.array(mi.render(self.built.scene, spp=n, seed=seed + 7919 * k), dtype=np.float64)[..., :channels]
-            total = img * n if total is None else total + img * n
-        return (total / self.spp).astype(np.float32)
+            img = np.array(mi.render(self.built.scene, spp=n, seed=seed + 7919 * k, **kw), dtype=np.float64) * n
+            total = img if total is None else total + img
+        return (total / spp).astype(np.float32)
 
     # ----------------------------------------------------------- ground truth
     def cast_ground_truth(self, cam: CameraView, vertices: np.ndarray, poses: AgentPoses) -> GroundTruth:
