@@ -446,3 +446,68 @@ def test_a_users_mistake_found_on_a_ray_worker_is_one_line(tmp_path, capsys):
                  "--resolution", "32x18", "--spp", "1", "--no-progress"])
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "not a finite value at time 3" in err, err
+
+
+def _edge_width(image: np.ndarray) -> float:
+    """Width in pixels between 25 % and 75 % of the step across the box's left edge (rows averaged)."""
+    lum = image.mean(-1)
+    h, w = lum.shape
+    row = lum[h // 3: 2 * h // 3].mean(0)
+    inside, outside = np.median(row[w // 2 - 5: w // 2 + 5]), np.median(row[:8])
+    p = (row[: w // 2] - inside) / (outside - inside)            # 1 in the sky, 0 on the box
+    box = np.flatnonzero(p < 0.5)[0]                               # the box starts about here
+
+    def crossing(level):
+        """Sub-pixel position, left of the box's start, where the profile rises through ``level``."""
+        j = box
+        while j > 0 and p[j - 1] < level:
+            j -= 1
+        a, b = p[j], p[j - 1]                                      # inside side, outside side
+        return j - (level - a) / (b - a)
+
+    return abs(crossing(0.25) - crossing(0.75))
+
+
+DOF_CAMERA = '''
+        float focalLength = 1.0
+        float horizontalAperture = 0.36
+        float verticalAperture = 0.27
+        float2 clippingRange = (0.1, 100)
+        float fStop = {f_stop}
+        float focusDistance = {focus}
+'''
+
+
+@pytest.mark.parametrize("f_stop, focus", [(0.0, 3.0), (1.0, 9.0), (1.0, 3.0), (2.0, 5.0)])
+def test_depth_of_field_blurs_as_a_thin_lens_of_the_cameras_fstop(tmp_path, f_stop, focus):
+    """The box's edge (9 m away) spreads as a thin lens predicts: a disc of diameter A f |d - s| / (d (s - f))."""
+    from conftest import HEADER
+
+    stage = BOX_STAGE.replace('''        float focalLength = 0.24
+        float horizontalAperture = 0.36
+        float verticalAperture = 0.27
+        float2 clippingRange = (0.1, 100)
+''', DOF_CAMERA.format(f_stop=f_stop, focus=focus))
+    path = tmp_path / "dof.usda"
+    path.write_text(HEADER.format(up="Z", mpu=1, end=1) + stage)
+    w, h = 256, 192
+    r = FrameRenderer(path, "/World/Cam", (w, h), spp=256, max_depth=2).render(1)
+    f, d = 0.1, 9.0                                                # metres: 100 mm lens, the box's face
+    if f_stop == 0:
+        assert not r.camera.depth_of_field
+        assert _edge_width(r.beauty) < 1.0
+        return
+    assert r.camera.aperture_radius == pytest.approx(f / (2 * f_stop))
+    blur_m = (f / f_stop) * f * abs(d - focus) / (d * (focus - f))
+    blur_px = blur_m / 0.036 * w
+    # A uniform disc of diameter D spreads an edge's 25-75 % over 0.404 D.
+    expected = max(0.404 * blur_px, 0.5)
+    measured = _edge_width(r.beauty)
+    print(f"fStop {f_stop}, focus {focus} m: edge 25-75 % over {measured:.2f} px, thin lens {expected:.2f} px")
+    if focus == d:
+        assert measured < 1.0
+    else:
+        assert measured == pytest.approx(expected, rel=0.2), (measured, expected, blur_px)
+    # The ground truth stays pinhole: ids exactly where the camera model projects the box.
+    pinhole = FrameRenderer(path, "/World/Cam", (w, h), spp=1, max_depth=2)
+    assert np.array_equal(pinhole.render(1).gt.ids, r.gt.ids)

@@ -94,6 +94,10 @@ class CameraView:
         For camera agents: "scouting" or "tracking" at this time.
     tracked_event : str or None
         For camera agents: the CrowdEvent tracked ("" while scouting).
+    f_stop : float
+        Relative aperture (UsdGeom.Camera fStop); 0: a pinhole, everything sharp.
+    focus_distance : float
+        Distance to the plane in focus, metres (with ``f_stop`` > 0).
     toric : dict or None
         For toric cameras (ToricCameraAPI): ``behavior``, ``shot_size``,
         ``smoothed``, ``target_a``, ``target_b``, and the authored ``p_a``,
@@ -111,6 +115,18 @@ class CameraView:
     agent_state: str | None = None
     tracked_event: str | None = None
     toric: dict | None = None
+    f_stop: float = 0.0
+    focus_distance: float = 0.0
+
+    @property
+    def depth_of_field(self) -> bool:
+        """A thin lens (fStop and focusDistance both > 0), else a pinhole."""
+        return self.f_stop > 0 and self.focus_distance > 0
+
+    @property
+    def aperture_radius(self) -> float:
+        """Radius of the lens opening, metres: focal length / (2 fStop) (0 for a pinhole)."""
+        return self.focal_length * 1e-3 / (2.0 * self.f_stop) if self.depth_of_field else 0.0
 
     @property
     def world_to_cam(self) -> np.ndarray:
@@ -189,6 +205,7 @@ def camera_record(cam: CameraView, width: int, height: int) -> dict:
         "focal_length": cam.focal_length, "horizontal_aperture": cam.horizontal_aperture,
         "vertical_aperture": cam.vertical_aperture, "fov_x_deg": cam.fov_x(),
         "clipping_range": [cam.near, cam.far],
+        "f_stop": cam.f_stop, "focus_distance": cam.focus_distance,
         # What the camera was doing and why (seed 000's camera agents; None for other cameras).
         "agent_state": cam.agent_state, "tracked_event": cam.tracked_event,
         # A toric camera's authored intent (seed 002; None for other cameras).

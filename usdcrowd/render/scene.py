@@ -163,10 +163,11 @@ class ShotScene:
                     near=float(near), far=float(far), matrix=m)
         state = prim.GetAttribute("crowd:camera:state")
         tracked = prim.GetAttribute("crowd:camera:trackedEvent")
+        f_stop, focus = _lens_focus(cam, time, self.frame)
         return CameraView(str(prim.GetPath()), float(time), m, focal, h_ap, v_ap, near, far,
                           str(state.Get(time)) if state and state.HasValue() else None,
                           str(tracked.Get(time) or "") if tracked and tracked.HasValue() else None,
-                          _toric_of(prim, time))
+                          _toric_of(prim, time), f_stop, focus)
 
     # --------------------------------------------------------------- scenery
     @cached_property
@@ -339,6 +340,20 @@ def _check_lens(prim, time, *, focal, horizontalAperture, verticalAperture, near
             fail(name, problem)
     if not np.isfinite(matrix).all():
         fail("xformOp:transform", "the camera's transform is not finite")
+
+
+def _lens_focus(cam, time, frame) -> tuple[float, float]:
+    """(fStop, focusDistance in metres) of a UsdGeom.Camera; (0, 0) where unusable (a pinhole)."""
+    from ..scenery import authoring_meters_per_unit
+
+    f_stop = cam.GetFStopAttr().Get(time)
+    attr = cam.GetFocusDistanceAttr()
+    focus = attr.Get(time)
+    if f_stop is None or focus is None or not (np.isfinite(f_stop) and np.isfinite(focus)):
+        return 0.0, 0.0
+    if f_stop <= 0 or focus <= 0:
+        return 0.0, 0.0
+    return float(f_stop), float(focus) * authoring_meters_per_unit(attr, time, frame)
 
 
 def _toric_of(prim, time) -> dict | None:

@@ -51,11 +51,19 @@ def sensor_dict(cam: CameraView, width: int, height: int, spp: int, rfilter: str
         about a quarter faster.
     sampler : str
         Mitsuba sampler of the beauty (one of SAMPLERS).
+
+    A camera with depth of field (``cam.depth_of_field``) becomes Mitsuba's
+    ``thinlens``: aperture radius focal length / (2 fStop), focused at
+    focusDistance. Only the beauty: the ground-truth passes stay pinhole
+    (exact at the pixel centres).
     """
     import mitsuba as mi
 
+    lens = {"type": "perspective"}
+    if cam.depth_of_field:               # UsdGeom.Camera fStop and focusDistance: a thin lens
+        lens = {"type": "thinlens", "aperture_radius": cam.aperture_radius, "focus_distance": cam.focus_distance}
     return {
-        "type": "perspective",
+        **lens,
         "fov": cam.fov_x(),
         "fov_axis": "x",
         "near_clip": max(cam.near, 1e-4),

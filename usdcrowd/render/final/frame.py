@@ -205,6 +205,7 @@ class FrameRenderer:
         # The denoiser's guides: albedo and shading normal, a pass of their own through the same film
         # (box filter), averaged over up to GUIDE_SPP samples per pixel.
         self._guides = mi.load_dict({"type": "aov", "aovs": GUIDE_AOVS}) if self.denoise else None
+        self._thin_lens = cam.depth_of_field     # the lens type is the first frame's
         self.build_seconds = _time.perf_counter() - start
         self._mi = mi
 
@@ -222,6 +223,9 @@ class FrameRenderer:
             params[f"{a.key}.vertex_positions"] = float_buffer(verts)
         params[f"{SENSOR_KEY}.to_world"] = mi.ScalarTransform4f(sensor_to_world(cam).tolist())
         params[f"{SENSOR_KEY}.x_fov"] = cam.fov_x()
+        if self._thin_lens:                      # focus pulls and iris changes, frame by frame
+            params[f"{SENSOR_KEY}.aperture_radius"] = cam.aperture_radius
+            params[f"{SENSOR_KEY}.focus_distance"] = cam.focus_distance if cam.depth_of_field else 1e9
         with _variant.single_threaded_build():      # the same BVH, so the same bytes
             params.update()
         return cam, poses, vertices
