@@ -511,3 +511,46 @@ def test_depth_of_field_blurs_as_a_thin_lens_of_the_cameras_fstop(tmp_path, f_st
     # The ground truth stays pinhole: ids exactly where the camera model projects the box.
     pinhole = FrameRenderer(path, "/World/Cam", (w, h), spp=1, max_depth=2)
     assert np.array_equal(pinhole.render(1).gt.ids, r.gt.ids)
+
+
+def test_a_light_shape_carries_its_own_id_where_the_camera_sees_it(tmp_path):
+    """A SphereLight in view: the id pass holds LIGHT_ID_BASE + its index on the pixels whose rays hit the sphere."""
+    from conftest import HEADER
+
+    from usdcrowd.render.final.exr import read_frame_exr
+    from usdcrowd.render.sequence import render_sequence, settings_from_preset
+    from usdcrowd.shading import LIGHT_ID_BASE
+
+    stage = BOX_STAGE.replace('''    def DomeLight "Sky"''', '''    def SphereLight "Lamp"
+    {
+        float inputs:radius = 0.6
+        float inputs:intensity = 5
+        double3 xformOp:translate = (2.2, 8, 0.5)
+        uniform token[] xformOpOrder = ["xformOp:translate"]
+    }
+    def DomeLight "Sky"''')
+    path = tmp_path / "lamp.usda"
+    path.write_text(HEADER.format(up="Z", mpu=1, end=1) + stage)
+    w, h = 160, 120
+    r = FrameRenderer(path, "/World/Cam", (w, h), spp=1, max_depth=2).render(1)
+    lamp = [i for i, p in r.id_paths.items() if p == "/World/Lamp"]
+    assert lamp == [LIGHT_ID_BASE + 0]                 # the first (and only sphere) light of the shot
+    # Analytic: pixel-centre rays against the sphere (the light is a 3-times subdivided icosphere: edges may differ).
+    k = r.camera.intrinsics(w, h)
+    uu, vv = np.meshgrid(np.arange(w) + 0.5, np.arange(h) + 0.5)
+    d_cam = np.stack([(uu - k[0, 2]) / k[0, 0], -(vv - k[1, 2]) / k[1, 1], -np.ones_like(uu)], -1)
+    d = d_cam @ r.camera.cam_to_world[:3, :3]
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    oc = r.camera.position - np.array([2.2, 8, 0.5])
+    b = d @ oc
+    hit = b * b - (oc @ oc - 0.6 ** 2) > 0
+    # The box (x from -1 to 1 at y 9-11) is behind the lamp: where the lamp is, the lamp wins.
+    seen = r.gt.ids == lamp[0]
+    assert hit.sum() > 100
+    assert (seen != hit).sum() < 0.05 * hit.sum(), ((seen != hit).sum(), hit.sum())
+    # Named in the EXR's id table, as scenery is.
+    out = render_sequence(path, tmp_path / "render", camera="/World/Cam", frames=[1],
+                          settings=settings_from_preset("groundtruth", resolution=(w, h), spp=1), progress=False)
+    header, ch = read_frame_exr(tmp_path / "render" / "exr" / "frame.0001.exr")
+    assert np.array_equal(ch["id"], r.gt.ids) and out.rendered
+    assert header["usdcrowd:idTable"][LIGHT_ID_BASE] == "/World/Lamp"

@@ -13,6 +13,8 @@ import numpy as np
 # Agents' ids are small positive integers (their track ids); scenery gets ids
 # from this offset up so the two never collide in an id buffer.
 SCENERY_ID_BASE = 1 << 24
+# Light shapes (sphere, rect, disk and cylinder lights) from this one up.
+LIGHT_ID_BASE = 1 << 25
 
 
 @dataclass

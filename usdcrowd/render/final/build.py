@@ -23,7 +23,7 @@ from ...shading import SCENERY_ID_BASE
 from ...view import CameraView
 from ..scene import ShotScene
 from .camera import sensor_dict
-from .lights import emitters
+from .lights import emitters, has_shape, light_id
 from .materials import agent_bsdf_dict, bsdf_dict, usd_uv_to_mitsuba
 from .meshes import flat_or_smooth, make_mesh
 from .variant import single_threaded_build
@@ -134,6 +134,7 @@ def build_scene(shot: ShotScene, cam: CameraView, width: int, height: int, spp: 
         if item.animated:
             animated.append(AnimatedScenery(key, item, flip))
     scene.update(emitters(shot.lights, shot.frame.up_axis))
+    id_paths.update({light_id(k): light.path for k, light in enumerate(shot.lights) if has_shape(light)})
 
     paths = shot.agent_paths
     agent_ids = np.zeros(0, dtype=np.int32)

@@ -51,7 +51,7 @@ class GroundTruth:
     Attributes
     ----------
     ids : (h, w) uint32
-        Agent track id, scenery id (>= SCENERY_ID_BASE) or 0 (background, lights).
+        Agent track id, scenery id (>= SCENERY_ID_BASE), light shape id (>= LIGHT_ID_BASE) or 0 (background).
     depth_z : (h, w) float32
         Distance along the camera's view axis, metres; +inf where nothing is hit.
     depth_distance : (h, w) float32

@@ -17,18 +17,31 @@ times the colour-temperature tint (both from :class:`ShotScene.Light`):
   the stage's up axis (UsdLux ``poleAxis = "scene"``, the default). The
   azimuth of the texture is Mitsuba's (not checked against other renderers).
 
-Light shapes are visible to the camera; in the id pass they are background (0).
+Light shapes are visible to the camera, and in the id pass each carries its
+own id (:func:`light_id`: LIGHT_ID_BASE plus its index among the shot's
+lights), named in the id table like scenery.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from ...shading import LIGHT_ID_BASE
 from ..scene import Light
 from .meshes import make_mesh
 
 # Mitsuba's envmap has its pole on local +Y; a Z-up stage's dome has it on local +Z.
 _Y_UP_TO_Z_UP = np.array([[1, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]], dtype=np.float64)
+
+
+def light_id(k: int) -> int:
+    """Id-pass id of the shot's ``k``-th light's shape."""
+    return LIGHT_ID_BASE + int(k)
+
+
+def has_shape(light: Light) -> bool:
+    """Sphere, rect, disk and cylinder lights are surfaces a camera sees; distant and dome lights are not."""
+    return light.kind not in ("distant", "dome")
 
 
 def _area(light: Light) -> float:
@@ -110,5 +123,5 @@ def emitters(lights: list[Light], up_axis: str = "Z") -> dict:
                 n = n @ light.to_world[:3, :3]
             emitter = mi.load_dict({"type": "area", "radiance": {"type": "rgb", "value": value}})
             black = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.0, 0.0, 0.0]}})
-            out[key] = make_mesh(key, world, f, 0, normals=n, bsdf=black, emitter=emitter)
+            out[key] = make_mesh(key, world, f, light_id(k), normals=n, bsdf=black, emitter=emitter)
     return out
