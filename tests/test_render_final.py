@@ -554,3 +554,75 @@ def test_a_light_shape_carries_its_own_id_where_the_camera_sees_it(tmp_path):
     header, ch = read_frame_exr(tmp_path / "render" / "exr" / "frame.0001.exr")
     assert np.array_equal(ch["id"], r.gt.ids) and out.rendered
     assert header["usdcrowd:idTable"][LIGHT_ID_BASE] == "/World/Lamp"
+
+
+SUN_STAGE = '''
+def Xform "World"
+{
+    def Mesh "Ground"
+    {
+        int[] faceVertexCounts = [4]
+        int[] faceVertexIndices = [0, 1, 2, 3]
+        point3f[] points = [(-20, -20, 0), (20, -20, 0), (20, 20, 0), (-20, 20, 0)]
+        color3f[] primvars:displayColor = [(0.8, 0.8, 0.8)]
+    }
+    def Cube "Roof"
+    {
+        double size = 1
+        color3f[] primvars:displayColor = [(0.5, 0.5, 0.5)]
+        double3 xformOp:translate = (-5, 0, 4)
+        float3 xformOp:scale = (10, 10, 0.2)
+        uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:scale"]
+    }
+    def DistantLight "Sun"
+    {
+        float inputs:intensity = 3
+        float inputs:angle = {angle}
+        float3 xformOp:rotateXYZ = (0, -45, 0)
+        uniform token[] xformOpOrder = ["xformOp:rotateXYZ"]
+    }
+    def Camera "Cam"
+    {
+        float focalLength = 0.24
+        float horizontalAperture = 0.36
+        float verticalAperture = 0.36
+        float2 clippingRange = (0.1, 100)
+        double3 xformOp:translate = (4, 0, 12)
+        uniform token[] xformOpOrder = ["xformOp:translate"]
+    }
+}
+'''
+
+
+@pytest.mark.parametrize("angle", [0.0, 5.0, 10.0])
+def test_the_suns_angle_gives_the_penumbra_a_disc_of_that_size_casts(tmp_path, angle):
+    """A roof's edge 4 m up, the sun 45 degrees from the zenith: the shadow's edge on the ground spreads over
+    (4 / cos 45) * angle / cos 45 metres (the disc's full penumbra), the same irradiance outside it."""
+    from conftest import HEADER
+
+    def lit_row(a):
+        path = tmp_path / f"sun{a}.usda"
+        path.write_text(HEADER.format(up="Z", mpu=1, end=1) + SUN_STAGE.replace("{angle}", str(a)))
+        return FrameRenderer(path, "/World/Cam", (w, w), spp=256, max_depth=2).render(1).beauty.mean(-1)[60:140].mean(0)
+
+    w = 200
+    row = lit_row(angle)
+    lit = float(np.median(row[-30:]))
+    p = row / lit                                               # 0 in the shadow, 1 in the sun
+    px_per_m = w / (2 * 12 * 18 / 24)                           # 12 m above the ground, 36 mm on 24 mm
+
+    def crossing(level, start=70):                              # left of 70 px the camera sees the roof's top
+        j = start + int(np.argmax(p[start:] >= level))
+        return j - (p[j] - level) / (p[j] - p[j - 1])
+
+    width = crossing(0.75) - crossing(0.25)
+    full = 4 / np.cos(np.pi / 4) * np.radians(angle) / np.cos(np.pi / 4) * px_per_m
+    print(f"sun angle {angle} deg: penumbra 25-75 % over {width:.2f} px, a disc predicts {0.404 * full:.2f} px")
+    if angle == 0:
+        assert width < 1.0
+    else:
+        assert width == pytest.approx(0.404 * full, rel=0.2)
+        # The sun's irradiance does not depend on its size: the lit ground is as bright as under a point sun.
+        assert lit == pytest.approx(float(np.median(lit_row(0.0)[-30:])), rel=0.02)
+    # The edge itself is where the roof's edge casts it: x = 4 m, the image's centre column.
+    assert abs(crossing(0.5) - w / 2) < 1.5

@@ -9,9 +9,12 @@ times the colour-temperature tint (both from :class:`ShotScene.Light`):
   ``L = I * c`` on the light's surface (``area`` emitter on a mesh); with
   ``inputs:normalize`` the radiance is divided by the surface area, so the
   power no longer depends on the size (UsdLux's definition).
-- DistantLight: irradiance on a surface facing the light ``E = I * c``
-  (``directional`` emitter). Its angular size only softens shadows, which
-  Mitsuba's directional light does not model; E stays the same.
+- DistantLight: irradiance on a surface facing the light ``E = I * c``.
+  With ``inputs:angle`` (its angular diameter, 0.53 degrees for the sun by
+  default) it is a disc of that angular size far away (``area`` emitter on
+  a disc DISTANT_DISC_DISTANCE metres off, radiance ``E`` over the disc's
+  solid angle), so shadows get the penumbra the angle gives; with angle 0,
+  Mitsuba's ``directional`` emitter (hard shadows).
 - DomeLight: radiance ``L = I * c`` from every direction (``constant``), or
   the latitude-longitude texture times ``I * c`` (``envmap``), its pole on
   the stage's up axis (UsdLux ``poleAxis = "scene"``, the default). The
@@ -30,6 +33,8 @@ from ...shading import LIGHT_ID_BASE
 from ..scene import Light
 from .meshes import make_mesh
 
+# Far enough that the sun's direction varies by 0.06 degrees across a 10 m scene, near enough for float32.
+DISTANT_DISC_DISTANCE = 1.0e4
 # Mitsuba's envmap has its pole on local +Y; a Z-up stage's dome has it on local +Z.
 _Y_UP_TO_Z_UP = np.array([[1, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]], dtype=np.float64)
 
@@ -80,6 +85,32 @@ def _light_geometry(light: Light):
     raise ValueError(light.kind)
 
 
+def _distant_disc(key: str, k: int, direction: np.ndarray, angle: float, irradiance: np.ndarray):
+    """A disc of angular diameter ``angle`` (radians) far along ``-direction`` whose irradiance is ``irradiance``.
+
+    Radiance L over the disc's solid angle 2 pi (1 - cos(angle / 2)) gives the
+    irradiance E on a surface facing it: L = E / (pi sin^2(angle / 2)).
+    """
+    import mitsuba as mi
+
+    half = 0.5 * angle
+    radius = DISTANT_DISC_DISTANCE * np.tan(half)
+    radiance = irradiance / (np.pi * np.sin(half) ** 2)
+    a = np.linspace(0, 2 * np.pi, 65)[:-1]
+    disc = np.vstack([[0, 0, 0], np.stack([np.cos(a), np.sin(a), np.zeros_like(a)], -1) * radius])
+    idx = np.arange(1, 65)
+    faces = np.stack([np.zeros_like(idx), idx, np.roll(idx, -1)], -1)      # faces +Z (toward the scene below)
+    z = -direction                                                          # from the scene toward the light
+    x = np.cross([0.0, 0.0, 1.0] if abs(z[2]) < 0.9 else [1.0, 0.0, 0.0], z)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    world = (disc @ np.stack([x, y, z])) + z * DISTANT_DISC_DISTANCE
+    emitter = mi.load_dict({"type": "area", "radiance": {"type": "rgb", "value": radiance.tolist()}})
+    black = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.0, 0.0, 0.0]}})
+    # Faces must face the scene: the disc's normal is its local +Z mapped to -z (toward the scene).
+    return make_mesh(key, world, faces[:, ::-1], 0, bsdf=black, emitter=emitter)
+
+
 def emitters(lights: list[Light], up_axis: str = "Z") -> dict:
     """Scene-dict entries (name -> Mitsuba dict or object) for every light.
 
@@ -103,8 +134,12 @@ def emitters(lights: list[Light], up_axis: str = "Z") -> dict:
         key = f"light_{k}"
         if light.kind == "distant":
             direction = -light.to_world[2, :3]          # lights shine along their local -Z
-            out[key] = {"type": "directional", "direction": direction.tolist(),
-                        "irradiance": {"type": "rgb", "value": value}}
+            direction = direction / np.linalg.norm(direction)
+            if light.angle > 0:
+                out[key] = _distant_disc(key, k, direction, np.radians(light.angle), np.asarray(value))
+            else:
+                out[key] = {"type": "directional", "direction": direction.tolist(),
+                            "irradiance": {"type": "rgb", "value": value}}
         elif light.kind == "dome":
             if light.texture:
                 bmp = np.array(mi.Bitmap(light.texture).convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.Float32,
