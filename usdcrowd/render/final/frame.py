@@ -200,7 +200,9 @@ class FrameRenderer:
         cam = self.shot.camera(camera, t0)
         self.camera_path = cam.path
         start = _time.perf_counter()
-        self.built: BuiltScene = build_scene(self.shot, cam, self.width, self.height, self.spp, self.max_depth, t0,
+        # The sensor's own count is a valid one for its sampler (each render passes its own count).
+        self.built: BuiltScene = build_scene(self.shot, cam, self.width, self.height,
+                                             sample_passes(self.spp, self.sampler)[0], self.max_depth, t0,
                                              sampler=self.sampler)
         # The denoiser's guides: albedo and shading normal, a pass of their own through the same film
         # (box filter), averaged over up to GUIDE_SPP samples per pixel.
