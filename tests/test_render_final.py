@@ -450,6 +450,12 @@ def test_a_users_mistake_found_on_a_ray_worker_is_one_line(tmp_path, capsys):
 
 def _edge_width(image: np.ndarray) -> float:
     """Width in pixels between 25 % and 75 % of the step across the box's left edge (rows averaged)."""
+    x25, _, x75 = _edge_crossings(image)
+    return abs(x25 - x75)
+
+
+def _edge_crossings(image: np.ndarray) -> tuple[float, float, float]:
+    """Sub-pixel columns where the step across the box's left edge passes 25, 50 and 75 % (rows averaged)."""
     lum = image.mean(-1)
     h, w = lum.shape
     row = lum[h // 3: 2 * h // 3].mean(0)
@@ -465,7 +471,7 @@ def _edge_width(image: np.ndarray) -> float:
         a, b = p[j], p[j - 1]                                      # inside side, outside side
         return j - (level - a) / (b - a)
 
-    return abs(crossing(0.25) - crossing(0.75))
+    return crossing(0.25), crossing(0.5), crossing(0.75)
 
 
 DOF_CAMERA = '''
@@ -626,3 +632,27 @@ def test_the_suns_angle_gives_the_penumbra_a_disc_of_that_size_casts(tmp_path, a
         assert lit == pytest.approx(float(np.median(lit_row(0.0)[-30:])), rel=0.02)
     # The edge itself is where the roof's edge casts it: x = 4 m, the image's centre column.
     assert abs(crossing(0.5) - w / 2) < 1.5
+
+
+def test_motion_blur_spreads_a_moving_edge_over_the_shutters_travel(tmp_path):
+    """A box crossing the view at 2 m a frame, shutter 0.5: its edge ramps over the distance it moves while the
+    shutter is open (a linear ramp: 25-75 % over half of it); the ground truth stays at the frame's time."""
+    from conftest import HEADER
+
+    stage = BOX_STAGE.replace("double3 xformOp:translate = (0, 10, 0)",
+                              "double3 xformOp:translate.timeSamples = {1: (-2, 10, 0), 2: (0, 10, 0), 3: (2, 10, 0)}")
+    path = tmp_path / "moving.usda"
+    path.write_text(HEADER.format(up="Z", mpu=1, end=3) + stage)
+    w, h = 256, 192
+    sharp = FrameRenderer(path, "/World/Cam", (w, h), spp=64, max_depth=2).render(2)
+    blurred = FrameRenderer(path, "/World/Cam", (w, h), spp=256, max_depth=2, shutter=0.5, subframes=32).render(2)
+    px_per_m = w / (2 * 9 * 18 / 24)                 # the box's front face is 9 m away; 36 mm on 24 mm
+    ramp = 2.0 * 0.5 * px_per_m                      # metres a frame x frames open x pixels a metre
+    width = _edge_width(blurred.beauty)
+    print(f"motion blur: edge 25-75 % over {width:.2f} px, the shutter's travel predicts {0.5 * ramp:.2f} px")
+    assert _edge_width(sharp.beauty) < 1.0
+    # (measured a little wider: the box's side face turns into view as it moves off the axis)
+    assert width == pytest.approx(0.5 * ramp, rel=0.2)
+    # The shutter is centred on the frame: the blurred edge's middle is where the sharp edge is.
+    assert abs(_edge_crossings(blurred.beauty)[1] - _edge_crossings(sharp.beauty)[1]) < 1.0
+    np.testing.assert_array_equal(blurred.gt.ids, sharp.gt.ids)

@@ -35,6 +35,11 @@ def add_parser(sub):
     p.add_argument("--seed", type=int, default=0, help="sampler seed of the beauty pass")
     p.add_argument("--sampler", choices=("independent", "stratified", "multijitter", "orthogonal", "ldsampler"),
                    help="Mitsuba sampler of the beauty (default: the preset's, multijitter)")
+    p.add_argument("--motion-blur", dest="shutter", type=float, metavar="SHUTTER",
+                   help="open the shutter for SHUTTER frames around each frame (0.5: a 180-degree shutter); the "
+                        "scene is posed at --subframes times in that interval (the ground truth stays at the frame)")
+    p.add_argument("--subframes", type=int_at_least(2), metavar="N",
+                   help="with --motion-blur: times the shutter interval is sampled at (default 8)")
     denoise = p.add_mutually_exclusive_group()
     denoise.add_argument("--denoise", dest="denoise", action="store_const", const=True, default=None,
                          help="denoise the beauty with Intel Open Image Denoise (EXR R, G, B; the path-traced "
@@ -46,13 +51,17 @@ def add_parser(sub):
 
 
 def run(args) -> int:
+    from ..errors import UsdcrowdError
     from ..render.final.variant import choose_variant, describe
     from ..render.sequence import render_sequence, settings_from_preset
 
     settings = settings_from_preset(args.preset, resolution=args.resolution, spp=args.spp,
                                     max_depth=args.max_depth, ground_truth=args.ground_truth,
                                     exposure=args.exposure, working_space=args.working_space, seed=args.seed,
-                                    sampler=args.sampler, denoise=args.denoise)
+                                    sampler=args.sampler, denoise=args.denoise, shutter=args.shutter,
+                                    subframes=args.subframes)
+    if not 0.0 <= settings.shutter <= 1.0:
+        raise UsdcrowdError(f"--motion-blur {settings.shutter:g}: the shutter is open between 0 and 1 frame")
     settings.variant = choose_variant(args.variant)
     print(describe(settings.variant))
     r = render_sequence(args.shot, args.output, camera=args.camera, frames=args.frames, settings=settings,

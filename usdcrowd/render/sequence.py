@@ -60,6 +60,8 @@ class RenderSettings:
     variant: str | None = None
     sampler: str = "multijitter"
     denoise: bool = False
+    shutter: float = 0.0
+    subframes: int = 8
 
     def fingerprint(self) -> dict:
         """The settings that change output pixels (variant excluded: same picture, other noise)."""
@@ -291,7 +293,8 @@ def _build_worker(shot_path, camera, settings_dict, threads):
     shot = ShotScene(shot_path)
     _WORKER["renderer"] = FrameRenderer(shot, camera, settings.resolution, settings.spp, settings.max_depth,
                                         settings.variant, settings.ground_truth, settings.seed, threads,
-                                        sampler=settings.sampler, denoise=settings.denoise)
+                                        sampler=settings.sampler, denoise=settings.denoise,
+                                        shutter=settings.shutter, subframes=settings.subframes)
     _WORKER["metadata"] = AgentMetadata.from_shot(shot) if settings.ground_truth else None
     _WORKER["settings"] = settings
 
