@@ -249,3 +249,109 @@ def test_blender_sees_the_two_heads_where_the_toric_camera_says(blender_python, 
         blender_ndc = np.array(got[str(t)]) * 2 - 1
         authored = [prim.GetAttribute("crowd:toric:pA").Get(t), prim.GetAttribute("crowd:toric:pB").Get(t)]
         np.testing.assert_allclose(blender_ndc, np.array(authored, dtype=float), atol=1e-4)
+
+
+DOME_SCRIPT = '''
+import bpy, sys
+bpy.ops.wm.read_factory_settings(use_empty=True)
+bpy.context.scene.world = bpy.data.worlds.new("W")    # Blender makes the dome's world only into an existing one
+bpy.ops.wm.usd_import(filepath=sys.argv[1], create_world_material=True)
+sc = bpy.context.scene
+sc.render.engine = "CYCLES"
+sc.cycles.device = "CPU"
+sc.cycles.samples = 16
+sc.cycles.use_denoising = False
+sc.render.resolution_x, sc.render.resolution_y, sc.render.resolution_percentage = 400, 200, 100
+sc.view_settings.view_transform = "Standard"
+sc.render.image_settings.file_format = "PNG"
+for name in sys.argv[2:]:
+    sc.camera = bpy.data.objects[name]
+    sc.render.filepath = sys.argv[1] + "." + name + ".png"
+    bpy.ops.render.render(write_still=True)
+print("RESULT {}")
+'''
+
+
+def test_a_textured_dome_faces_the_same_way_in_blender_cycles(blender_python, tmp_path):
+    """A lat-long sky with two marks on a Z-up stage: usdcrowd sees each where UsdLux says (DomeLight's pole on
+    +Y, the OpenEXR lat-long convention) and where Blender Cycles, importing the same stage, sees it."""
+    from PIL import Image
+
+    from usdcrowd.render.final.frame import FrameRenderer
+
+    w, h = 360, 180                                   # one texel a degree
+    sky = np.full((h, w, 3), 20, np.uint8)
+    sky[50:90, 90] = (0, 255, 0)                      # green: u = 90.5 / 360, latitudes 0 to 40 degrees
+    sky[90:130, 270] = (255, 0, 0)                    # red: u = 270.5 / 360, latitudes 0 to -40 degrees
+    Image.fromarray(sky).save(tmp_path / "sky.png")
+    cams = "".join(f'''
+    def Camera "Cam{k}"
+    {{
+        float focalLength = 1.8
+        float horizontalAperture = 3.6
+        float verticalAperture = 1.8
+        float2 clippingRange = (0.1, 100)
+        float3 xformOp:rotateXYZ = (90, 0, {yaw})
+        uniform token[] xformOpOrder = ["xformOp:rotateXYZ"]
+    }}''' for k, yaw in enumerate((90, 270)))
+    stage = tmp_path / "dome.usda"
+    stage.write_text(f'''#usda 1.0
+(
+    defaultPrim = "World"
+    metersPerUnit = 1
+    upAxis = "Z"
+    startTimeCode = 1
+    endTimeCode = 1
+)
+def Xform "World"
+{{
+    def DomeLight "Sky"
+    {{
+        asset inputs:texture:file = @./sky.png@
+        float inputs:intensity = 1
+    }}{cams}
+}}
+''')
+    script = tmp_path / "dome.py"
+    script.write_text(DOME_SCRIPT)
+    run = subprocess.run([blender_python, str(script), str(stage), "Cam0", "Cam1"], capture_output=True, text=True,
+                         timeout=600)
+    assert run.returncode == 0, run.stderr[-2000:]
+
+    def directions(img, m):
+        """Unit direction of each mark's centroid, through camera ``m`` (90 by 53 degrees, 400 x 200 px)."""
+        out = {}
+        for name, mask in (("red", (img[..., 0] > 0.4) & (img[..., 1] < 0.3)),
+                           ("green", (img[..., 1] > 0.4) & (img[..., 0] < 0.3))):
+            if mask.sum() < 20:
+                continue
+            rows, cols = np.argwhere(mask).T + 0.5
+            d = -m[2, :3] + (cols.mean() - 200) / 200 * m[0, :3] - (rows.mean() - 100) / 200 * m[1, :3]
+            out[name] = d / np.linalg.norm(d)
+        return out
+
+    def spec(u, lat_deg):
+        """The OpenEXR lat-long direction (UsdLux DomeLight: pole +Y; longitude 0 at +Z, pi / 2 at +X)."""
+        lon, lat = np.pi - 2 * np.pi * u, np.radians(lat_deg)
+        return np.array([np.cos(lat) * np.sin(lon), np.sin(lat), np.cos(lat) * np.cos(lon)])
+
+    expected = {"green": spec(90.5 / 360, 90 - 70), "red": spec(270.5 / 360, 90 - 110)}
+
+    def angle(a, b):
+        return float(np.degrees(np.arccos(np.clip(a @ b, -1, 1))))
+
+    seen = set()
+    for name in ("Cam0", "Cam1"):
+        ours = FrameRenderer(stage, f"/World/{name}", (400, 200), spp=16, max_depth=1, ground_truth=False).render(1)
+        theirs = np.asarray(Image.open(f"{stage}.{name}.png").convert("RGB")).astype(float) / 255
+        a, b = directions(ours.beauty, ours.camera.cam_to_world), directions(theirs, ours.camera.cam_to_world)
+        assert a.keys() == b.keys(), (a, b)
+        for mark in a:
+            assert angle(a[mark], b[mark]) < 1.0, (mark, a[mark], b[mark])       # Cycles agrees
+            # And the spec: the same longitude, and latitude on the same side (a segment's projected
+            # centroid leans toward its far end, so only the side is compared).
+            lon = np.degrees(np.arctan2(a[mark][0], a[mark][2]) - np.arctan2(expected[mark][0], expected[mark][2]))
+            assert abs((lon + 180) % 360 - 180) < 1.0, (mark, a[mark], expected[mark])
+            assert np.sign(a[mark][1]) == np.sign(expected[mark][1]) and abs(a[mark][1]) > 0.2
+            seen.add(mark)
+    assert seen == {"red", "green"}

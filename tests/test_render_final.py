@@ -185,9 +185,16 @@ def test_textures_keep_their_orientation(tmp_path):
     assert np.allclose(r.gt.albedo[ys.max() - 1, x], (0, 0, 1), atol=1e-3)
 
 
-@pytest.mark.parametrize("up", ["Y", "Z"])
-def test_textured_dome_keeps_the_sky_up(tmp_path, up):
-    """A lat-long sky (blue top half, brown bottom half) seen by a level camera, in a Y-up and a Z-up stage."""
+@pytest.mark.parametrize("up, dome, pole, sky_up", [
+    ("Y", "DomeLight", "", True),                          # DomeLight: the pole is +Y, the stage's up here
+    ("Z", "DomeLight", "", False),                         # ... and on a Z-up stage too: the sky is on its side
+    ("Z", "DomeLight_1", "", True),                        # DomeLight_1: poleAxis "scene", the stage's up axis
+    ("Z", "DomeLight_1", 'uniform token poleAxis = "Y"', False),
+    ("Y", "DomeLight_1", 'uniform token poleAxis = "Z"', False),
+    ("Y", "DomeLight_1", "", True),
+])
+def test_textured_dome_puts_its_pole_where_usdlux_says(tmp_path, up, dome, pole, sky_up):
+    """A lat-long sky (blue top half, brown bottom half) seen by a level camera, Y-up and Z-up stages."""
     from PIL import Image
 
     from conftest import HEADER
@@ -199,9 +206,10 @@ def test_textured_dome_keeps_the_sky_up(tmp_path, up):
     (tmp_path / "sky.usda").write_text(HEADER.format(up=up, mpu=1, end=1) + f'''
 def Xform "World"
 {{
-    def DomeLight "Sky"
+    def {dome} "Sky"
     {{
         asset inputs:texture:file = @./sky.png@
+        {pole}
     }}
     def Camera "Cam"
     {{
@@ -213,7 +221,8 @@ def Xform "World"
 ''')
     r = FrameRenderer(tmp_path / "sky.usda", "/World/Cam", (W, H), spp=4, max_depth=2).render(1)
     top, bottom = r.beauty[: H // 4].mean((0, 1)), r.beauty[-H // 4:].mean((0, 1))
-    assert top[2] > top[0] and bottom[0] > bottom[2]
+    up_sky = top[2] > top[0] and bottom[0] > bottom[2]
+    assert up_sky == sky_up, (top, bottom)
 
 
 def test_scalar_fallback_gives_the_same_ground_truth(box_frame, tmp_path):

@@ -48,6 +48,11 @@ class Light:
         Dome texture file, resolved.
     normalize : bool
         inputs:normalize (power independent of size).
+    pole_axis : str
+        A dome's top pole in the light's own (stage) axes, "Y" or "Z":
+        DomeLight's is +Y whatever the stage's up axis (UsdLux, the OpenEXR
+        lat-long convention); DomeLight_1 says with ``poleAxis`` ("scene":
+        the stage's up axis).
     """
 
     path: str
@@ -62,3 +67,4 @@ class Light:
     angle: float = 0.0
     texture: str | None = None
     normalize: bool = False
+    pole_axis: str = "Y"

@@ -191,7 +191,7 @@ class ShotScene:
     def lights(self) -> list[Light]:
         """The stage's UsdLux lights (read at the start time; lights are static here)."""
         t = self.stage.GetStartTimeCode()
-        return [light for light in (_light_of(p, self._world(p, t), self.frame.meters_per_unit)
+        return [light for light in (_light_of(p, self._world(p, t), self.frame.meters_per_unit, self.frame.up_axis)
                                     for p in self._light_prims) if light is not None]
 
     # ---------------------------------------------------------------- agents
@@ -437,7 +437,7 @@ def color_temperature_rgb(kelvin: float) -> np.ndarray:
     return rgb / (0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2])
 
 
-def _light_of(prim, to_world: np.ndarray, mpu: float) -> Light | None:
+def _light_of(prim, to_world: np.ndarray, mpu: float, up_axis: str = "Z") -> Light | None:
     from pxr import UsdLux
 
     from ..errors import StageError
@@ -465,6 +465,9 @@ def _light_of(prim, to_world: np.ndarray, mpu: float) -> Light | None:
     elif kind == "dome":
         f = UsdLux.DomeLight(prim).GetTextureFileAttr().Get()
         light.texture = (f.resolvedPath or None) if f else None
+        if str(prim.GetTypeName()) == "DomeLight_1":
+            pole = str(UsdLux.DomeLight_1(prim).GetPoleAxisAttr().Get() or "scene")
+            light.pole_axis = up_axis if pole == "scene" else pole
     elif kind == "sphere":
         light.radius = float(UsdLux.SphereLight(prim).GetRadiusAttr().Get()) * s
     elif kind == "rect":

@@ -16,9 +16,11 @@ times the colour-temperature tint (both from :class:`ShotScene.Light`):
   solid angle), so shadows get the penumbra the angle gives; with angle 0,
   Mitsuba's ``directional`` emitter (hard shadows).
 - DomeLight: radiance ``L = I * c`` from every direction (``constant``), or
-  the latitude-longitude texture times ``I * c`` (``envmap``), its pole on
-  the stage's up axis (UsdLux ``poleAxis = "scene"``, the default). The
-  azimuth of the texture is Mitsuba's (not checked against other renderers).
+  the latitude-longitude texture times ``I * c`` (``envmap``). A
+  DomeLight's top pole is its +Y axis whatever the stage's up axis (UsdLux:
+  the OpenEXR lat-long convention, longitude pi / 2 toward +X); a
+  DomeLight_1's is its ``poleAxis`` ("scene", the default: the stage's up
+  axis). Checked against Blender Cycles importing the same stage.
 
 Light shapes are visible to the camera, and in the id pass each carries its
 own id (:func:`light_id`: LIGHT_ID_BASE plus its index among the shot's
@@ -144,7 +146,7 @@ def emitters(lights: list[Light], up_axis: str = "Z") -> dict:
             if light.texture:
                 bmp = np.array(mi.Bitmap(light.texture).convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.Float32,
                                                                 srgb_gamma=False))
-                local = _Y_UP_TO_Z_UP if up_axis == "Z" else np.eye(4)
+                local = _Y_UP_TO_Z_UP if light.pole_axis == "Z" else np.eye(4)
                 m = (local @ light.to_world).T
                 out[key] = {"type": "envmap", "bitmap": mi.Bitmap((bmp * np.asarray(value, np.float32))
                                                                   .astype(np.float32)),
