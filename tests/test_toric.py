@@ -143,7 +143,8 @@ def test_features_of_a_shot_match_the_renderers_projection_and_the_cli_writes_th
 
     from frames_factory import straight_walk
 
-    from usdcrowd.cameras.features import head_and_facing, shot_features
+    from usdcrowd.cameras.features import head_and_facing
+    from usdcrowd.toric_filming import shot_features
     from usdcrowd.cli import main
     from usdcrowd.pipeline import author_shot
     from usdcrowd.render.scene import ShotScene

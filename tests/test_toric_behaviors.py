@@ -387,7 +387,7 @@ def test_features_follow_a_zooming_camera_frame_by_frame(dialogue_shot, tmp_path
 
     from pxr import Sdf
 
-    from usdcrowd.cameras.features import shot_features
+    from usdcrowd.toric_filming import shot_features
     from usdcrowd.render.scene import ShotScene
 
     shutil.copytree(dialogue_shot.parent, tmp_path / "copy")

@@ -1,4 +1,4 @@
-"""Toric cameras on an existing shot (seed 002): ``usdcrowd frame`` runs here.
+"""Toric cameras on an existing shot (seed 002): ``usdcrowd frame`` and ``usdcrowd features`` run here.
 
 The two characters come back from the shot's crowd layer (their heads and
 shoulders, posed by the three-bone rig), a behavior of
@@ -14,6 +14,7 @@ of the seed: "their positions need to be interpolated to avoid a jump").
 from __future__ import annotations
 
 import os
+from typing import TYPE_CHECKING
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -22,6 +23,9 @@ import numpy as np
 from . import model, schema
 from .errors import StageError
 from .usd.cameras import CAMERAS as CAMERAS_LAYER
+
+if TYPE_CHECKING:
+    from .cameras.features import CinematicFeatures
 
 FOCAL_LENGTH = 50.0        # mm: a 40 degree horizontal field on 36 mm, within the seed's 30-45 degrees
 APERTURE = 36.0            # mm, horizontal
@@ -57,6 +61,61 @@ class TargetSignals:
     yaw_b: np.ndarray
     target_a: list[str]
     target_b: list[str]
+
+
+def shot_features(shot, camera: str | None, agent_a: str, agent_b: str, times=None,
+                  width: int = 1920, height: int = 1080) -> tuple[CinematicFeatures, dict]:
+    """Cinematic features of a shot's camera filming two of its agents.
+
+    Parameters
+    ----------
+    shot : path-like or ShotScene
+    camera : str or None
+        Camera prim path (None: the first camera).
+    agent_a, agent_b : str
+        Agent prim paths, or their last path component when it is unique.
+    times : sequence of float, optional
+        Time codes (default: every frame of the shot).
+    width, height : int
+        Image size the screen boxes are measured in (its aspect is the framing's).
+
+    Returns
+    -------
+    features : CinematicFeatures
+    about : dict
+        Camera and agent paths, field of view and aspect (for the JSON).
+    """
+    from .cameras.features import cinematic_features, head_and_facing
+    from .render.scene import ShotScene
+
+    scene = shot if isinstance(shot, ShotScene) else ShotScene(shot)
+    paths = scene.agent_paths
+    ia, ib = scene.agent_row(agent_a), scene.agent_row(agent_b)
+    times = np.asarray(scene.time_codes if times is None else times, dtype=np.float64)
+    scene.check_times(times)
+    heads, yaws, grounds, boxes, mats, fovs = [], [], [], [], [], []
+    view = None
+    for t in times:
+        view = scene.camera(camera, t)
+        poses = scene.agents(t, [ia, ib])
+        head, yaw = head_and_facing(poses.joints_world)
+        key = poses.keypoints()
+        uv, z = view.project(key, width, height)
+        size = np.where((z > 0).all(axis=1), np.ptp(uv[..., 0], axis=1) * np.ptp(uv[..., 1], axis=1), 0.0)
+        heads.append(head)
+        yaws.append(yaw)
+        grounds.append(key[:, -1])
+        boxes.append(size)
+        mats.append(view.cam_to_world)
+        fovs.append(np.radians(view.fov_x()))          # per frame: a zooming camera's lens changes
+    heads, yaws, grounds, boxes, fovs = (np.array(v) for v in (heads, yaws, grounds, boxes, fovs))
+    aspect = width / height
+    features = cinematic_features(times, heads[:, 0], heads[:, 1], yaws[:, 0], yaws[:, 1], grounds[:, 0],
+                                  grounds[:, 1], boxes[:, 0], boxes[:, 1], np.array(mats), fovs, aspect)
+    about = {"shot": scene.path, "camera": view.path, "A": paths[ia], "B": paths[ib],
+             "fov_x_deg": [float(v) for v in np.degrees(fovs)] if np.ptp(fovs) > 0 else float(np.degrees(fovs[0])),
+             "aspect": aspect}
+    return features, about
 
 
 def check_spans(scene, spans: list[PairSpan]) -> list[tuple[float, int, int]]:
