@@ -139,6 +139,12 @@ def single_threaded_build():
         yield
         return
     n = dr.thread_count()
+    if n == 1:
+        yield
+        return
+    # The pool is resized only when no kernel is in flight: resizing it under running work hung a test
+    # run once (the main thread waiting in set_thread_count, every worker asleep).
+    dr.sync_thread()
     dr.set_thread_count(1)
     try:
         yield
