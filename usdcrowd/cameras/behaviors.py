@@ -56,7 +56,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .smoothing import moving_average
+from .smoothing import moving_average, rotation_from_ypr
 
 BEHAVIORS = ("direct-track", "relative-track", "side-track", "orbit")
 MIN_BETA = np.radians(15.0)        # nearer the line AB one character hides the other
@@ -350,11 +350,9 @@ def _look_without_roll(eye: np.ndarray, a: np.ndarray, b: np.ndarray, above: flo
     yaw = np.arctan2(bis[:, 1], bis[:, 0])
     to = 0.5 * (to_a + to_b)
     pitch = np.arctan2(to[:, 2], np.hypot(to[:, 0], to[:, 1])) - above
-    forward = np.stack([np.cos(pitch) * np.cos(yaw), np.cos(pitch) * np.sin(yaw), np.sin(pitch)], -1)
-    right = np.stack([np.sin(yaw), -np.cos(yaw), np.zeros_like(yaw)], -1)
-    up = np.cross(right, forward)
     m = np.zeros((len(eye), 4, 4))
-    m[:, 0, :3], m[:, 1, :3], m[:, 2, :3], m[:, 3, :3] = right, up, -forward, eye
+    m[:, :3, :3] = rotation_from_ypr(np.stack([yaw, pitch, np.zeros_like(yaw)], -1))
+    m[:, 3, :3] = eye
     m[:, 3, 3] = 1.0
     return m
 

@@ -41,7 +41,7 @@ def _yaw_pitch_roll(rot: np.ndarray) -> np.ndarray:
     return np.stack([yaw, pitch, roll], -1)
 
 
-def _rotation(ypr: np.ndarray) -> np.ndarray:
+def rotation_from_ypr(ypr: np.ndarray) -> np.ndarray:
     """Inverse of :func:`_yaw_pitch_roll`: (t, 3, 3) rows right, up, back."""
     yaw, pitch, roll = ypr.T
     forward = np.stack([np.cos(pitch) * np.cos(yaw), np.cos(pitch) * np.sin(yaw), np.sin(pitch)], -1)
@@ -77,7 +77,7 @@ def smooth_track(cam_to_world: np.ndarray, window: int = WINDOW, passes: int = P
         eye = moving_average(eye, window)
         ypr = moving_average(ypr, window)
     out = np.zeros_like(m)
-    out[:, :3, :3] = _rotation(ypr)
+    out[:, :3, :3] = rotation_from_ypr(ypr)
     out[:, 3, :3] = eye
     out[:, 3, 3] = 1.0
     return out
