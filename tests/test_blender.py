@@ -355,3 +355,62 @@ def Xform "World"
             assert np.sign(a[mark][1]) == np.sign(expected[mark][1]) and abs(a[mark][1]) > 0.2
             seen.add(mark)
     assert seen == {"red", "green"}
+
+
+PALETTE_SCRIPT = '''
+import bpy, json, sys
+import numpy as np
+bpy.ops.wm.read_factory_settings(use_empty=True)
+bpy.ops.wm.usd_import(filepath=sys.argv[1])
+bodies = []
+for o in bpy.data.objects:
+    if o.type != "MESH" or not o.name.startswith("Body"):
+        continue
+    attr = o.data.color_attributes.get("displayColor")
+    colors = np.array([tuple(d.color)[:3] for d in attr.data]) if attr is not None else None
+    slots = []
+    for slot in o.material_slots:
+        tree = slot.material.node_tree
+        bsdf = next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED")
+        link = bsdf.inputs["Base Color"].links[0].from_node if bsdf.inputs["Base Color"].is_linked else None
+        slots.append([slot.material.name, bsdf.inputs["Roughness"].default_value,
+                      getattr(link, "attribute_name", None)])
+    bodies.append({"domain": attr.domain if attr is not None else None,
+                   "colors": colors.tolist() if colors is not None else None, "slots": slots})
+print("RESULT " + json.dumps(bodies))
+'''
+
+
+def test_blender_dresses_each_agent_in_its_palette(blender_python, tmp_path):
+    """Blender's importer gives every body its per-vertex palette colours and one material per region,
+    each reading displayColor with the region's roughness."""
+    from pxr import Usd, UsdGeom
+
+    from usdcrowd.character import appearance
+    from usdcrowd.character.body import REGIONS
+    from usdcrowd.pipeline import simulate_shot
+    from usdcrowd.resources import data_dir
+
+    shot = simulate_shot(data_dir("stages") / "dialogue.usda", tmp_path / "shot", frames=(1, 4), progress=False).shot
+    script = tmp_path / "palette.py"
+    script.write_text(PALETTE_SCRIPT)
+    run = subprocess.run([blender_python, str(script), str(shot)], capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr[-2000:]
+    bodies = json.loads(next(ln for ln in run.stdout.splitlines() if ln.startswith("RESULT "))[len("RESULT "):])
+    stage = Usd.Stage.Open(str(shot))
+    ours = [np.array(UsdGeom.PrimvarsAPI(p).GetPrimvar("displayColor").ComputeFlattened(), dtype=float)
+            for p in stage.Traverse() if p.GetName() == "Body" and p.IsA(UsdGeom.Mesh)]
+    assert len(bodies) == len(ours) == 4
+    unmatched = list(range(len(ours)))
+    rough = dict(zip(REGIONS, appearance.roughness()))
+    for body in bodies:
+        assert body["domain"] == "POINT"
+        colors = np.array(body["colors"])
+        hit = [k for k in unmatched if ours[k].shape == colors.shape and np.allclose(ours[k], colors, atol=1e-6)]
+        assert len(hit) == 1, "each Blender body wears exactly one agent's palette"
+        unmatched.remove(hit[0])
+        assert len(np.unique(colors.round(5), axis=0)) == len(REGIONS)
+        assert sorted(name.split(".")[0] for name, _, _ in body["slots"]) == sorted(r.capitalize() for r in REGIONS)
+        for name, roughness, attribute in body["slots"]:
+            assert roughness == pytest.approx(rough[name.split(".")[0].lower()], abs=1e-6)
+            assert attribute == "displayColor"

@@ -127,6 +127,10 @@ class AgentTable:
     trades : (n,) bool
         Market trading (crowd:trades): wanderers stop to trade with resting
         agents of another top-level group. None: nobody trades.
+    palette : (n, r, 3) float64
+        Linear RGB per body region (character.body.REGIONS: top, trousers,
+        skin, hair, shoes). None: the clothing colour as the top and plain
+        other regions (character.appearance.plain_palettes).
     """
 
     path: list[str]
@@ -148,6 +152,7 @@ class AgentTable:
     start: np.ndarray
     start_heading: np.ndarray
     trades: np.ndarray | None = None
+    palette: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.path)

@@ -268,5 +268,6 @@ def _subset(scenario: model.Scenario, rows: np.ndarray) -> model.Scenario:
     from dataclasses import replace
 
     a = scenario.agents
-    fields = {k: (v[rows] if isinstance(v, np.ndarray) else [v[i] for i in rows]) for k, v in vars(a).items()}
+    fields = {k: (v[rows] if isinstance(v, np.ndarray) else v if v is None else [v[i] for i in rows])
+              for k, v in vars(a).items()}
     return replace(scenario, agents=model.AgentTable(**fields))

@@ -26,9 +26,12 @@ class AgentPoses:
     visible : (n,) bool
         Rendered (not an invisible leader, not hidden).
     color : (n, 3) float32
-        Linear RGB clothing colour.
+        Linear RGB of the top (the colour an agent is known by).
     joints_world : (n, 3, 4, 4) float64
         Joint-to-world matrices (canonical), legs / torso / head.
+    palette : (n, r, 3) float32
+        Linear RGB of each body region (ShotScene.body.regions indexes the
+        rows); None: ``color`` all over.
     """
 
     time: float
@@ -37,6 +40,7 @@ class AgentPoses:
     visible: np.ndarray
     color: np.ndarray
     joints_world: np.ndarray
+    palette: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.paths)

@@ -21,6 +21,12 @@ from .rig import HEAD_TOP, NECK_HEIGHT, PELVIS_HEIGHT, WAIST_HEIGHT
 WAIST_BLEND = (PELVIS_HEIGHT - 0.07, WAIST_HEIGHT + 0.03)
 NECK_BLEND = (NECK_HEIGHT - 0.04, NECK_HEIGHT + 0.06)
 
+# What each vertex is dressed in; rows of an agent's palette (character.appearance).
+# "top" comes first: it is the colour a character is known by where only one is drawn.
+REGIONS = ("top", "trousers", "skin", "hair", "shoes")
+HAIRLINE = HEAD_TOP - 0.075     # the crown is hair all round
+NAPE = HEAD_TOP - 0.16          # hair reaches down to here at the back of the head
+
 
 @dataclass(frozen=True)
 class Body:
@@ -39,6 +45,8 @@ class Body:
         Influencing joints, heaviest first.
     joint_weights : (v, 2) float32
         Matching weights, rows sum to 1, sorted descending.
+    regions : (v,) int32
+        Row of :data:`REGIONS` each vertex belongs to.
     mesh : trimesh.Trimesh
         The same geometry as a trimesh.
     """
@@ -49,6 +57,7 @@ class Body:
     normals: np.ndarray
     joint_indices: np.ndarray
     joint_weights: np.ndarray
+    regions: np.ndarray
     mesh: trimesh.Trimesh
 
     @property
@@ -76,25 +85,37 @@ def _ellipsoid(center, radii, subdivisions):
 
 
 def _parts():
-    """(mesh, kind) pairs; kind picks the weighting rule."""
+    """(mesh, kind, dress) triples; kind picks the weighting rule, dress the region (:func:`_regions`)."""
     parts = []
     for side in (1.0, -1.0):
-        parts.append((_capsule(0.0, PELVIS_HEIGHT + 0.03, 0.075, [12, 8], (0.0, 0.1 * side)), "legs"))
+        parts.append((_capsule(0.0, PELVIS_HEIGHT + 0.03, 0.075, [12, 8], (0.0, 0.1 * side)), "legs", "trousers"))
         foot = trimesh.creation.box(extents=[0.24, 0.095, 0.07])
         foot.apply_translation([0.06, 0.1 * side, 0.035])
-        parts.append((foot, "legs"))
-        parts.append((_capsule(0.84, 1.46, 0.045, [10, 6], (0.0, 0.235 * side)), "torso"))
+        parts.append((foot, "legs", "shoes"))
+        # Sleeve and hand are separate closed parts, so the colour changes at the wrist.
+        parts.append((_capsule(0.90, 1.46, 0.045, [10, 6], (0.0, 0.235 * side)), "torso", "top"))
+        parts.append((_ellipsoid([0.0, 0.235 * side, 0.88], [0.035, 0.03, 0.055], 1), "torso", "skin"))
     torso = _capsule(PELVIS_HEIGHT - 0.1, NECK_HEIGHT, 0.18, [16, 8])
     torso.apply_transform(np.diag([0.65, 1.0, 1.0, 1.0]))  # flatter front to back
-    parts.append((torso, "torso"))
+    parts.append((torso, "torso", "top"))
     neck = trimesh.creation.cylinder(radius=0.05, height=0.14, sections=12)
     neck.apply_translation([0.0, 0.0, NECK_HEIGHT])
-    parts.append((neck, "neck"))
+    parts.append((neck, "neck", "skin"))
     head = _ellipsoid([0.0, 0.0, 0.0], [0.105, 0.09, 0.12], 2)
     head.apply_translation([0.0, 0.0, HEAD_TOP - head.bounds[1, 2]])  # top exactly at 1.75
-    parts.append((head, "head"))
-    parts.append((_ellipsoid([0.1, 0.0, HEAD_TOP - 0.13], [0.025, 0.02, 0.025], 0), "head"))
+    parts.append((head, "head", "head"))
+    parts.append((_ellipsoid([0.1, 0.0, HEAD_TOP - 0.13], [0.025, 0.02, 0.025], 0), "head", "skin"))
     return parts
+
+
+def _regions(p: np.ndarray, dress: str) -> np.ndarray:
+    """(v,) rows of REGIONS for one part's vertices ``p`` (v, 3): a part's own, or skin and hair on the head."""
+    code = {name: k for k, name in enumerate(REGIONS)}
+    if dress == "head":
+        # The face looks along +X: hair covers the crown and, behind the ears, down to the nape.
+        hair = (p[:, 2] > HAIRLINE) | ((p[:, 2] > NAPE) & (p[:, 0] < -0.02))
+        return np.where(hair, code["hair"], code["skin"])
+    return np.full(len(p), code[dress])
 
 
 def _weights(z: np.ndarray, kind: str):
@@ -119,13 +140,14 @@ def build_body() -> Body:
         About 1,300 triangles, watertight, 1.75 m tall.
     """
     parts = _parts()
-    idx, wts = zip(*(_weights(m.vertices[:, 2], kind) for m, kind in parts))
+    idx, wts = zip(*(_weights(m.vertices[:, 2], kind) for m, kind, _ in parts))
     # process=False: keep every part's vertices as they are, so the weights
     # stay aligned and touching parts are never merged into non-manifold edges.
-    offsets = np.cumsum([0] + [len(m.vertices) for m, _ in parts])
-    mesh = trimesh.Trimesh(vertices=np.concatenate([m.vertices for m, _ in parts]),
-                           faces=np.concatenate([m.faces + o for (m, _), o in zip(parts, offsets)]),
+    offsets = np.cumsum([0] + [len(m.vertices) for m, _, _ in parts])
+    mesh = trimesh.Trimesh(vertices=np.concatenate([m.vertices for m, _, _ in parts]),
+                           faces=np.concatenate([m.faces + o for (m, _, _), o in zip(parts, offsets)]),
                            process=False)
+    regions = np.concatenate([_regions(np.asarray(m.vertices), dress) for m, _, dress in parts])
     idx, wts = np.concatenate(idx), np.concatenate(wts)
     order = np.argsort(-wts, axis=1, kind="stable")
     idx = np.take_along_axis(idx, order, axis=1)
@@ -137,4 +159,5 @@ def build_body() -> Body:
                 normals=np.asarray(mesh.vertex_normals, dtype=np.float32),
                 joint_indices=idx.astype(np.int32),
                 joint_weights=wts.astype(np.float32),
+                regions=regions.astype(np.int32),
                 mesh=mesh)

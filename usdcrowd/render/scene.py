@@ -210,12 +210,17 @@ class ShotScene:
                 counts = np.array(mesh.GetFaceVertexCountsAttr().Get())
                 if len(counts) and np.all(counts == 3):
                     k = binding.GetJointIndicesPrimvar().GetElementSize()
-                    return _Body(np.array(mesh.GetPointsAttr().Get(), dtype=np.float32),
-                                 np.array(mesh.GetFaceVertexIndicesAttr().Get(), dtype=np.int32).reshape(-1, 3),
+                    points = np.array(mesh.GetPointsAttr().Get(), dtype=np.float32)
+                    faces = np.array(mesh.GetFaceVertexIndicesAttr().Get(), dtype=np.int32).reshape(-1, 3)
+                    regions, roughness = _body_dress(mesh, len(points), faces)
+                    return _Body(points, faces,
                                  np.array(binding.GetJointIndicesAttr().Get(), dtype=np.int32).reshape(-1, k),
-                                 np.array(binding.GetJointWeightsAttr().Get(), dtype=np.float32).reshape(-1, k))
+                                 np.array(binding.GetJointWeightsAttr().Get(), dtype=np.float32).reshape(-1, k),
+                                 regions, roughness)
         b = build_body()
-        return _Body(b.points, b.face_vertex_indices.reshape(-1, 3), b.joint_indices, b.joint_weights)
+        # No body on the stage, so no palettes either: one colour per agent.
+        return _Body(b.points, b.face_vertex_indices.reshape(-1, 3), b.joint_indices, b.joint_weights,
+                     np.zeros(len(b.points), np.int32), None)
 
     @cached_property
     def _agent_queries(self):
@@ -235,15 +240,25 @@ class ShotScene:
     def _agent_static(self):
         from pxr import Gf
 
-        paths, ids, colors = [], [], []
+        from ..errors import StageError
+
+        rows = int(self.body.regions.max()) + 1 if len(self.body.regions) else 1
+        paths, ids, palettes = [], [], []
         for prim, *_ in self._agent_queries:
             paths.append(str(prim.GetPath()))
             ids.append(prim.GetAttribute("crowd:agentId").Get())
             c = prim.GetAttribute("crowd:color").Get() or Gf.Vec3f(0.6, 0.6, 0.6)
             body = prim.GetChild("Body")
             dc = body.GetAttribute("primvars:displayColor").Get() if body else None
-            colors.append(tuple(dc[0]) if dc else tuple(c))
-        return paths, np.array(ids, dtype=np.int32), np.array(colors, dtype=np.float32).reshape(-1, 3)
+            dc = np.array(dc if dc else [c], dtype=np.float32).reshape(-1, 3)
+            if len(dc) == 1:
+                dc = np.repeat(dc, rows, axis=0)      # one colour for the whole body
+            elif len(dc) != rows:
+                raise StageError.at(body, "primvars:displayColor",
+                                    f"has {len(dc)} colours but the body's indices ask for {rows}")
+            palettes.append(dc)
+        palettes = np.array(palettes, dtype=np.float32).reshape(-1, rows, 3)
+        return paths, np.array(ids, dtype=np.int32), palettes
 
     @property
     def agent_paths(self) -> list[str]:
@@ -270,9 +285,9 @@ class ShotScene:
         """Every agent's joints in the world at ``time`` (or only those at ``rows`` of :attr:`agent_paths`)."""
         from pxr import UsdGeom
 
-        paths, ids, colors = self._agent_static
+        paths, ids, palettes = self._agent_static
         rows = np.arange(len(paths)) if rows is None else np.asarray(rows, dtype=np.int64)
-        paths, ids, colors = [paths[k] for k in rows], ids[rows], colors[rows]
+        paths, ids, palettes = [paths[k] for k in rows], ids[rows], palettes[rows]
         n = len(paths)
         rot = np.zeros((n, 3, 4))
         trans = np.zeros((n, 3, 3))
@@ -296,7 +311,7 @@ class ShotScene:
         local = rig.compose_local(rot, trans)
         local[..., :3, :3] *= scale[..., :, None]        # UsdSkel: scale, then rotate, then translate
         joints = rig.local_to_skel(local) @ root[:, None]
-        return AgentPoses(t, paths, ids, visible, colors, joints)
+        return AgentPoses(t, paths, ids, visible, palettes[:, 0], joints, palettes)
 
     def _fail_pose(self, row: int, i: int, t: float, rot, trans, scale) -> None:
         """A damaged animation (NaN or inf) is one line naming its layer, prim, attribute and time."""
@@ -322,6 +337,36 @@ class _Body:
     faces: np.ndarray           # (f, 3)
     joint_indices: np.ndarray   # (v, k)
     joint_weights: np.ndarray   # (v, k)
+    regions: np.ndarray         # (v,) int32 row of an agent's palette (AgentPoses.palette)
+    roughness: np.ndarray | None  # (f,) float32 per face, from the materials bound to the body's subsets
+
+
+def _body_dress(mesh, n_points: int, faces: np.ndarray):
+    """(regions, roughness) of a body mesh: displayColor's vertex indices and its subsets' materials.
+
+    A body without indexed vertex colours has one region; without material
+    subsets, no roughness of its own (None).
+    """
+    from pxr import UsdGeom
+
+    from ..errors import StageError
+
+    pv = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("displayColor")
+    regions = np.zeros(n_points, np.int32)
+    if pv and pv.IsIndexed():
+        idx = np.array(pv.GetIndices(), dtype=np.int32)
+        if len(idx) != n_points or (len(idx) and idx.min() < 0):
+            raise StageError.at(mesh.GetPrim(), "primvars:displayColor:indices",
+                                f"has {len(idx)} entries for {n_points} points (vertex interpolation needs one each)")
+        regions = idx
+    subsets = UsdGeom.Subset.GetGeomSubsets(mesh, UsdGeom.Tokens.face, "materialBind")
+    if not subsets:
+        return regions, None
+    roughness = np.full(len(faces), Material().roughness, np.float32)
+    for subset in subsets:
+        chosen = np.array(subset.GetIndicesAttr().Get() or [], dtype=np.int64)
+        roughness[chosen[(chosen >= 0) & (chosen < len(faces))]] = _material_of(subset.GetPrim()).roughness
+    return regions, roughness
 
 
 def _check_lens(prim, time, *, focal, horizontalAperture, verticalAperture, near, far, matrix) -> None:

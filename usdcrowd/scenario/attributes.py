@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import model
+from ..character import appearance
 
 # Distributions of the "random" tokens, per character type (schema docs).
 _PERSONALITY = {
@@ -62,6 +63,18 @@ FALLBACKS = {
     "spawnCenter": (0.0, 0.0, 0.0),
     "spawnRadius": 5.0,
 }
+
+
+def appearance_rng(seed: int, group_path: str) -> np.random.Generator:
+    """The group's generator for what its members wear (apart from the draws of :func:`group_rng`)."""
+    return np.random.default_rng([seed & 0xFFFFFFFF, zlib.crc32(group_path.encode()), 0xA99E])
+
+
+def _first_of_run(expand) -> np.ndarray:
+    """(runs,) the first member of each draw run (``expand`` maps members to runs)."""
+    runs, first = np.unique(np.asarray(expand, dtype=np.int64), return_index=True)
+    assert np.array_equal(runs, np.arange(len(runs))), "draw runs are numbered 0, 1, ... in order"
+    return first
 
 
 def group_rng(seed: int, group_path: str) -> np.random.Generator:
@@ -201,11 +214,17 @@ def resolve_group_members(seed: int, group: GroupSpec, group_values: dict,
     out["speed"], out["height"] = speed, height
 
     color = _PALETTE[u_color[run]] if n else np.zeros((0, 3))
+    top = color.copy()
     for i in range(n):
         c = value(i, "color")
         if c is not None:
             color[i] = c
+            top[i] = appearance.tint(top[i], c)
     out["color"] = np.asarray(color, dtype=np.float64).reshape(n, 3)
+    # Clothes, skin and hair come from their own generator, so adding them
+    # changed none of the draws above; subclones dress alike.
+    palette = appearance.draw_palettes(appearance_rng(seed, group.path), top.reshape(-1, 3)[_first_of_run(expand)])
+    out["palette"] = palette[run] if n else np.zeros((0, len(appearance.REGIONS), 3))
 
     # Start positions: authored, else the prim's translation, else the spawn disc.
     center = np.asarray(group_values.get("spawnCenter", FALLBACKS["spawnCenter"]), dtype=np.float64)

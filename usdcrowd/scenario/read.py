@@ -375,7 +375,7 @@ def _resolve(r: _Reader, seed, groups, agents):
         **{k: cat.get(k, np.zeros(0)) for k in (
             "character_type", "personality", "behavior", "condition", "fear_response", "visit_profile",
             "speed", "height", "max_slope", "map_influence", "color", "start", "start_heading")},
-        trades=cat.get("trades", np.zeros(0, bool)))
+        trades=cat.get("trades", np.zeros(0, bool)), palette=cat.get("palette"))
     goals = np.array([values[i].get("goal", (np.nan,) * 3) for i in range(len(groups))], dtype=np.float64).reshape(-1, 3)
     budgets = np.array([values[i].get("visitBudget", 300.0) for i in range(len(groups))], dtype=np.float64)
     group_table = model.GroupTable([g.path for g in groups], np.array([g.parent for g in groups], dtype=np.int32),

@@ -32,6 +32,7 @@ import numpy as np
 
 from .. import __version__, model
 from ..atomic import export_layer
+from ..character import appearance
 from ..character import body as body_mod
 from ..character import rig
 from ..character.animation import Animator
@@ -42,6 +43,8 @@ from . import clips
 PROTOTYPES = "/CrowdPrototypes"
 SKEL_PROTO = f"{PROTOTYPES}/Skel"
 BODY_PROTO = f"{PROTOTYPES}/Body"
+# Outside the (abstract) prototype class, so DCC tools import them as any material.
+MATERIALS = "/CrowdMaterials"
 # Local bounding box of an agent around its root, canonical metres, per unit
 # of scale: arms' reach while walking and the head top with margin.
 _REACH = 0.6
@@ -123,6 +126,62 @@ def _write_prototypes(layer) -> None:
         spec.SetInfo("interpolation", "vertex")
         spec.SetInfo("elementSize", k)
     _attr(mesh, "primvars:skel:geomBindTransform", T.Matrix4d, Gf.Matrix4d(1.0))
+    _write_regions(layer, mesh, body)
+
+
+def _write_regions(layer, mesh, body) -> None:
+    """What the body is dressed in: an indexed displayColor and one material per region.
+
+    Each vertex indexes a row of its agent's palette (``primvars:displayColor:indices``
+    here, the values on each agent's Body), and one GeomSubset per region binds
+    a UsdPreviewSurface of the region's roughness whose diffuseColor reads the
+    displayColor primvar, as DCC tools expect of per-vertex colour.
+    """
+    from pxr import Sdf, Vt
+
+    T = _types()
+    regions = body_mod.REGIONS
+    plain = appearance.plain_palettes(np.full((1, 3), 0.5))[0]
+    _set_palette(mesh, plain)
+    _attr(mesh, "primvars:displayColor:indices", T.IntArray, Vt.IntArray.FromNumpy(body.regions))
+    rough = appearance.roughness()
+    faces = body.regions[body.face_vertex_indices.reshape(-1, 3)]
+    # A face takes the region most of its corners have (the first corner's on a three-way tie).
+    face_region = np.where(faces[:, 1] == faces[:, 2], faces[:, 1], faces[:, 0])
+    _prim(layer, MATERIALS, "Scope", Sdf.SpecifierDef)
+    for k, name in enumerate(regions):
+        title = name.capitalize()
+        mat_path = f"{MATERIALS}/{title}"
+        mat = _prim(layer, mat_path, "Material", Sdf.SpecifierDef)
+        surface = _prim(layer, f"{mat_path}/Surface", "Shader", Sdf.SpecifierDef)
+        _attr(surface, "info:id", T.Token, "UsdPreviewSurface", Sdf.VariabilityUniform)
+        _attr(surface, "inputs:roughness", T.Float, float(rough[k]))
+        color = _attr(surface, "inputs:diffuseColor", T.Color3f)
+        color.connectionPathList.explicitItems = [Sdf.Path(f"{mat_path}/DisplayColor.outputs:result")]
+        _attr(surface, "outputs:surface", T.Token)
+        reader = _prim(layer, f"{mat_path}/DisplayColor", "Shader", Sdf.SpecifierDef)
+        _attr(reader, "info:id", T.Token, "UsdPrimvarReader_float3", Sdf.VariabilityUniform)
+        _attr(reader, "inputs:varname", T.String, "displayColor")
+        _attr(reader, "outputs:result", T.Float3)
+        out = _attr(mat, "outputs:surface", T.Token)
+        out.connectionPathList.explicitItems = [Sdf.Path(f"{mat_path}/Surface.outputs:surface")]
+
+        subset = _prim(layer, f"{BODY_PROTO}/{title}", "GeomSubset", Sdf.SpecifierDef)
+        subset.SetInfo("apiSchemas", Sdf.TokenListOp.Create(prependedItems=["MaterialBindingAPI"]))
+        _attr(subset, "elementType", T.Token, "face", Sdf.VariabilityUniform)
+        _attr(subset, "familyName", T.Token, "materialBind", Sdf.VariabilityUniform)
+        _attr(subset, "indices", T.IntArray, Vt.IntArray.FromNumpy(np.flatnonzero(face_region == k).astype(np.int32)))
+        Sdf.RelationshipSpec(subset, "material:binding", custom=False).targetPathList.explicitItems = [mat_path]
+    _attr(mesh, "subsetFamily:materialBind:familyType", T.Token, "partition", Sdf.VariabilityUniform)
+
+
+def _set_palette(body_spec, palette: np.ndarray) -> None:
+    """A body's displayColor rows: (r, 3) linear RGB, indexed per vertex by the prototype."""
+    from pxr import Vt
+
+    spec = _attr(body_spec, "primvars:displayColor", _types().Color3fArray,
+                 Vt.Vec3fArray.FromNumpy(np.asarray(palette, dtype=np.float32)))
+    spec.SetInfo("interpolation", "vertex")
 
 
 # Blender's namespace for custom properties it imports (and exports).
@@ -182,6 +241,8 @@ class _AgentPart:
         self._paths: list = []
         self._height = scenario.agents.height[self.rows]
         self._animator = Animator(1.0 / scenario.time.fps, self._height)
+        a = scenario.agents
+        self._palette = a.palette if a.palette is not None else appearance.plain_palettes(a.color)
         # Samples go to time-window clip layers (saved as each window completes) when planned.
         self._clips, self._stem = clip_plan, stem
         self._windows: dict = {}
@@ -254,8 +315,7 @@ class _AgentPart:
         _attr(anim, "translations", T.Float3Array)
         body = _prim(layer, f"{path}/Body", "Mesh", Sdf.SpecifierDef)
         body.referenceList.prependedItems = [Sdf.Reference(primPath=BODY_PROTO)]
-        _attr(body, "primvars:displayColor", T.Color3fArray,
-              Vt.Vec3fArray([Gf.Vec3f(*a.color[i].tolist())])).SetInfo("interpolation", "constant")
+        _set_palette(body, self._palette[i])
         # Height for shaders and tools; the geometry is scaled by the root joint.
         _attr(body, "primvars:crowd:height", T.Float, float(a.height[i])).SetInfo("interpolation", "constant")
         return tuple(Sdf.Path(p) for p in (f"{path}/Anim.rotations", f"{path}/Anim.translations",

@@ -147,9 +147,13 @@ def build_scene(shot: ShotScene, cam: CameraView, width: int, height: int, spp: 
         body = shot.body
         nv, nf, n = len(body.points), len(body.faces), len(paths)
         faces = (body.faces[None] + (np.arange(n) * nv)[:, None, None]).reshape(-1, 3)
-        colors = np.repeat(poses.color, nv, axis=0)
+        # Each vertex takes its region's row of its agent's palette.
+        colors = poses.palette[:, body.regions].reshape(-1, 3)
+        # Roughness is per face, as the materials bound to the body's face subsets are.
+        rough = None if body.roughness is None else np.tile(body.roughness, n)
         scene[AGENTS_KEY] = make_mesh("agents", agent_vertices(shot, poses), faces, np.repeat(agent_ids, nf),
-                                      vertex_color=colors, bsdf=mi.load_dict(agent_bsdf_dict()), smooth=True)
+                                      vertex_color=colors, face_roughness=rough,
+                                      bsdf=mi.load_dict(agent_bsdf_dict(rough is not None)), smooth=True)
         id_paths.update({int(i): p for i, p in zip(agent_ids, paths)})
     if not any(k.startswith("light_") for k in scene):
         # A stage without lights still shows something: a dim grey sky.

@@ -37,10 +37,15 @@ def bsdf_dict(material: Material) -> dict:
     return bsdf
 
 
-def agent_bsdf_dict() -> dict:
-    """Characters' BSDF: per-vertex clothing colour read from the mesh attribute ``vertex_color``."""
+def agent_bsdf_dict(face_roughness: bool = False) -> dict:
+    """Characters' BSDF: per-vertex colour from the mesh attribute ``vertex_color``.
+
+    With ``face_roughness``, roughness per face too (mesh attribute ``face_roughness``,
+    from the materials bound to the body's subsets); else :data:`AGENT_ROUGHNESS`.
+    """
+    rough = {"type": "mesh_attribute", "name": "face_roughness"} if face_roughness else AGENT_ROUGHNESS
     return {"type": "principled", "base_color": {"type": "mesh_attribute", "name": "vertex_color"},
-            "roughness": AGENT_ROUGHNESS, "metallic": 0.0, "specular": 0.5}
+            "roughness": rough, "metallic": 0.0, "specular": 0.5}
 
 
 def usd_uv_to_mitsuba(uv: np.ndarray) -> np.ndarray:

@@ -53,7 +53,8 @@ def uint_buffer(values: np.ndarray):
 
 
 def make_mesh(name: str, vertices: np.ndarray, faces: np.ndarray, face_ids, normals: np.ndarray | None = None,
-              uv: np.ndarray | None = None, vertex_color: np.ndarray | None = None, bsdf=None, emitter=None,
+              uv: np.ndarray | None = None, vertex_color: np.ndarray | None = None,
+              face_roughness: np.ndarray | None = None, bsdf=None, emitter=None,
               smooth: bool = False):
     """Build an ``mi.Mesh`` from arrays.
 
@@ -73,6 +74,8 @@ def make_mesh(name: str, vertices: np.ndarray, faces: np.ndarray, face_ids, norm
         Texture coordinates in Mitsuba's convention (v = 0 at the image's top).
     vertex_color : (v, 3) float, optional
         Linear RGB, read by a ``mesh_attribute`` texture named ``vertex_color``.
+    face_roughness : (f,) float, optional
+        Read by a ``mesh_attribute`` texture named ``face_roughness``.
     bsdf, emitter : mitsuba objects, optional
     smooth : bool
         Without ``normals``: let Mitsuba compute area-weighted vertex normals,
@@ -106,6 +109,8 @@ def make_mesh(name: str, vertices: np.ndarray, faces: np.ndarray, face_ids, norm
     mesh.add_attribute(GTID_ATTRIBUTE, 3, float_buffer(encode_ids(ids)))
     if vertex_color is not None:
         mesh.add_attribute("vertex_color", 3, float_buffer(vertex_color))
+    if face_roughness is not None:
+        mesh.add_attribute("face_roughness", 1, float_buffer(face_roughness))
     return mesh
 
 

@@ -93,18 +93,26 @@ uniform vec3 u_dir;         // toward the viewer
 uniform float u_depth_range;
 in vec3 in_pos;
 in vec3 in_nrm;
+in vec4 in_region;
 out vec3 v_nrm;
+out vec4 v_region;
 void main() {
     vec3 p = in_pos - u_centre;
     gl_Position = vec4(dot(p, u_right), dot(p, u_up), -dot(p, u_dir) / u_depth_range, 1.0);
     v_nrm = in_nrm;
+    v_region = in_region;
 }
 """
 
 ATLAS_FS = """#version 430
 in vec3 v_nrm;
-out vec4 o_color;
-void main() { o_color = vec4(normalize(v_nrm) * 0.5 + 0.5, 1.0); }
+in vec4 v_region;
+layout(location = 0) out vec4 o_color;
+layout(location = 1) out vec4 o_region;
+void main() {
+    o_color = vec4(normalize(v_nrm) * 0.5 + 0.5, 1.0);
+    o_region = v_region;
+}
 """
 
 
@@ -117,6 +125,9 @@ class ImpostorAtlas:
     texture : moderngl.Texture
         ``(N_AZIMUTH * CELL, 3 * N_ELEVATION * CELL)`` RGBA8; row block
         ``part * N_ELEVATION + elevation``, column ``azimuth``.
+    regions : moderngl.Texture
+        The same layout: weights of palette rows 0-3 (row 4 has the rest),
+        so an impostor wears what the mesh it replaces wears.
     boxes : moderngl.Texture
         ``(N_AZIMUTH, 3 * N_ELEVATION)`` RGBA32F: each view's covered
         rectangle ``(x0, y0, x1, y1)`` in the quad's [-1, 1] corner space,
@@ -128,6 +139,7 @@ class ImpostorAtlas:
     texture: object
     boxes: object
     parts: list
+    regions: object = None
 
     def uniforms(self) -> dict:
         """Per-part centre (w: radius) and half height, for the impostor shaders."""
@@ -138,7 +150,8 @@ class ImpostorAtlas:
         return {"u_part_centre": centre, "u_part_half_height": half_h}
 
 
-def build_atlas(ctx, points: np.ndarray, faces: np.ndarray, weights: np.ndarray, normals: np.ndarray) -> ImpostorAtlas:
+def build_atlas(ctx, points: np.ndarray, faces: np.ndarray, weights: np.ndarray, normals: np.ndarray,
+                regions: np.ndarray | None = None) -> ImpostorAtlas:
     """Render every part from every view into one texture.
 
     Parameters
@@ -149,18 +162,29 @@ def build_atlas(ctx, points: np.ndarray, faces: np.ndarray, weights: np.ndarray,
     faces : (f, 3) int
     weights : (v, 3) float
         Dense joint weights.
+    regions : (v, 4) float, optional
+        Weights of palette rows 0-3 (BodyGeometry's last columns); row 0 if omitted.
     """
     import moderngl
+
+    if regions is None:
+        regions = np.tile(np.array([1.0, 0.0, 0.0, 0.0]), (len(points), 1))
 
     parts = body_parts(points, faces, weights)
     width, height = N_AZIMUTH * CELL, len(parts) * N_ELEVATION * CELL
     tex = ctx.texture((width, height), 4, dtype="f1")
+    region_tex = ctx.texture((width, height), 4, dtype="f1")
     depth = ctx.depth_renderbuffer((width, height))
-    fbo = ctx.framebuffer([tex], depth)
+    fbo = ctx.framebuffer([tex, region_tex], depth)
     prog = ctx.program(vertex_shader=ATLAS_VS, fragment_shader=ATLAS_FS)
-    vbo = ctx.buffer(np.concatenate([points, normals], 1).astype(np.float32).tobytes())
+    vbo = ctx.buffer(np.concatenate([points, normals, regions], 1).astype(np.float32).tobytes())
     fbo.use()
     fbo.clear(0.5, 0.5, 1.0, 0.0, depth=1.0)      # transparent, normals facing out of the picture
+    # Weights start at zero outside the body, as coverage does (the shader divides one by the other).
+    blank = ctx.framebuffer([region_tex])
+    blank.clear(0.0, 0.0, 0.0, 0.0)
+    blank.release()
+    fbo.use()
     ctx.enable(moderngl.DEPTH_TEST)
     ctx.disable(moderngl.CULL_FACE)
     try:
@@ -168,7 +192,7 @@ def build_atlas(ctx, points: np.ndarray, faces: np.ndarray, weights: np.ndarray,
             if not len(part.faces):
                 continue
             ibo = ctx.buffer(part.faces.astype(np.int32).tobytes())
-            vao = ctx.vertex_array(prog, [(vbo, "3f 3f", "in_pos", "in_nrm")], ibo)
+            vao = ctx.vertex_array(prog, [(vbo, "3f 3f 4f", "in_pos", "in_nrm", "in_region")], ibo)
             prog["u_centre"].value = tuple(part.centre)
             prog["u_depth_range"].value = 4.0 * (part.radius + part.half_height)
             for e, elev in enumerate(ELEVATIONS):
@@ -186,12 +210,13 @@ def build_atlas(ctx, points: np.ndarray, faces: np.ndarray, weights: np.ndarray,
         fbo.viewport = (0, 0, width, height)
         for obj in (fbo, depth, prog, vbo):
             obj.release()
-    tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
-    tex.repeat_x = tex.repeat_y = False
+    for t in (tex, region_tex):
+        t.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        t.repeat_x = t.repeat_y = False
     rgba = np.frombuffer(tex.read(), np.uint8).reshape(height, width, 4)
     boxes = ctx.texture((N_AZIMUTH, len(parts) * N_ELEVATION), 4, cell_boxes(rgba[..., 3]).tobytes(), dtype="f4")
     boxes.filter = (moderngl.NEAREST, moderngl.NEAREST)
-    return ImpostorAtlas(tex, boxes, parts)
+    return ImpostorAtlas(tex, boxes, parts, region_tex)
 
 
 def cell_boxes(alpha: np.ndarray) -> np.ndarray:

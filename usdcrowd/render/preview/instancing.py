@@ -1,9 +1,11 @@
 """The shared body on the GPU: its levels of detail and the per-instance records.
 
 Every character draws the same body; what differs per instance is three
-skinning matrices, a colour and a track id, packed by :func:`pack_instances`
-into one shader storage buffer (10 vec4 per agent, see
-``shaders.INSTANCE_STRIDE``) and applied in the vertex shader.
+skinning matrices, a palette (one colour per body region) and a track id,
+packed by :func:`pack_instances` into one shader storage buffer (14 vec4 per
+agent, see ``shaders.INSTANCE_STRIDE``) and applied in the vertex shader.
+Each vertex carries its weights over the palette's rows, one-hot on the full
+mesh and averaged where clustering merges vertices of different regions.
 
 Levels of detail of the body (seed 004):
 
@@ -22,6 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 
 N_JOINTS = 3
+# Palette rows a preview body can show (character.body.REGIONS has five).
+MAX_REGIONS = 5
 
 
 @dataclass
@@ -30,8 +34,9 @@ class BodyGeometry:
 
     Attributes
     ----------
-    vertices : (v, 9) float32
-        Bind-pose position, normal and dense joint weights (legs, torso, head).
+    vertices : (v, 13) float32
+        Bind-pose position, normal, dense joint weights (legs, torso, head)
+        and the weights of palette rows 0-3 (row 4 has the rest).
     indices : (3f,) int32 or None
         Triangle corners; None for a point list.
     """
@@ -190,8 +195,16 @@ def octree_order(points: np.ndarray, depth: int = 8) -> np.ndarray:
     return np.argsort(key, kind="stable")
 
 
+def region_weights(regions: np.ndarray | None, n: int) -> np.ndarray:
+    """(n, MAX_REGIONS) float32 one-hot palette rows of ``n`` vertices (row 0 without ``regions``)."""
+    r = np.zeros(n, np.int64) if regions is None else np.asarray(regions, dtype=np.int64)
+    if len(r) != n or (n and (r.min() < 0 or r.max() >= MAX_REGIONS)):
+        raise ValueError(f"the preview draws {MAX_REGIONS} colours per body, got rows {np.unique(r)}")
+    return np.eye(MAX_REGIONS, dtype=np.float32)[r]
+
+
 def body_lods(points: np.ndarray, faces: np.ndarray, joint_indices: np.ndarray, joint_weights: np.ndarray,
-              cells=(0.05, 0.1)) -> BodyLods:
+              cells=(0.05, 0.1), regions: np.ndarray | None = None) -> BodyLods:
     """Build every level of the shared body.
 
     Parameters
@@ -202,42 +215,54 @@ def body_lods(points: np.ndarray, faces: np.ndarray, joint_indices: np.ndarray, 
     joint_indices, joint_weights : (v, k)
     cells : sequence of float
         Clustering grids of the coarser mesh levels, metres, finest first.
+    regions : (v,) int, optional
+        Palette row of each vertex (ShotScene.body.regions); row 0 if omitted.
     """
     points = np.asarray(points, dtype=np.float32)
     faces = np.asarray(faces, dtype=np.int32)
     w = dense_weights(np.asarray(joint_indices), np.asarray(joint_weights))
+    r = region_weights(regions, len(points))
     n = vertex_normals(points, faces)
-    full = BodyGeometry(np.concatenate([points, n, w], 1).astype(np.float32), faces.reshape(-1).copy())
+    full = BodyGeometry(np.concatenate([points, n, w, r[:, :4]], 1).astype(np.float32), faces.reshape(-1).copy())
     meshes = [full]
     for cell in cells:
-        cp, cf, cw = cluster_mesh(points, faces, w, cell)
-        meshes.append(BodyGeometry(np.concatenate([cp, vertex_normals(cp, cf), cw], 1).astype(np.float32),
+        # Joint and region weights are averaged together, then each set renormalised.
+        cp, cf, cwr = cluster_mesh(points, faces, np.concatenate([w, r], 1), cell)
+        cw, cr = cwr[:, :N_JOINTS], cwr[:, N_JOINTS:]
+        cw, cr = cw / cw.sum(1, keepdims=True), cr / cr.sum(1, keepdims=True)
+        meshes.append(BodyGeometry(np.concatenate([cp, vertex_normals(cp, cf), cw, cr[:, :4]], 1).astype(np.float32),
                                    cf.reshape(-1).copy()))
     order = octree_order(points)
     return BodyLods(meshes, BodyGeometry(full.vertices[order].copy(), None))
 
 
-def pack_instances(skinning: np.ndarray, colors: np.ndarray, ids: np.ndarray) -> np.ndarray:
+def pack_instances(skinning: np.ndarray, palettes: np.ndarray, ids: np.ndarray) -> np.ndarray:
     """Per-instance records for the storage buffer.
 
     Parameters
     ----------
     skinning : (n, 3, 4, 4) float
         Row-vector skinning matrices (bind pose to world), AgentPoses.skinning.
-    colors : (n, 3) float
-        Linear RGB.
+    palettes : (n, r, 3) or (n, 3) float
+        Linear RGB per palette row (r <= MAX_REGIONS); missing rows repeat row 0.
     ids : (n,) int
         Track ids (stored as uint32 bits).
 
     Returns
     -------
-    (n, 10, 4) float32
-        Rows 3j + c: column c of joint j's matrix; row 9: colour and id bits.
+    (n, 14, 4) float32
+        Rows 3j + c: column c of joint j's matrix; rows 9 + k: palette row k,
+        row 9's last lane the id bits.
     """
     n = len(skinning)
-    out = np.empty((n, 10, 4), dtype=np.float32)
+    pal = np.asarray(palettes, dtype=np.float32).reshape(n, -1, 3)
+    if pal.shape[1] > MAX_REGIONS:
+        raise ValueError(f"the preview draws {MAX_REGIONS} colours per body, got {pal.shape[1]}")
+    out = np.empty((n, 9 + MAX_REGIONS, 4), dtype=np.float32)
     # Column c of a row-vector matrix holds what dot(vec4(p, 1), .) needs.
     out[:, :9] = np.swapaxes(np.asarray(skinning), -1, -2)[:, :, :3, :].reshape(n, 9, 4)
-    out[:, 9, :3] = colors
+    out[:, 9:, :3] = pal[:, :1]
+    out[:, 9:9 + pal.shape[1], :3] = pal
+    out[:, 9:, 3] = 0.0
     out[:, 9, 3] = np.asarray(ids, dtype=np.uint32).view(np.float32)
     return out

@@ -279,14 +279,14 @@ class PreviewRenderer:
 
         body = self.scene.body
         self.body = instancing.body_lods(body.points, body.faces, body.joint_indices, body.joint_weights,
-                                         cells=self.lod.cells)
+                                         cells=self.lod.cells, regions=body.regions)
         # Per geometry: (main vao, shadow vao); the point list last.
         self._body_vaos = [self._skinned_vaos(geom, (self.prog_char, self.prog_shadow_char))
                            for geom in (*self.body.meshes, self.body.points)]
         self._shadow_mesh_vao = None
         if self.lod.shadow_cell > 0:
             coarse = instancing.body_lods(body.points, body.faces, body.joint_indices, body.joint_weights,
-                                          cells=(self.lod.shadow_cell,)).meshes[1]
+                                          cells=(self.lod.shadow_cell,), regions=body.regions).meshes[1]
             (self._shadow_mesh_vao,) = self._skinned_vaos(coarse, (self.prog_shadow_char,))
         self._instances = None
         self._instance_capacity = 0
@@ -296,7 +296,7 @@ class PreviewRenderer:
         if self.lod.impostor_min_px is not None:
             full = self.body.meshes[0].vertices
             self.atlas = impostors.build_atlas(ctx, full[:, :3], self.body.meshes[0].indices.reshape(-1, 3),
-                                               full[:, 6:9], full[:, 3:6])
+                                               full[:, 6:9], full[:, 3:6], full[:, 9:13])
             self.prog_imp = ctx.program(vertex_shader=shaders.IMPOSTOR_VS, fragment_shader=shaders.IMPOSTOR_FS)
             self.prog_shadow_imp = ctx.program(vertex_shader=shaders.SHADOW_IMPOSTOR_VS,
                                                fragment_shader=shaders.SHADOW_IMPOSTOR_FS)
@@ -311,6 +311,7 @@ class PreviewRenderer:
                     _set(prog, name, value)
                 _set(prog, "u_atlas", 2)
                 _set(prog, "u_cell_box", 3)
+            _set(self.prog_imp, "u_regions", 4)
 
         t0 = float(self.scene.time_codes[0]) if len(self.scene.time_codes) else 0.0
         self._scenery = []
@@ -358,7 +359,7 @@ class PreviewRenderer:
         ctx = self.ctx
         vbo = ctx.buffer(geom.vertices.tobytes())
         ibo = ctx.buffer(geom.indices.astype(np.int32).tobytes()) if geom.indices is not None else None
-        content = [(vbo, "3f 3f 3f", "in_pos", "in_nrm", "in_w")]
+        content = [(vbo, "3f 3f 3f 4f", "in_pos", "in_nrm", "in_w", "in_region")]
         return tuple(ctx.vertex_array(prog, content, ibo, 4, skip_errors=True) for prog in programs)
 
     def _lit_programs(self) -> tuple:
@@ -490,14 +491,15 @@ class PreviewRenderer:
         s_order, s_starts = lod.group_by_level(lod.shadow_levels(levels, self.lod), casts, n_levels)
 
         # One record per agent; draws index them through the slot list.
-        self._upload(instancing.pack_instances(skinning, poses.color, poses.agent_ids) if n
-                     else np.zeros((0, 10, 4), np.float32))
+        self._upload(instancing.pack_instances(skinning, poses.palette, poses.agent_ids) if n
+                     else np.zeros((0, shaders.INSTANCE_STRIDE, 4), np.float32))
         s_base = len(order)
         self._upload_slots(np.concatenate([order, s_order]))
 
         if self.atlas is not None:
             self.atlas.texture.use(2)
             self.atlas.boxes.use(3)
+            self.atlas.regions.use(4)
 
         # --- the sun's shadow map -----------------------------------------
         light_vp, texel, shadow_scale, used = np.eye(4), 1.0, 1.0, 0
@@ -687,3 +689,4 @@ class PreviewRenderer:
         if self.atlas is not None:
             self.atlas.texture.release()
             self.atlas.boxes.release()
+            self.atlas.regions.release()

@@ -14,12 +14,13 @@ from __future__ import annotations
 
 VERSION = "#version 430\n"
 
-# Per-agent record: 10 vec4. Rows 0-8: for joint j, the three columns
+# Per-agent record: 14 vec4. Rows 0-8: for joint j, the three columns
 # (c = 0, 1, 2) of its 4x4 row-vector skinning matrix, so a point's world
-# coordinate c is dot(vec4(p, 1), column c). Row 9: linear RGB colour and
-# the agent's track id (uint bits in .w). See instancing.pack_instances.
+# coordinate c is dot(vec4(p, 1), column c). Rows 9-13: linear RGB of the
+# palette's rows (top, trousers, skin, hair, shoes); row 9's .w holds the
+# agent's track id (uint bits). See instancing.pack_instances.
 # Draws reach the records through a list of agent indices (``slot``).
-INSTANCE_STRIDE = 10
+INSTANCE_STRIDE = 14
 
 INSTANCES = """
 layout(std430, binding = 0) readonly buffer Instances { vec4 inst[]; };
@@ -32,11 +33,12 @@ layout(std430, binding = 0) readonly buffer InstanceIds { uvec4 inst_u[]; };
 layout(std430, binding = 1) readonly buffer Slots { uint slot[]; };
 uniform int u_base;
 
-int record(int k) { return int(slot[u_base + k]) * 10; }
-"""
+int record(int k) { return int(slot[u_base + k]) * %d; }
+""" % INSTANCE_STRIDE
 
 SKINNING = INSTANCES + """
-void skin(vec3 p, vec3 n, vec3 w, out vec3 wp, out vec3 wn, out vec3 color, out uint id) {
+// r: the vertex's weights of palette rows 0-3 (row 4 has the rest).
+void skin(vec3 p, vec3 n, vec3 w, vec4 r, out vec3 wp, out vec3 wn, out vec3 color, out uint id) {
     int b = record(gl_InstanceID);
     // Linear blend skinning with dense weights over the three joints.
     vec4 c0 = w.x * inst[b + 0] + w.y * inst[b + 3] + w.z * inst[b + 6];
@@ -46,7 +48,8 @@ void skin(vec3 p, vec3 n, vec3 w, out vec3 wp, out vec3 wn, out vec3 color, out 
     wp = vec3(dot(hp, c0), dot(hp, c1), dot(hp, c2));
     // Joints are rotation times uniform scale, so the linear part maps normals.
     wn = vec3(dot(n, c0.xyz), dot(n, c1.xyz), dot(n, c2.xyz));
-    color = inst[b + 9].rgb;
+    color = r.x * inst[b + 9].rgb + r.y * inst[b + 10].rgb + r.z * inst[b + 11].rgb + r.w * inst[b + 12].rgb
+          + (1.0 - r.x - r.y - r.z - r.w) * inst[b + 13].rgb;
     id = inst_u[b + 9].w;
 }
 """
@@ -116,6 +119,7 @@ uniform float u_point_size;      // world size of a point splat, metres (points 
 in vec3 in_pos;
 in vec3 in_nrm;
 in vec3 in_w;
+in vec4 in_region;
 out vec3 v_world;
 out vec3 v_nrm;
 out vec3 v_color;
@@ -124,7 +128,7 @@ flat out uint v_id;
 
 void main() {
     vec3 wp, wn, color; uint id;
-    skin(in_pos, in_nrm, in_w, wp, wn, color, id);
+    skin(in_pos, in_nrm, in_w, in_region, wp, wn, color, id);
     vec4 vp = u_view * vec4(wp, 1.0);
     gl_Position = u_proj * vp;
     // Used only when drawing GL_POINTS (seed 004's point-based LOD).
@@ -250,12 +254,16 @@ void impostor(int instance, int j, out vec3 centre, out vec3 right, out vec3 up,
 """
 
 IMPOSTOR_SAMPLE = """
-float impostor_alpha(sampler2D atlas, vec2 cell, vec2 local_uv, out vec3 normal) {
+vec2 impostor_coord(sampler2D atlas, vec2 cell, vec2 local_uv) {
     // Clamp half a texel inside the cell: linear filtering must not read the neighbours.
     vec2 size = vec2(textureSize(atlas, 0));
     vec2 grid = vec2(float(N_AZ), float(3 * N_EL));
     vec2 half_texel = 0.5 * grid / size;
-    vec4 t = texture(atlas, (cell + clamp(local_uv, half_texel, 1.0 - half_texel)) / grid);
+    return (cell + clamp(local_uv, half_texel, 1.0 - half_texel)) / grid;
+}
+
+float impostor_alpha(sampler2D atlas, vec2 cell, vec2 local_uv, out vec3 normal) {
+    vec4 t = texture(atlas, impostor_coord(atlas, cell, local_uv));
     normal = t.rgb * 2.0 - 1.0;
     return t.a;
 }
@@ -316,7 +324,7 @@ out float v_z;
 flat out vec2 v_cell;
 flat out mat3 v_rot;
 flat out float v_radius;
-flat out vec3 v_color;
+flat out vec3 v_palette[5];
 flat out uint v_id;
 
 void main() {
@@ -326,7 +334,7 @@ void main() {
     int b = record(part / 3), j = part % 3;
     vec3 c0 = inst[b + 3 * j].xyz, c1 = inst[b + 3 * j + 1].xyz, c2 = inst[b + 3 * j + 2].xyz;
     v_rot = transpose(mat3(c0, c1, c2)) / length(c0);
-    v_color = inst[b + 9].rgb;
+    for (int k = 0; k < 5; ++k) v_palette[k] = inst[b + 9 + k].rgb;
     v_id = inst_u[b + 9].w;
     vec4 vp = u_view * vec4(wp, 1.0);
     gl_Position = u_proj * vp;
@@ -337,18 +345,24 @@ void main() {
 
 IMPOSTOR_FS = VERSION + LIGHTING + OUTPUTS + IMPOSTOR_CONSTANTS + IMPOSTOR_SAMPLE + """
 uniform sampler2D u_atlas;
+uniform sampler2D u_regions;      // the atlas's palette-row weights (impostors.ImpostorAtlas.regions)
 in vec3 v_world;
 in vec2 v_uv;
 in float v_z;
 flat in vec2 v_cell;
 flat in mat3 v_rot;
 flat in float v_radius;
-flat in vec3 v_color;
+flat in vec3 v_palette[5];
 flat in uint v_id;
 
 void main() {
     vec3 n_local;
-    if (impostor_alpha(u_atlas, v_cell, v_uv, n_local) < 0.5) discard;
+    float alpha = impostor_alpha(u_atlas, v_cell, v_uv, n_local);
+    if (alpha < 0.5) discard;
+    // Weights were drawn over a cleared (zero) background, as coverage was: undo the edge blend.
+    vec4 r = texture(u_regions, impostor_coord(u_atlas, v_cell, v_uv)) / alpha;
+    vec3 v_color = r.x * v_palette[0] + r.y * v_palette[1] + r.z * v_palette[2] + r.w * v_palette[3]
+                 + max(1.0 - r.x - r.y - r.z - r.w, 0.0) * v_palette[4];
     vec3 n = normalize(v_rot * n_local);
     // The quad runs through the joint's middle: look the shadow up on the
     // sun's side of the body, or half of it would shadow itself.
@@ -394,7 +408,7 @@ in vec3 in_w;
 
 void main() {
     vec3 wp, wn, color; uint id;
-    skin(in_pos, in_nrm, in_w, wp, wn, color, id);
+    skin(in_pos, in_nrm, in_w, vec4(1.0, 0.0, 0.0, 0.0), wp, wn, color, id);
     gl_Position = u_light_vp * vec4(wp, 1.0);
     gl_PointSize = max(1.0, u_point_size_px);
 }
