@@ -29,6 +29,23 @@ def _split(total: int, weights: np.ndarray) -> np.ndarray:
     return out
 
 
+def agent_range(template: str) -> tuple[int, int | None]:
+    """(fewest, most) agents ``new_scenario`` can give a template (most None: no limit).
+
+    A template whose groups clone nobody has a fixed cast: both are its size.
+    """
+    from pxr import Usd
+
+    stage = Usd.Stage.Open(str(data_dir("stages") / f"{template}.usda"))
+    groups = [p for p in stage.Traverse() if p.GetTypeName() == schema.GROUP]
+    n_authored = sum(1 for p in stage.Traverse() if schema.is_agent(p))
+    clones = np.array([p.GetAttribute("crowd:clones").Get() or 0 for p in groups], dtype=np.float64)
+    if clones.sum() == 0:
+        return n_authored, n_authored
+    own = np.array([any(schema.is_agent(c) for c in p.GetChildren()) for p in groups])
+    return n_authored + int(((clones > 0) & ~own).sum()), None
+
+
 def _resize(stage, groups, n_authored: int, agents: int, template: str) -> None:
     """Rescale the groups' clones so the scenario has ``agents`` agents in all.
 

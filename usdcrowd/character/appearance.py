@@ -33,6 +33,17 @@ _HAIR = {"1c1816": 0.25, "3b281e": 0.25, "604028": 0.15, "8c6441": 0.10, "c4a064
          "78371e": 0.05, "969491": 0.08, "c8c6c3": 0.05}
 _TROUSERS = ["283755", "465f82", "19191c", "3c3c3e", "aa966e", "5a412d", "1e233c", "4b5032", "969696", "c8b9a0"]
 _SHOES = {"141414": 0.35, "322319": 0.25, "e1e1dc": 0.15, "6e6e6e": 0.15, "966e46": 0.10}
+# Named palettes a scenario may ask for (customLayerData usdcrowd.palette):
+# tops None keep the scenario's drawn clothing colour (crowd:color's table).
+PALETTES = {
+    "everyday": {"tops": None, "trousers": _TROUSERS, "shoes": _SHOES},
+    "winter": {"tops": ["1e233c", "2d2d30", "141416", "9a7b4f", "5c1f24", "23412e", "4a4a52", "6b3a2a"],
+               "trousers": ["19191c", "28282c", "283755", "3c3c3e", "4b3a2e"],
+               "shoes": {"141414": 0.5, "322319": 0.4, "6e6e6e": 0.1}},
+    "summer": {"tops": ["f2f2ee", "e8c547", "e07a5f", "81b29a", "f4a3b4", "5fa8d3", "ffffff", "c94f4f", "f6bd60"],
+               "trousers": ["465f82", "aa966e", "c8b9a0", "e6e1d3", "3c3c3e", "6f8fae"],
+               "shoes": {"e1e1dc": 0.4, "966e46": 0.3, "141414": 0.2, "6e6e6e": 0.1}},
+}
 # Fallback for rows a stage does not author (old stages, hand-written agents).
 _PLAIN = {"trousers": "3c3c3e", "skin": "a07e56", "hair": "3b281e", "shoes": "141414"}
 
@@ -60,27 +71,33 @@ def _pick(rng: np.random.Generator, table, n: int) -> np.ndarray:
     return srgb_to_linear(hexes)[rng.choice(len(hexes), size=n, p=p / p.sum())]
 
 
-def draw_palettes(rng: np.random.Generator, top: np.ndarray) -> np.ndarray:
-    """Draw the regions other than the top, one palette per row of ``top``.
+def draw_palettes(rng: np.random.Generator, top: np.ndarray, palette: str = "everyday") -> np.ndarray:
+    """Draw a palette per row of ``top``.
 
     Parameters
     ----------
     rng : numpy.random.Generator
-        Used in a fixed order (skin, hair, trousers, shoes, jitter), so a seed
-        gives the same crowd on every machine.
+        Used in a fixed order (skin, hair, trousers, shoes, jitter, then the
+        palette's own tops), so a seed gives the same crowd on every machine.
     top : (n, 3) float
-        Linear RGB of each top, chosen by the caller (a group colour may tint it).
+        Linear RGB of each top, drawn by the caller; used unless the named
+        palette has tops of its own. A group colour tints it afterwards (:func:`tint`).
+    palette : str
+        A name of :data:`PALETTES`.
 
     Returns
     -------
     (n, r, 3) float64
         Linear RGB in [0, 1], rows in REGIONS order.
     """
+    table = PALETTES[palette]
     top = np.asarray(top, dtype=np.float64).reshape(-1, 3)
     n = len(top)
     drawn = {"skin": SKIN_ALBEDO * _pick(rng, _SKIN, n), "hair": _pick(rng, _HAIR, n),
-             "trousers": _pick(rng, _TROUSERS, n), "shoes": _pick(rng, _SHOES, n)}
+             "trousers": _pick(rng, table["trousers"], n), "shoes": _pick(rng, table["shoes"], n)}
     gain = np.exp(JITTER * rng.standard_normal((n, len(REGIONS))))
+    if table["tops"] is not None:
+        top = _pick(rng, table["tops"], n)
     out = np.stack([top if name == "top" else drawn[name] for name in REGIONS], axis=1)
     out[:, 1:] *= gain[:, 1:, None]   # the top is the caller's, untouched
     return np.clip(out, 0.0, 1.0)

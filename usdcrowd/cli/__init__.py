@@ -13,9 +13,10 @@ import sys
 
 from .. import __version__
 from ..errors import UsdcrowdError
-from . import cameras, demo, features, frame, inspect_cmd, metrics, new, preview, render, simulate, validate
+from . import (cameras, dataset, demo, features, frame, inspect_cmd, metrics, new, preview, render, simulate,
+               validate)
 
-COMMANDS = (new, inspect_cmd, validate, simulate, cameras, frame, metrics, features, preview, render, demo)
+COMMANDS = (new, inspect_cmd, validate, simulate, cameras, frame, metrics, features, preview, render, dataset, demo)
 EXIT_USER_ERROR = 2
 # OSErrors that are the environment's (reported in one line), not a bug.
 _ENVIRONMENT_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.ENOENT,

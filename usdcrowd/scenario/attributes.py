@@ -139,7 +139,7 @@ def _categorical(values: list, dist_for, rng, n_draws, expand, vocab) -> np.ndar
 
 
 def resolve_group_members(seed: int, group: GroupSpec, group_values: dict,
-                          members: list[AgentSpec]) -> dict[str, np.ndarray]:
+                          members: list[AgentSpec], palette_name: str = "everyday") -> dict[str, np.ndarray]:
     """Resolve every attribute of one group's agents, authored and cloned.
 
     Parameters
@@ -152,6 +152,8 @@ def resolve_group_members(seed: int, group: GroupSpec, group_values: dict,
     members : list[AgentSpec]
         The group's authored agents, followed by its clones (specs with an
         empty ``authored`` dict).
+    palette_name : str
+        What people wear: a name of ``character.appearance.PALETTES``.
 
     Returns
     -------
@@ -214,17 +216,17 @@ def resolve_group_members(seed: int, group: GroupSpec, group_values: dict,
     out["speed"], out["height"] = speed, height
 
     color = _PALETTE[u_color[run]] if n else np.zeros((0, 3))
-    top = color.copy()
+    drawn_top = color.reshape(-1, 3)[_first_of_run(expand)]
+    # Clothes, skin and hair come from their own generator, so adding them
+    # changed none of the draws above; subclones dress alike.
+    palette = appearance.draw_palettes(appearance_rng(seed, group.path), drawn_top, palette_name)
+    out["palette"] = palette[run] if n else np.zeros((0, len(appearance.REGIONS), 3))
     for i in range(n):
         c = value(i, "color")
         if c is not None:
             color[i] = c
-            top[i] = appearance.tint(top[i], c)
+            out["palette"][i, 0] = appearance.tint(out["palette"][i, 0], c)
     out["color"] = np.asarray(color, dtype=np.float64).reshape(n, 3)
-    # Clothes, skin and hair come from their own generator, so adding them
-    # changed none of the draws above; subclones dress alike.
-    palette = appearance.draw_palettes(appearance_rng(seed, group.path), top.reshape(-1, 3)[_first_of_run(expand)])
-    out["palette"] = palette[run] if n else np.zeros((0, len(appearance.REGIONS), 3))
 
     # Start positions: authored, else the prim's translation, else the spawn disc.
     center = np.asarray(group_values.get("spawnCenter", FALLBACKS["spawnCenter"]), dtype=np.float64)

@@ -167,6 +167,17 @@ def stored_seed(stage) -> int | None:
     return int(data["seed"]) if "seed" in data else None
 
 
+def stored_palette(stage) -> str:
+    """The palette (``character.appearance.PALETTES``) a stage asks for in customLayerData, else "everyday"."""
+    from ..character.appearance import PALETTES
+
+    name = stage.GetRootLayer().customLayerData.get("usdcrowd", {}).get("palette", "everyday")
+    if name not in PALETTES:
+        raise ScenarioError(f"unknown palette {name!r} (palettes: {', '.join(PALETTES)})",
+                            file=stage.GetRootLayer().identifier, attribute="customLayerData:usdcrowd:palette")
+    return name
+
+
 def load_scenario(path: str | os.PathLike, seed: int | None = None, stage=None,
                   limits: Limits = DEFAULT_LIMITS) -> model.Scenario:
     """Read a scenario stage into arrays.
@@ -317,6 +328,7 @@ def _agent_spec(r: _Reader, prim, group_row) -> AgentSpec:
 
 def _resolve(r: _Reader, seed, groups, agents):
     values = inherited_values(groups)
+    palette = stored_palette(r.stage)
     by_group: dict[int, list[AgentSpec]] = {i: [] for i in range(len(groups))}
     for a in agents:
         by_group[a.group].append(a)
@@ -334,7 +346,7 @@ def _resolve(r: _Reader, seed, groups, agents):
             r.fail("empty group: no agents, no subgroups and crowd:clones = 0", prim, "crowd:clones")
         if not members:
             continue
-        for k, arr in resolve_group_members(seed, g, values[gi], members).items():
+        for k, arr in resolve_group_members(seed, g, values[gi], members, palette).items():
             cols.setdefault(k, []).append(arr)
         rows.extend(members)
 

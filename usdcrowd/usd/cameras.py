@@ -141,8 +141,9 @@ def _copy_toric(old, layer, replaced: set[str]) -> None:
             Sdf.CopySpec(old, path, layer, path)
 
 
-def add_camera(cameras_path: str | os.PathLike, track: model.CameraTrack, toric: dict) -> str:
-    """Add (or replace) one toric camera in an existing cameras layer, atomically; the others are kept.
+def add_camera(cameras_path: str | os.PathLike, track: model.CameraTrack, toric: dict | None) -> str:
+    """Add (or replace) one camera, toric or plain (``toric`` None), in an existing cameras layer,
+    atomically; the others are kept.
 
     Parameters
     ----------
@@ -150,50 +151,58 @@ def add_camera(cameras_path: str | os.PathLike, track: model.CameraTrack, toric:
         The shot's cameras.usda.
     track : CameraTrack
         Canonical metres.
-    toric : dict
+    toric : dict or None
         ``behavior``, ``shot_size``, ``smoothed`` and per frame ``target_a``,
         ``target_b`` (lists of prim paths), ``p_a``, ``p_b`` ((t, 2) NDC),
         ``theta``, ``phi`` ((t,) radians); for a learned camera also
         ``expert_weights`` and ``reference`` (the reference stage's path).
     """
-    from pxr import Gf, Sdf, Vt
+    from pxr import Sdf
 
     from ..scenery import layer_frame
 
     final = os.fspath(cameras_path)
     layer = Sdf.Layer.OpenAsAnonymous(final)
     frame = layer_frame(layer)
-    T = Sdf.ValueTypeNames
     with Sdf.ChangeBlock():
         if layer.GetPrimAtPath(track.path):
             parent = layer.GetPrimAtPath(track.path).nameParent
             del parent.nameChildren[track.path.rsplit("/", 1)[-1]]
         spec = _write_track(layer, track, frame, over=False)
-        spec.SetInfo("apiSchemas", Sdf.TokenListOp.Create(prependedItems=[schema.TORIC_CAMERA_API]))
-        _set(spec, "crowd:toric:behavior", T.Token, toric["behavior"], uniform=True)
-        _set(spec, "crowd:toric:shotSize", T.Token, toric["shot_size"], uniform=True)
-        _set(spec, "crowd:toric:smoothed", T.Bool, bool(toric["smoothed"]), uniform=True)
-        if toric.get("expert_weights") is not None:
-            _set(spec, "crowd:toric:expertWeights", T.FloatArray,
-                 Vt.FloatArray([float(v) for v in toric["expert_weights"]]), uniform=True)
-            _set(spec, "crowd:toric:reference", T.Asset, Sdf.AssetPath(toric["reference"]), uniform=True)
-        times = [float(t) for t in track.times]
-        for name, key in (("crowd:toric:targetA", "target_a"), ("crowd:toric:targetB", "target_b")):
-            attr = Sdf.AttributeSpec(spec, name, T.String)
-            values = list(toric[key])
-            for i in _changes(values):
-                layer.SetTimeSample(attr.path, times[i], values[i])
-        for name, key in (("crowd:toric:pA", "p_a"), ("crowd:toric:pB", "p_b")):
-            attr = Sdf.AttributeSpec(spec, name, T.Float2)
-            for t, v in zip(times, np.asarray(toric[key], dtype=np.float64)):
-                if np.isfinite(v).all():        # none where a smoothed camera lost a head behind it
-                    layer.SetTimeSample(attr.path, t, Gf.Vec2f(float(v[0]), float(v[1])))
-        for name, key in (("crowd:toric:theta", "theta"), ("crowd:toric:phi", "phi")):
-            attr = Sdf.AttributeSpec(spec, name, T.Float)
-            for t, v in zip(times, np.degrees(np.asarray(toric[key], dtype=np.float64))):
-                if np.isfinite(v):
-                    layer.SetTimeSample(attr.path, t, float(v))
+        if toric is not None:
+            _toric_values(layer, spec, track, toric)
     return export_layer(layer, final)
+
+
+def _toric_values(layer, spec, track: model.CameraTrack, toric: dict) -> None:
+    """The toric camera's schema and its time-sampled intent (inside the caller's change block)."""
+    from pxr import Gf, Sdf, Vt
+
+    T = Sdf.ValueTypeNames
+    spec.SetInfo("apiSchemas", Sdf.TokenListOp.Create(prependedItems=[schema.TORIC_CAMERA_API]))
+    _set(spec, "crowd:toric:behavior", T.Token, toric["behavior"], uniform=True)
+    _set(spec, "crowd:toric:shotSize", T.Token, toric["shot_size"], uniform=True)
+    _set(spec, "crowd:toric:smoothed", T.Bool, bool(toric["smoothed"]), uniform=True)
+    if toric.get("expert_weights") is not None:
+        _set(spec, "crowd:toric:expertWeights", T.FloatArray,
+             Vt.FloatArray([float(v) for v in toric["expert_weights"]]), uniform=True)
+        _set(spec, "crowd:toric:reference", T.Asset, Sdf.AssetPath(toric["reference"]), uniform=True)
+    times = [float(t) for t in track.times]
+    for name, key in (("crowd:toric:targetA", "target_a"), ("crowd:toric:targetB", "target_b")):
+        attr = Sdf.AttributeSpec(spec, name, T.String)
+        values = list(toric[key])
+        for i in _changes(values):
+            layer.SetTimeSample(attr.path, times[i], values[i])
+    for name, key in (("crowd:toric:pA", "p_a"), ("crowd:toric:pB", "p_b")):
+        attr = Sdf.AttributeSpec(spec, name, T.Float2)
+        for t, v in zip(times, np.asarray(toric[key], dtype=np.float64)):
+            if np.isfinite(v).all():        # none where a smoothed camera lost a head behind it
+                layer.SetTimeSample(attr.path, t, Gf.Vec2f(float(v[0]), float(v[1])))
+    for name, key in (("crowd:toric:theta", "theta"), ("crowd:toric:phi", "phi")):
+        attr = Sdf.AttributeSpec(spec, name, T.Float)
+        for t, v in zip(times, np.degrees(np.asarray(toric[key], dtype=np.float64))):
+            if np.isfinite(v):
+                layer.SetTimeSample(attr.path, t, float(v))
 
 
 def stage_poses(cam_to_world: np.ndarray, frame: StageFrame) -> np.ndarray:

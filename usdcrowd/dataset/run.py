@@ -1,0 +1,435 @@
+"""Make a dataset: plan every sequence, simulate and film them, render their frames, merge as results arrive.
+
+Work comes in two kinds of task: *prepare* a sequence (scenario, simulation,
+cameras: :func:`usdcrowd.dataset.scenario.prepare_sequence`) and *render* a
+chunk of one camera's frames. Both run on an executor:
+
+- ``inline``: in this process (debugging, tests);
+- ``local``: ``workers`` processes on this machine (spawn context);
+- ``ray``: Ray tasks, on a cluster at ``address`` or, without one, on a Ray
+  instance started here for this run only (``ray.init(address="local")``:
+  never a cluster the user did not name). On a multi-machine cluster the
+  dataset folder must be on a file system every node mounts at the same path.
+
+The driver alone writes the bookkeeping: each camera's render manifest
+(:class:`usdcrowd.render.sequence.Manifest`: the files of every frame with
+their sha256) as chunks finish, a camera's MOT folder when its last frame
+is in, and the COCO files, seqmaps, dataset card and ``manifest.json``
+(sha256 of every file) at the end. So a run killed at any point, run again
+with the same command, prepares only the sequences without a ``plan.json``
+for their plan and renders only the frames not recorded whole.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import time as _time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..atomic import atomic_path, output_dir
+from ..errors import UsdcrowdError
+from . import layout
+from .spec import DatasetSpec, assign_splits, draw_plan, load_spec
+
+MANIFEST = "manifest.json"
+# Frames per render task: enough to pay for building the scene in a worker
+# (a second or two), few enough to spread a sequence over the workers.
+CHUNK_FRAMES = 8
+KINDS = ("steering", "static", "toric", "overview")
+
+
+@dataclass
+class DatasetResult:
+    """What :func:`make_dataset` did and where the outputs are."""
+
+    out_dir: str
+    sequences: int
+    videos: int
+    frames: int
+    rendered: int
+    prepared: int
+    seconds: float
+    outputs: dict = field(default_factory=dict)
+    notes: list = field(default_factory=list)
+
+
+# ------------------------------------------------------------------ workers
+_CACHE: dict = {}
+
+
+def prepare_task(plan: dict, spec_dict: dict, seq_dir: str) -> dict:
+    """Worker side of a prepare task: the PreparedSequence as JSON."""
+    import usdcrowd  # noqa: F401  (registers the schemas in a fresh worker)
+
+    from .scenario import prepare_sequence, read_prepared
+
+    made = read_prepared(Path(seq_dir), plan) is None
+    return {**prepare_sequence(plan, DatasetSpec(**spec_dict), seq_dir).to_json(), "made": made}
+
+
+def render_task(shot: str, camera: str, settings_dict: dict, times: list, out_dir: str, threads) -> list:
+    """Worker side of a render task: render ``times`` of one camera; returns their manifest entries.
+
+    The last camera's renderer is kept, so consecutive chunks of a camera build its scene once.
+    """
+    import usdcrowd  # noqa: F401
+
+    from ..render.sequence import RenderSettings, render_frame_to_disk
+
+    key = (shot, camera, json.dumps(settings_dict, sort_keys=True))
+    if key not in _CACHE:
+        from ..groundtruth.annotate import AgentMetadata
+        from ..render.final.frame import FrameRenderer
+        from ..render.scene import ShotScene
+
+        _CACHE.clear()                        # one scene per worker at a time: bounded memory
+        settings = RenderSettings(**settings_dict)
+        scene = ShotScene(shot)
+        renderer = FrameRenderer(scene, camera, settings.resolution, settings.spp, settings.max_depth,
+                                 settings.variant, settings.ground_truth, settings.seed, threads,
+                                 sampler=settings.sampler, denoise=settings.denoise,
+                                 shutter=settings.shutter, subframes=settings.subframes)
+        _CACHE[key] = (renderer, AgentMetadata.from_shot(scene), settings)
+    renderer, metadata, settings = _CACHE[key]
+    return [render_frame_to_disk(renderer, metadata, float(t), out_dir, settings) for t in times]
+
+
+# ---------------------------------------------------------------- executors
+class _Done:
+    """A finished task's result (hashable by identity, like a future)."""
+
+    def __init__(self, value):
+        self.value = value
+
+
+class _Inline:
+    """Runs each task when it is submitted."""
+
+    threads = None
+
+    def submit(self, fn, *args):
+        return _Done(fn(*args))
+
+    def wait(self, pending):
+        return [(f, f.value) for f in pending], []
+
+    def close(self):
+        pass
+
+
+class _Local:
+    def __init__(self, workers: int):
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        self.threads = max(1, (os.cpu_count() or 1) // workers)
+        self.pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
+
+    def submit(self, fn, *args):
+        return self.pool.submit(fn, *args)
+
+    def wait(self, pending):
+        from concurrent.futures import FIRST_COMPLETED, wait
+
+        done, rest = wait(pending, return_when=FIRST_COMPLETED)
+        return [(f, f.result()) for f in done], list(rest)
+
+    def close(self):
+        self.pool.shutdown(cancel_futures=True)
+
+
+class _Ray:
+    def __init__(self, workers: int, address: str | None):
+        try:
+            import ray
+        except ImportError:
+            raise UsdcrowdError("--executor ray needs Ray: pip install 'usdcrowd[distributed]'") from None
+        import logging
+
+        self.ray = ray
+        self.started = False
+        if not ray.is_initialized():
+            quiet = {"log_to_driver": False, "logging_level": logging.ERROR, "include_dashboard": False}
+            if address:
+                ray.init(address=address, **quiet)
+            else:
+                # "local" starts a Ray instance for this run: never a cluster the user did not give.
+                ray.init(address="local", num_cpus=max(workers, 1), **quiet)
+            self.started = True
+        self.threads = None if address else max(1, (os.cpu_count() or 1) // max(workers, 1))
+        self.remote = {}
+
+    def submit(self, fn, *args):
+        if fn not in self.remote:
+            self.remote[fn] = self.ray.remote(num_cpus=1)(fn)
+        return self.remote[fn].remote(*args)
+
+    def wait(self, pending):
+        from ..render.sequence import _ray_result
+
+        (ref,), rest = self.ray.wait(list(pending), num_returns=1)
+        return [(ref, _ray_result(self.ray, ref))], list(rest)
+
+    def close(self):
+        if self.started:
+            self.ray.shutdown()
+
+
+def _executor(kind: str, workers: int, address: str | None):
+    if kind == "inline" or (kind == "local" and workers <= 0):
+        return _Inline()
+    if kind == "local":
+        return _Local(workers)
+    if kind == "ray":
+        return _Ray(workers, address)
+    raise UsdcrowdError(f"unknown executor {kind!r} (local, inline, ray)")
+
+
+# ------------------------------------------------------------------- driver
+def _settings(spec: DatasetSpec):
+    from ..render.final import variant as _variant
+    from ..render.sequence import settings_from_preset
+
+    settings = settings_from_preset(spec.preset, resolution=tuple(spec.resolution), spp=spec.spp)
+    # A dataset is its ground truth: on whatever the preset says (the preview preset has none).
+    settings.ground_truth = True
+    settings.aovs = settings.aovs or ("depth", "id")
+    settings.variant = _variant.choose_variant(settings.variant)
+    return settings
+
+
+def _check_existing(out: Path, spec: DatasetSpec, force: bool) -> None:
+    """Refuse to mix two specs in one dataset, unless asked to re-make what the new spec changes."""
+    try:
+        old = json.loads((out / MANIFEST).read_text())
+    except (OSError, ValueError):
+        return
+    if old.get("spec_sha256") not in (None, spec.digest()) and not force:
+        raise UsdcrowdError(f"this dataset was made from another spec (sha256 {old['spec_sha256'][:12]}, "
+                            f"now {spec.digest()[:12]}); give --force to re-make what the new one changes",
+                            file=os.fspath(out / MANIFEST))
+
+
+def make_dataset(spec_path, out_dir, executor: str = "local", workers: int = 1, address: str | None = None,
+                 progress: bool = True, force: bool = False, only: list[int] | None = None) -> DatasetResult:
+    """Make (or finish) the dataset a spec describes in ``out_dir``.
+
+    Parameters
+    ----------
+    spec_path : path-like
+        The TOML spec (:mod:`usdcrowd.dataset.spec`).
+    out_dir : path-like
+    executor : {"local", "inline", "ray"}
+    workers : int
+        Processes (local) or concurrent tasks (a Ray instance started here).
+    address : str, optional
+        A Ray cluster's address (``ray`` only).
+    progress : bool
+        A bar over every frame of every camera, with rate and time left.
+    force : bool
+        Accept a spec that differs from the one the dataset was made from:
+        sequences whose plan changed are made again, the others kept.
+    only : list of int, optional
+        Make only these sequences (re-making one alone); the merged files cover them only.
+
+    Returns
+    -------
+    DatasetResult
+    """
+    from tqdm import tqdm
+
+    from ..render.sequence import Manifest, verify_frame
+
+    t0 = _time.perf_counter()
+    spec = load_spec(spec_path)
+    if address and executor != "ray":
+        raise UsdcrowdError("--address is a Ray cluster's: give it with --executor ray")
+    out = output_dir(out_dir)
+    _check_existing(out, spec, force)
+    settings = _settings(spec)
+    splits = assign_splits(spec)
+    indices = list(range(spec.sequences)) if only is None else sorted(set(only))
+    bad = [i for i in indices if not 0 <= i < spec.sequences]
+    if bad:
+        raise UsdcrowdError(f"no sequence {bad[0]}: the spec has {spec.sequences} (0 to {spec.sequences - 1})")
+    plans = {i: draw_plan(spec, i, splits[i]) for i in indices}
+    if force and only is None:
+        _drop_stale(out, {p["name"] for p in plans.values()})
+    if Path(spec.path) != (out / "spec.toml").resolve():
+        with atomic_path(out / "spec.toml") as tmp:
+            shutil.copyfile(spec.path, tmp)
+    _write_manifest(out, spec, plans, state="in progress")
+
+    # Cameras per sequence before preparing: every one planned (a toric camera may turn out impossible).
+    guess = {i: p["steering"] + len(p["static"]) + bool(p["toric"]) + bool(p["overview"]) for i, p in plans.items()}
+    bar = tqdm(total=sum(guess[i] * spec.frames for i in indices), unit="frame", desc="dataset",
+               disable=not progress, dynamic_ncols=True, smoothing=0.1)
+    ex = _executor(executor, workers, address)
+    spec_dict = asdict(spec)
+    prepared: dict[int, object] = {}
+    cams: dict[tuple, dict] = {}            # (seq index, camera) -> manifest, remaining count, out dir
+    pending: dict = {}
+    rendered = n_prepared = 0
+    notes: list[str] = []
+    merged: dict[tuple, Path] = {}
+
+    def status():
+        bar.set_postfix_str(f"sequences {len(prepared)}/{len(indices)} filmed, "
+                            f"{sum(1 for k in cams if k in merged)}/{max(len(cams), 1)} cameras done")
+
+    try:
+        for i in indices:
+            seq_dir = out / "sequences" / plans[i]["name"]
+            pending[ex.submit(prepare_task, plans[i], spec_dict, os.fspath(seq_dir))] = ("prepare", i)
+        while pending:
+            finished, rest = ex.wait(list(pending))
+            for fut, result in finished:
+                what = pending.pop(fut)
+                if what[0] == "prepare":
+                    from .scenario import PreparedSequence
+
+                    i = what[1]
+                    n_prepared += bool(result.pop("made"))
+                    seq = PreparedSequence(**result)
+                    prepared[i] = seq
+                    notes += [f"{seq.name}: {n}" for n in seq.notes]
+                    bar.total += (len(seq.cameras) - guess[i]) * len(seq.frames)
+                    for camera, _kind in seq.cameras:
+                        cam_out = out / "sequences" / seq.name / "render" / camera.rsplit("/", 1)[-1]
+                        cam_out.mkdir(parents=True, exist_ok=True)
+                        header = {"shot": seq.shot, "camera": camera, "plan": plans[i]["digest"],
+                                  "settings": settings.fingerprint()}
+                        manifest = Manifest(cam_out, header)
+                        todo = [t for t in seq.frames if not verify_frame(cam_out, t, manifest, settings)]
+                        bar.update(len(seq.frames) - len(todo))
+                        cams[(i, camera)] = {"manifest": manifest, "left": len(todo), "dir": cam_out}
+                        for k in range(0, len(todo), CHUNK_FRAMES):
+                            chunk = todo[k:k + CHUNK_FRAMES]
+                            pending[ex.submit(render_task, seq.shot, camera, asdict(settings), chunk,
+                                              os.fspath(cam_out), ex.threads)] = ("render", i, camera)
+                        if not todo:
+                            manifest.flush()
+                            merged[(i, camera)] = cam_out
+                else:
+                    _, i, camera = what
+                    state = cams[(i, camera)]
+                    for entry in result:
+                        state["manifest"].add(entry)
+                    state["left"] -= len(result)
+                    rendered += len(result)
+                    bar.update(len(result))
+                    if state["left"] == 0:
+                        state["manifest"].flush()
+                        merged[(i, camera)] = state["dir"]
+                status()
+    finally:
+        for state in cams.values():
+            state["manifest"].flush()
+        ex.close()
+        bar.close()
+    outputs = merge(out, spec, [prepared[i] for i in indices if i in prepared], settings, progress)
+    frames = sum(len(s.frames) * len(s.cameras) for s in prepared.values())
+    videos = sum(len(s.cameras) for s in prepared.values())
+    outputs["manifest"] = _write_manifest(out, spec, plans, state="complete", prepared=prepared)
+    return DatasetResult(os.fspath(out), len(prepared), videos, frames, rendered, n_prepared,
+                         _time.perf_counter() - t0, outputs, notes)
+
+
+def _drop_stale(out: Path, keep: set[str]) -> None:
+    """Sequence folders of an older spec that the new one no longer has."""
+    root = out / "sequences"
+    if root.is_dir():
+        for d in root.iterdir():
+            if d.is_dir() and d.name not in keep:
+                shutil.rmtree(d)
+
+
+def merge(out: Path, spec: DatasetSpec, sequences: list, settings, progress: bool = False) -> dict:
+    """MOT folders, seqmaps, COCO per split and the dataset card, from every camera's frames on disk."""
+    from ..groundtruth import frame_json
+    from ..groundtruth.contact_sheet import contact_sheet
+    from ..render.sequence import frame_files
+    from .card import CardStats, write_card
+
+    # The merged files are rebuilt from the frames each time: nothing stale survives a changed spec.
+    for folder in (out / "mot", out / "coco"):
+        if folder.exists():
+            shutil.rmtree(folder)
+    stats = CardStats()
+    by_split: dict[str, list] = {}
+    names_by_split: dict[str, list] = {}
+    for seq in sequences:
+        stats.add_sequence(seq)
+        for camera, kind in seq.cameras:
+            cam_out = out / "sequences" / seq.name / "render" / camera.rsplit("/", 1)[-1]
+            pngs = [os.fspath(cam_out / frame_files(t, False)["png"]) for t in seq.frames]
+            jsons = [os.fspath(cam_out / frame_files(t, True)["json"]) for t in seq.frames]
+            records = frame_json.Records(jsons)
+            name = layout.video_name(seq.name, camera)
+            stride = float(np.median(np.diff(seq.frames))) if len(seq.frames) > 1 else 1.0
+            fps = _fps(seq.shot) / stride
+            folder = layout.write_mot_video(out, seq.split, name, records, pngs, jsons, fps)
+            contact_sheet(pngs, records, cam_out / "contact_sheet.png")
+            stats.add_video(kind, records)
+            names_by_split.setdefault(seq.split, []).append(name)
+            by_split.setdefault(seq.split, []).append({
+                "name": name, "sequence": seq.name, "camera": camera, "kind": kind, "fps": fps,
+                "records": records,
+                "images": [os.path.relpath(folder / "img1" / f"{k:06d}.png", out) for k in range(1, len(pngs) + 1)]})
+    outputs = {"mot": os.fspath(out / "mot")}
+    outputs.update({f"seqmap_{k}": v for k, v in layout.write_seqmaps(out, names_by_split).items()})
+    for split, videos in by_split.items():
+        outputs[f"coco_{split}"] = layout.write_split_coco(out / "coco" / f"{split}.json", videos)
+    outputs.update(write_card(out, spec, stats))
+    return outputs
+
+
+def _fps(shot: str) -> float:
+    from pxr import Sdf
+
+    layer = Sdf.Layer.FindOrOpen(shot)
+    return float(layer.timeCodesPerSecond) if layer else 24.0
+
+
+def _digest(path: Path) -> str:
+    from ..render.sequence import _digest as digest
+
+    return digest(path)
+
+
+def _write_manifest(out: Path, spec: DatasetSpec, plans: dict, state: str, prepared: dict | None = None) -> str:
+    """``manifest.json``: the spec's sha256, every plan, and (when complete) sha256 of every file.
+
+    Frame files take the digests their render manifests recorded as they were
+    written; the rest are read once here.
+    """
+    doc = {"spec_sha256": spec.digest(), "spec": spec.canonical(), "state": state,
+           "plans": {p["name"]: p for p in plans.values()}}
+    if state == "complete":
+        # By inode: MOT's img1/ and json/ are hard links to the frames, whose digests are known.
+        recorded = {}
+        for manifest in (out / "sequences").glob("*/render/*/manifest.json"):
+            frames = json.loads(manifest.read_text()).get("frames", {})
+            for entry in frames.values():
+                for rel, rec in entry["files"].items():
+                    st = (manifest.parent / rel).stat()
+                    if st.st_size == rec["size"]:
+                        recorded[(st.st_dev, st.st_ino)] = rec
+        files = {}
+        for path in sorted(p for p in out.rglob("*") if p.is_file() and p.name != MANIFEST
+                           and not p.name.endswith(".partial")):
+            st = path.stat()
+            rec = recorded.get((st.st_dev, st.st_ino))
+            if rec is None or st.st_size != rec["size"]:
+                rec = {"size": st.st_size, "sha256": _digest(path)}
+            files[os.fspath(path.relative_to(out))] = {"size": rec["size"], "sha256": rec["sha256"]}
+        doc["files"] = files
+    path = out / MANIFEST
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(doc, indent=1, sort_keys=True))
+    return os.fspath(path)
