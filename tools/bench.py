@@ -8,6 +8,7 @@
     python tools/bench.py render          # Mitsuba s/frame and ground-truth overhead
     python tools/bench.py cameras         # camera agents + event detection steps/s (30 x 100, 100 x 10,000)
     python tools/bench.py moe             # learned camera behaviors: predictions/s in numpy (target 2,000)
+    python tools/bench.py dataset         # usdcrowd dataset: 640x360 ground-truth frames/hour, 1 -> 2 Ray workers
     python tools/bench.py memory          # simulate's peak memory, 300 agents x 750 and 6,000 frames
     python tools/bench.py memory --long   # and 10,000 agents x 10,000 frames (about 30 min)
 
@@ -116,7 +117,7 @@ def bench_section(name: str, **kw) -> None:
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("section", nargs="?", default="all", choices=["all", "author", "sim", "cameras", "moe", "preview", "render",
-                                                                 "memory"])
+                                                                 "dataset", "memory"])
     p.add_argument("--agents", type=int, default=10_000)
     p.add_argument("--frames", type=int, default=300)
     p.add_argument("--sizes", default="1000,10000,100000", help="agent counts of the sim section")
@@ -127,7 +128,7 @@ def main(argv=None) -> int:
         bench_author(args.agents, args.frames)
     if args.section in ("all", "sim"):
         bench_section("sim", sizes=tuple(int(s) for s in args.sizes.split(",")))
-    for name in ("cameras", "moe", "preview", "render"):
+    for name in ("cameras", "moe", "preview", "render", "dataset"):
         if args.section in ("all", name):
             bench_section(name)
     if args.section in ("all", "memory"):
