@@ -286,3 +286,14 @@ def test_two_local_processes_make_the_same_dataset(tiny_dataset, tmp_path):
     assert result.rendered == result.frames
     for coco in (root / "coco").glob("*.json"):
         assert (tmp_path / "local" / "coco" / coco.name).read_bytes() == coco.read_bytes()
+
+
+def test_remaking_one_sequence_in_a_dataset_keeps_the_others_in_it(tiny_dataset, tmp_path):
+    spec, root, _ = tiny_dataset
+    copy = tmp_path / "copy"
+    shutil.copytree(root, copy)
+    again = make_dataset(spec, copy, executor="inline", progress=False, only=[2])
+    assert again.sequences == 3 and again.rendered == 0
+    for coco in (root / "coco").glob("*.json"):
+        assert (copy / "coco" / coco.name).read_bytes() == coco.read_bytes()
+    assert json.loads((copy / "manifest.json").read_text())["state"] == "complete"

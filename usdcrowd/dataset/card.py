@@ -1,8 +1,9 @@
 """The dataset card: ``DATASET/README.md`` with counts per split and ``card.png`` with the distributions.
 
-Counted from the per-frame records as the merge reads them (never all in
-memory): boxes per frame, each box's visibility and on-screen height, the
-agents per sequence and in view per frame, and the cameras by kind.
+Counted from the per-frame records as the merge reads them, into fixed
+histograms (memory does not grow with the dataset): boxes per frame, each
+box's visibility and on-screen height, the agents per sequence and the
+cameras by kind.
 """
 
 from __future__ import annotations
@@ -17,6 +18,21 @@ import numpy as np
 from ..atomic import atomic_path
 
 
+VIS_BINS = np.linspace(0.0, 1.0, 21)
+HEIGHT_BINS = np.r_[0.0, np.geomspace(4.0, 8192.0, 45)]     # amodal box height, pixels
+
+
+def _quantile(counts: np.ndarray, edges: np.ndarray, q: float) -> float:
+    """The q-quantile of histogrammed values, interpolated within its bin."""
+    c = np.cumsum(counts)
+    if not c.size or c[-1] == 0:
+        return 0.0
+    k = int(np.searchsorted(c, q * c[-1]))
+    before = c[k - 1] if k else 0
+    frac = (q * c[-1] - before) / max(counts[k], 1)
+    return float(edges[k] + frac * (edges[k + 1] - edges[k]))
+
+
 @dataclass
 class CardStats:
     """Running counts of a dataset (see the module docstring)."""
@@ -27,17 +43,16 @@ class CardStats:
     boxes: Counter = field(default_factory=Counter)              # split -> visible boxes
     tracks: Counter = field(default_factory=Counter)             # split -> tracks (per video)
     kinds: Counter = field(default_factory=Counter)              # camera kind -> videos
-    agents: list = field(default_factory=list)                   # agents per sequence
-    per_frame: list = field(default_factory=list)                # visible boxes per frame
-    visibility: list = field(default_factory=list)               # per visible box
-    height: list = field(default_factory=list)                   # amodal box height, pixels
-    templates: Counter = field(default_factory=Counter)
+    agents: Counter = field(default_factory=Counter)             # agents in a sequence -> sequences
+    per_frame: Counter = field(default_factory=Counter)          # visible boxes in a frame -> frames
+    visibility: np.ndarray = field(default_factory=lambda: np.zeros(len(VIS_BINS) - 1, np.int64))
+    height: np.ndarray = field(default_factory=lambda: np.zeros(len(HEIGHT_BINS) - 1, np.int64))
     _split: str = ""
 
     def add_sequence(self, seq) -> None:
         self._split = seq.split
         self.sequences[seq.split] += 1
-        self.agents.append(seq.agents)
+        self.agents[seq.agents] += 1
 
     def add_video(self, kind: str, records) -> None:
         split = self._split
@@ -47,13 +62,12 @@ class CardStats:
         for rec in records:
             self.frames[split] += 1
             seen = [a for a in rec["agents"] if a["visible_pixels"] > 0]
-            self.per_frame.append(len(seen))
+            self.per_frame[len(seen)] += 1
             self.boxes[split] += len(seen)
-            for a in seen:
-                tracks.add(a["track_id"])
-                self.visibility.append(a["visibility"])
-                if a.get("bbox_amodal") is not None:
-                    self.height.append(a["bbox_amodal"][3])
+            tracks.update(a["track_id"] for a in seen)
+            self.visibility += np.histogram([a["visibility"] for a in seen], VIS_BINS)[0]
+            self.height += np.histogram([a["bbox_amodal"][3] for a in seen if a.get("bbox_amodal") is not None],
+                                        HEIGHT_BINS)[0]
         self.tracks[split] += len(tracks)
 
 
@@ -65,19 +79,20 @@ def _figure(stats: CardStats, path: Path) -> str:
 
     fig, ax = plt.subplots(2, 3, figsize=(12, 6.5))
     ax = ax.ravel()
-    ax[0].hist(stats.per_frame, bins=min(30, max(stats.per_frame + [1]) + 1), color="#4c72b0")
+    n = sorted(stats.per_frame)
+    ax[0].bar(n, [stats.per_frame[k] for k in n], width=1.0, color="#4c72b0")
     ax[0].set(title="people in view per frame", xlabel="visible boxes", ylabel="frames")
-    ax[1].hist(stats.visibility, bins=20, range=(0, 1), color="#55a868")
+    ax[1].stairs(stats.visibility, VIS_BINS, fill=True, color="#55a868")
     ax[1].set(title="visibility of each box", xlabel="visible / unoccluded pixels", ylabel="boxes")
-    ax[2].hist(stats.height, bins=30, color="#c44e52")
-    ax[2].set(title="on-screen height", xlabel="amodal box height (px)", ylabel="boxes")
-    occl = np.asarray(stats.visibility, dtype=np.float64)
-    levels = ["none\n(>= 0.99)", "light\n0.75-0.99", "partial\n0.25-0.75", "heavy\n< 0.25"]
-    counts = [np.sum(occl >= 0.99), np.sum((occl >= 0.75) & (occl < 0.99)),
-              np.sum((occl >= 0.25) & (occl < 0.75)), np.sum(occl < 0.25)]
-    ax[3].bar(levels, counts, color="#8172b2")
+    ax[2].stairs(stats.height, HEIGHT_BINS, fill=True, color="#c44e52")
+    ax[2].set(title="on-screen height", xlabel="amodal box height (px)", ylabel="boxes", xscale="log")
+    ax[2].set_xlim(4, max(8.0, HEIGHT_BINS[np.flatnonzero(stats.height).max() + 1] if stats.height.any() else 8.0))
+    v = stats.visibility        # 20 bins of 0.05: heavy < 0.25, partial < 0.75, light < 0.95, none above
+    levels = ["none\n>= 0.95", "light\n0.75-0.95", "partial\n0.25-0.75", "heavy\n< 0.25"]
+    ax[3].bar(levels, [v[19:].sum(), v[15:19].sum(), v[5:15].sum(), v[:5].sum()], color="#8172b2")
     ax[3].set(title="occlusion", ylabel="boxes")
-    ax[4].hist(stats.agents, bins=min(20, max(len(set(stats.agents)), 1)), color="#937860")
+    a = sorted(stats.agents)
+    ax[4].bar([str(k) for k in a], [stats.agents[k] for k in a], color="#937860")
     ax[4].set(title="crowd size", xlabel="agents per sequence", ylabel="sequences")
     kinds = sorted(stats.kinds)
     ax[5].bar(kinds, [stats.kinds[k] for k in kinds], color="#da8bc3")
@@ -97,8 +112,7 @@ def write_card(out: Path, spec, stats: CardStats) -> dict:
                      f"{stats.boxes[s]:,} | {stats.tracks[s]:,} |" for s in splits)
     total = (f"| all | {sum(stats.sequences.values())} | {sum(stats.videos.values())} | "
              f"{sum(stats.frames.values()):,} | {sum(stats.boxes.values()):,} | {sum(stats.tracks.values()):,} |")
-    vis = np.asarray(stats.visibility) if stats.visibility else np.zeros(1)
-    h = np.asarray(stats.height) if stats.height else np.zeros(1)
+    vis, h = stats.visibility, stats.height
     per = defaultdict(int, stats.kinds)
     text = f"""# {spec.name}
 
@@ -115,9 +129,10 @@ in its `plan.json` and in the scenario stage's `customLayerData`.
 - Resolution {spec.resolution[0]}x{spec.resolution[1]}, render preset `{spec.preset}`,
   {spec.frames} frames per video (every {spec.stride} simulated frame(s)).
 - Cameras: {", ".join(f"{per[k]} {k}" for k in sorted(per))} videos.
-- Visibility of the boxes: median {np.median(vis):.2f}, {np.mean(vis < 0.5) * 100:.0f} % under 0.5.
-- On-screen height: median {np.median(h):.0f} px, 5th to 95th percentile {np.percentile(h, 5):.0f} to
-  {np.percentile(h, 95):.0f} px.
+- Visibility of the boxes: median {_quantile(vis, VIS_BINS, 0.5):.2f}, {vis[:10].sum() / max(vis.sum(), 1) * 100:.0f} %
+  under 0.5.
+- On-screen height: median {_quantile(h, HEIGHT_BINS, 0.5):.0f} px, 5th to 95th percentile
+  {_quantile(h, HEIGHT_BINS, 0.05):.0f} to {_quantile(h, HEIGHT_BINS, 0.95):.0f} px.
 - Crowds of {min(stats.agents, default=0)} to {max(stats.agents, default=0)} agents.
 
 ![distributions](card.png)

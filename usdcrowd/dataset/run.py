@@ -235,7 +235,8 @@ def make_dataset(spec_path, out_dir, executor: str = "local", workers: int = 1, 
         Accept a spec that differs from the one the dataset was made from:
         sequences whose plan changed are made again, the others kept.
     only : list of int, optional
-        Make only these sequences (re-making one alone); the merged files cover them only.
+        Make only these sequences (re-making one alone). The merged files
+        cover every sequence made so far; the manifest says "partial" until all are.
 
     Returns
     -------
@@ -257,13 +258,14 @@ def make_dataset(spec_path, out_dir, executor: str = "local", workers: int = 1, 
     bad = [i for i in indices if not 0 <= i < spec.sequences]
     if bad:
         raise UsdcrowdError(f"no sequence {bad[0]}: the spec has {spec.sequences} (0 to {spec.sequences - 1})")
-    plans = {i: draw_plan(spec, i, splits[i]) for i in indices}
+    all_plans = {i: draw_plan(spec, i, splits[i]) for i in range(spec.sequences)}
+    plans = {i: all_plans[i] for i in indices}
     if force and only is None:
         _drop_stale(out, {p["name"] for p in plans.values()})
     if Path(spec.path) != (out / "spec.toml").resolve():
         with atomic_path(out / "spec.toml") as tmp:
             shutil.copyfile(spec.path, tmp)
-    _write_manifest(out, spec, plans, state="in progress")
+    _write_manifest(out, spec, all_plans, state="in progress")
 
     # Cameras per sequence before preparing: every one planned (a toric camera may turn out impossible).
     guess = {i: p["steering"] + len(p["static"]) + bool(p["toric"]) + bool(p["overview"]) for i, p in plans.items()}
@@ -332,12 +334,45 @@ def make_dataset(spec_path, out_dir, executor: str = "local", workers: int = 1, 
             state["manifest"].flush()
         ex.close()
         bar.close()
-    outputs = merge(out, spec, [prepared[i] for i in indices if i in prepared], settings, progress)
-    frames = sum(len(s.frames) * len(s.cameras) for s in prepared.values())
-    videos = sum(len(s.cameras) for s in prepared.values())
-    outputs["manifest"] = _write_manifest(out, spec, plans, state="complete", prepared=prepared)
-    return DatasetResult(os.fspath(out), len(prepared), videos, frames, rendered, n_prepared,
+    # Sequences made by earlier runs (with --sequences) belong to the dataset too.
+    for i, plan in all_plans.items():
+        if i not in prepared:
+            seq = _finished(out, plan, settings)
+            if seq is not None:
+                prepared[i] = seq
+    made = [prepared[i] for i in sorted(prepared)]
+    outputs = merge(out, spec, made, settings, progress)
+    frames = sum(len(s.frames) * len(s.cameras) for s in made)
+    videos = sum(len(s.cameras) for s in made)
+    complete = len(made) == spec.sequences
+    outputs["manifest"] = _write_manifest(out, spec, all_plans, state="complete" if complete else "partial")
+    if not complete:
+        notes.append(f"{len(made)} of {spec.sequences} sequences are made: run without --sequences to finish")
+    return DatasetResult(os.fspath(out), len(made), videos, frames, rendered, n_prepared,
                          _time.perf_counter() - t0, outputs, notes)
+
+
+def _finished(out: Path, plan: dict, settings):
+    """A sequence an earlier run made whole (filmed, every frame of every camera recorded), else None."""
+    from ..render.sequence import MANIFEST as FRAMES_MANIFEST
+    from ..render.sequence import frame_tag
+    from .scenario import read_prepared
+
+    seq = read_prepared(out / "sequences" / plan["name"], plan)
+    if seq is None:
+        return None
+    for camera, _ in seq.cameras:
+        try:
+            doc = json.loads((out / "sequences" / seq.name / "render" / camera.rsplit("/", 1)[-1]
+                              / FRAMES_MANIFEST).read_text())
+        except (OSError, ValueError):
+            return None
+        header = doc.get("header", {})
+        if header.get("plan") != plan["digest"] or header.get("settings") != settings.fingerprint():
+            return None
+        if not all(frame_tag(t) in doc.get("frames", {}) for t in seq.frames):
+            return None
+    return seq
 
 
 def _drop_stale(out: Path, keep: set[str]) -> None:
@@ -402,7 +437,7 @@ def _digest(path: Path) -> str:
     return digest(path)
 
 
-def _write_manifest(out: Path, spec: DatasetSpec, plans: dict, state: str, prepared: dict | None = None) -> str:
+def _write_manifest(out: Path, spec: DatasetSpec, plans: dict, state: str) -> str:
     """``manifest.json``: the spec's sha256, every plan, and (when complete) sha256 of every file.
 
     Frame files take the digests their render manifests recorded as they were
@@ -410,7 +445,7 @@ def _write_manifest(out: Path, spec: DatasetSpec, plans: dict, state: str, prepa
     """
     doc = {"spec_sha256": spec.digest(), "spec": spec.canonical(), "state": state,
            "plans": {p["name"]: p for p in plans.values()}}
-    if state == "complete":
+    if state != "in progress":
         # By inode: MOT's img1/ and json/ are hard links to the frames, whose digests are known.
         recorded = {}
         for manifest in (out / "sequences").glob("*/render/*/manifest.json"):
