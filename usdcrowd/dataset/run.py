@@ -161,7 +161,8 @@ class _Ray:
                 # "local" starts a Ray instance for this run: never a cluster the user did not give.
                 ray.init(address="local", num_cpus=max(workers, 1), **quiet)
             self.started = True
-        self.threads = None if address else max(1, (os.cpu_count() or 1) // max(workers, 1))
+        # On a cluster Ray runs a task per CPU of each node: one render thread each, no oversubscription.
+        self.threads = 1 if address else max(1, (os.cpu_count() or 1) // max(workers, 1))
         self.remote = {}
 
     def submit(self, fn, *args):
