@@ -320,3 +320,60 @@ def test_a_ray_cluster_given_by_address_makes_the_same_dataset(tiny_dataset, tmp
         subprocess.run([str(ray), "stop", "--force"], capture_output=True, env=env, timeout=120)
     for gt in (root / "mot").glob("*/*/gt/gt.txt"):
         assert (tmp_path / "cluster" / gt.relative_to(root)).read_text() == gt.read_text()
+
+
+def test_a_dcc_scenery_is_used_and_its_own_sun_set_to_the_time_of_day(tmp_path):
+    """A Y-up, centimetre scenery bringing its own sun: the crowd walks in it and the sun's world direction
+    is the plan's (through the scenery's placement transform)."""
+    (tmp_path / "hall.usda").write_text(textwrap.dedent('''\
+        #usda 1.0
+        (
+            defaultPrim = "Hall"
+            metersPerUnit = 0.01
+            upAxis = "Y"
+        )
+        def Xform "Hall"
+        {
+            def Mesh "Floor"
+            {
+                int[] faceVertexCounts = [4]
+                int[] faceVertexIndices = [0, 1, 2, 3]
+                point3f[] points = [(-1500, 0, 1500), (1500, 0, 1500), (1500, 0, -1500), (-1500, 0, -1500)]
+            }
+            def DistantLight "Sun"
+            {
+                float inputs:intensity = 2
+                float3 xformOp:rotateXYZ = (-60, 20, 0)
+                uniform token[] xformOpOrder = ["xformOp:rotateXYZ"]
+            }
+        }
+        '''))
+    spec = tmp_path / "spec.toml"
+    spec.write_text(textwrap.dedent('''\
+        [dataset]
+        sequences = 1
+        frames = 2
+        [scene]
+        templates = ["museum"]
+        sceneries = ["hall.usda"]
+        agents = [6, 6]
+        [cameras]
+        steering = [0, 0]
+        static = 1
+        [render]
+        preset = "preview"
+        resolution = [96, 54]
+        spp = 1
+        '''))
+    result = make_dataset(spec, tmp_path / "out", executor="inline", progress=False)
+    assert result.frames == 2
+    seq = tmp_path / "out" / "sequences" / "seq_0000"
+    plan = json.loads((seq / "plan.json").read_text())["plan"]
+    from pxr import Gf, Usd, UsdGeom, UsdLux
+
+    stage = Usd.Stage.Open(str(seq / "scenario.usda"))
+    suns = [p for p in stage.Traverse() if p.IsA(UsdLux.DistantLight)]
+    assert [str(p.GetPath()) for p in suns] == ["/World/Scenery/Hall/Sun"]     # the template's sun is gone
+    d = UsdGeom.Xformable(suns[0]).ComputeLocalToWorldTransform(0).TransformDir(Gf.Vec3d(0, 0, -1)).GetNormalized()
+    assert np.degrees(np.arcsin(-d[2])) == pytest.approx(plan["light"]["sun_elevation"], abs=1e-3)
+    assert np.degrees(np.arctan2(-d[1], -d[0])) % 360 == pytest.approx(plan["light"]["sun_azimuth"], abs=1e-3)
