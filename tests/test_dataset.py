@@ -300,24 +300,29 @@ def test_remaking_one_sequence_in_a_dataset_keeps_the_others_in_it(tiny_dataset,
 
 
 @pytest.mark.slow
-def test_a_ray_cluster_given_by_address_makes_the_same_dataset(tiny_dataset, tmp_path, monkeypatch):
-    """A local two-CPU cluster started as on a head node (`ray start --head`), joined through --address."""
+def test_a_ray_cluster_given_by_address_makes_the_same_dataset(tiny_dataset, tmp_path):
+    """A local two-CPU cluster started as on a head node (`ray start --head`), joined through --address.
+
+    Everything Ray runs in other processes: Ray keeps per-process state that a
+    cluster joined here would leave to the tests after this one.
+    """
     pytest.importorskip("ray")
     spec, root, _ = tiny_dataset
     ray = Path(sys.executable).with_name("ray")
     port = 26379 + os.getpid() % 1000
     # Without token authentication (Ray 2.60's `ray start` may use it; a real cluster shares its token).
-    monkeypatch.setenv("RAY_AUTH_MODE", "disabled")
-    env = dict(os.environ, RAY_USAGE_STATS_ENABLED="0")
+    env = dict(os.environ, RAY_USAGE_STATS_ENABLED="0", RAY_AUTH_MODE="disabled")
     started = subprocess.run([str(ray), "start", "--head", "--port", str(port), "--num-cpus", "2",
                               "--include-dashboard", "false", "--disable-usage-stats"],
                              capture_output=True, text=True, env=env, timeout=120)
     assert started.returncode == 0, started.stderr[-2000:]
     try:
-        assert main(["dataset", str(spec), "-o", str(tmp_path / "cluster"), "--executor", "ray",
-                     "--address", f"127.0.0.1:{port}", "--no-progress"]) == 0
+        made = subprocess.run([sys.executable, "-m", "usdcrowd", "dataset", str(spec), "-o", str(tmp_path / "cluster"),
+                               "--executor", "ray", "--address", f"127.0.0.1:{port}", "--no-progress"],
+                              capture_output=True, text=True, env=env, timeout=600)
     finally:
         subprocess.run([str(ray), "stop", "--force"], capture_output=True, env=env, timeout=120)
+    assert made.returncode == 0, made.stderr[-2000:]
     for gt in (root / "mot").glob("*/*/gt/gt.txt"):
         assert (tmp_path / "cluster" / gt.relative_to(root)).read_text() == gt.read_text()
 

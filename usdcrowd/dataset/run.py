@@ -251,14 +251,14 @@ def make_dataset(spec_path, out_dir, executor: str = "local", workers: int = 1, 
     spec = load_spec(spec_path)
     if address and executor != "ray":
         raise UsdcrowdError("--address is a Ray cluster's: give it with --executor ray")
-    out = output_dir(out_dir)
-    _check_existing(out, spec, force)
-    settings = _settings(spec)
-    splits = assign_splits(spec)
     indices = list(range(spec.sequences)) if only is None else sorted(set(only))
     bad = [i for i in indices if not 0 <= i < spec.sequences]
     if bad:
         raise UsdcrowdError(f"no sequence {bad[0]}: the spec has {spec.sequences} (0 to {spec.sequences - 1})")
+    settings = _settings(spec)
+    out = output_dir(out_dir)
+    _check_existing(out, spec, force)
+    splits = assign_splits(spec)
     all_plans = {i: draw_plan(spec, i, splits[i]) for i in range(spec.sequences)}
     plans = {i: all_plans[i] for i in indices}
     if force and only is None:

@@ -340,7 +340,9 @@ def _run_ray(shot_path, camera, settings, todo, out_dir, on_done, workers, addre
         if address:
             ray.init(address=address, **quiet)
         else:
-            ray.init(num_cpus=max(workers, 1), include_dashboard=False, **quiet)
+            # "local": a Ray instance for this run, never a cluster the user did not name
+            # (a running one, or RAY_ADDRESS, would otherwise be joined).
+            ray.init(address="local", num_cpus=max(workers, 1), include_dashboard=False, **quiet)
         started = True
     try:
         actor_cls = ray.remote(num_cpus=1)(_RayRenderer)
