@@ -382,3 +382,24 @@ def test_a_dcc_scenery_is_used_and_its_own_sun_set_to_the_time_of_day(tmp_path):
     d = UsdGeom.Xformable(suns[0]).ComputeLocalToWorldTransform(0).TransformDir(Gf.Vec3d(0, 0, -1)).GetNormalized()
     assert np.degrees(np.arcsin(-d[2])) == pytest.approx(plan["light"]["sun_elevation"], abs=1e-3)
     assert np.degrees(np.arctan2(-d[1], -d[0])) % 360 == pytest.approx(plan["light"]["sun_azimuth"], abs=1e-3)
+
+
+def test_the_cards_crowd_density_is_people_within_two_metres_per_square_metre(tiny_dataset):
+    """Recounted by brute force (every pair's distance) at the same frames, for every sequence."""
+    from usdcrowd.dataset.scenario import DENSITY_BINS, DENSITY_RADIUS, densities, density_frames
+    from usdcrowd.render.scene import ShotScene
+
+    _, root, _ = tiny_dataset
+    for seq in sorted((root / "sequences").iterdir()):
+        prepared = json.loads((seq / "plan.json").read_text())["prepared"]
+        scene = ShotScene(prepared["shot"])
+        expected = np.zeros(len(DENSITY_BINS) - 1, int)
+        for t in density_frames(scene.time_codes):
+            poses = scene.agents(float(t))
+            p = poses.joints_world[poses.visible, 0, 3, :2]
+            d = np.linalg.norm(p[:, None] - p[None], axis=-1)
+            density = (d <= DENSITY_RADIUS).sum(1) / (np.pi * DENSITY_RADIUS ** 2)
+            np.testing.assert_allclose(densities(scene, t), density)
+            expected += np.histogram(np.minimum(density, DENSITY_BINS[-1] - 1e-9), DENSITY_BINS)[0]
+        assert prepared["density"] == expected.tolist(), seq.name
+        assert sum(expected) == sum(len(densities(scene, t)) for t in density_frames(scene.time_codes)) > 0

@@ -2,8 +2,8 @@
 
 Counted from the per-frame records as the merge reads them, into fixed
 histograms (memory does not grow with the dataset): boxes per frame, each
-box's visibility and on-screen height, the agents per sequence and the
-cameras by kind.
+box's visibility and on-screen height, the agents per sequence, the local
+crowd density around each person and the cameras by kind.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..atomic import atomic_path
+from .scenario import DENSITY_BINS, DENSITY_RADIUS
 
 
 VIS_BINS = np.linspace(0.0, 1.0, 21)
@@ -47,12 +48,15 @@ class CardStats:
     per_frame: Counter = field(default_factory=Counter)          # visible boxes in a frame -> frames
     visibility: np.ndarray = field(default_factory=lambda: np.zeros(len(VIS_BINS) - 1, np.int64))
     height: np.ndarray = field(default_factory=lambda: np.zeros(len(HEIGHT_BINS) - 1, np.int64))
+    density: np.ndarray = field(default_factory=lambda: np.zeros(len(DENSITY_BINS) - 1, np.int64))
     _split: str = ""
 
     def add_sequence(self, seq) -> None:
         self._split = seq.split
         self.sequences[seq.split] += 1
         self.agents[seq.agents] += 1
+        if seq.density:
+            self.density += np.asarray(seq.density, dtype=np.int64)
 
     def add_video(self, kind: str, records) -> None:
         split = self._split
@@ -77,7 +81,7 @@ def _figure(stats: CardStats, path: Path) -> str:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(2, 3, figsize=(12, 6.5))
+    fig, ax = plt.subplots(2, 4, figsize=(15, 6.5))
     ax = ax.ravel()
     n = sorted(stats.per_frame)
     ax[0].bar(n, [stats.per_frame[k] for k in n], width=1.0, color="#4c72b0")
@@ -97,6 +101,10 @@ def _figure(stats: CardStats, path: Path) -> str:
     kinds = sorted(stats.kinds)
     ax[5].bar(kinds, [stats.kinds[k] for k in kinds], color="#da8bc3")
     ax[5].set(title="cameras", ylabel="videos")
+    ax[6].stairs(stats.density, DENSITY_BINS, fill=True, color="#64b5cd")
+    ax[6].set(title="crowd density around each person", xlabel=f"people / m^2 within {DENSITY_RADIUS:g} m",
+              ylabel="people (5 frames a sequence)")
+    ax[7].axis("off")
     fig.tight_layout()
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=80, format="png")
@@ -133,7 +141,9 @@ in its `plan.json` and in the scenario stage's `customLayerData`.
   under 0.5.
 - On-screen height: median {_quantile(h, HEIGHT_BINS, 0.5):.0f} px, 5th to 95th percentile
   {_quantile(h, HEIGHT_BINS, 0.05):.0f} to {_quantile(h, HEIGHT_BINS, 0.95):.0f} px.
-- Crowds of {min(stats.agents, default=0)} to {max(stats.agents, default=0)} agents.
+- Crowds of {min(stats.agents, default=0)} to {max(stats.agents, default=0)} agents; local density
+  (people within {DENSITY_RADIUS:g} m of each person, per m^2) median {_quantile(stats.density, DENSITY_BINS, 0.5):.2f},
+  95th percentile {_quantile(stats.density, DENSITY_BINS, 0.95):.2f}.
 
 ![distributions](card.png)
 

@@ -25,6 +25,11 @@ AIM_HEIGHT = 1.2
 # further out, walls of the scenery would come between it and the people.
 CAMERA_MARGIN = 2.0
 APERTURE_MM = 36.0
+# Local crowd density: people within DENSITY_RADIUS metres of each person (themselves
+# included) per square metre, histogrammed over DENSITY_FRAMES frames of the shot.
+DENSITY_RADIUS = 2.0
+DENSITY_FRAMES = 5
+DENSITY_BINS = np.linspace(0.0, 4.0, 21)
 
 
 @dataclass
@@ -45,6 +50,8 @@ class PreparedSequence:
         What the plan asked for and could not be made (a toric camera with no pair in view).
     agents : int
         Agents in the shot.
+    density : list of int
+        People counted in each DENSITY_BINS bin of local density (:func:`local_density`).
     """
 
     name: str
@@ -54,10 +61,41 @@ class PreparedSequence:
     frames: list
     notes: list
     agents: int = 0
+    density: list = None
 
     def to_json(self) -> dict:
         return {"name": self.name, "split": self.split, "shot": self.shot, "cameras": self.cameras,
-                "frames": self.frames, "notes": self.notes, "agents": self.agents}
+                "frames": self.frames, "notes": self.notes, "agents": self.agents, "density": self.density}
+
+
+def density_frames(times) -> np.ndarray:
+    """The DENSITY_FRAMES time codes, spread over ``times``, at which density is counted."""
+    times = np.asarray(times)
+    return times[np.unique(np.linspace(0, len(times) - 1, DENSITY_FRAMES).round().astype(int))]
+
+
+def densities(scene, time: float) -> np.ndarray:
+    """(n,) local density of each visible person at ``time``, people per square metre.
+
+    The people within DENSITY_RADIUS metres on the ground (the person
+    included) over the disc's area.
+    """
+    from scipy.spatial import cKDTree
+
+    poses = scene.agents(float(time))
+    ground = poses.joints_world[poses.visible, 0, 3, :2]
+    if not len(ground):
+        return np.zeros(0)
+    near = np.array([len(n) for n in cKDTree(ground).query_ball_point(ground, DENSITY_RADIUS)])
+    return near / (np.pi * DENSITY_RADIUS ** 2)
+
+
+def local_density(scene, times) -> list[int]:
+    """Histogram (DENSITY_BINS, the last bin open-ended) of :func:`densities` at :func:`density_frames`."""
+    counts = np.zeros(len(DENSITY_BINS) - 1, np.int64)
+    for t in density_frames(times):
+        counts += np.histogram(np.minimum(densities(scene, t), DENSITY_BINS[-1] - 1e-9), DENSITY_BINS)[0]
+    return counts.tolist()
 
 
 def sun_transform(elevation_deg: float, azimuth_deg: float) -> np.ndarray:
@@ -192,7 +230,8 @@ def prepare_sequence(plan: dict, spec, seq_dir: str | os.PathLike) -> PreparedSe
             notes.append(f"no toric camera: {exc}")
     frames = [float(t) for t in np.arange(1, last + 1, plan["stride"], dtype=np.float64)]
     prepared = PreparedSequence(plan["name"], plan["split"], os.fspath(Path(r.shot).resolve()),
-                                [list(c) for c in cameras], frames, notes, int(r.n_agents))
+                                [list(c) for c in cameras], frames, notes, int(r.n_agents),
+                                local_density(scene, times))
     with atomic_path(seq_dir / PLAN) as tmp:
         tmp.write_text(json.dumps({"plan": plan, "prepared": prepared.to_json()}, indent=1, sort_keys=True))
     return prepared
@@ -210,4 +249,4 @@ def read_prepared(seq_dir: Path, plan: dict) -> PreparedSequence | None:
     if not Path(p["shot"]).is_file():
         return None
     return PreparedSequence(p["name"], p["split"], p["shot"], [list(c) for c in p["cameras"]], p["frames"],
-                            p["notes"], int(p.get("agents", 0)))
+                            p["notes"], int(p.get("agents", 0)), p.get("density"))
