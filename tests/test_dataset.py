@@ -403,3 +403,21 @@ def test_the_cards_crowd_density_is_people_within_two_metres_per_square_metre(ti
             expected += np.histogram(np.minimum(density, DENSITY_BINS[-1] - 1e-9), DENSITY_BINS)[0]
         assert prepared["density"] == expected.tolist(), seq.name
         assert sum(expected) == sum(len(densities(scene, t)) for t in density_frames(scene.time_codes)) > 0
+
+
+def test_each_cameras_mot_folder_is_written_when_its_last_frame_is_in(tmp_path, monkeypatch):
+    """By the time the run merges COCO and the card, every camera's MOT folder is already there."""
+    import usdcrowd.dataset.run as run
+
+    seen = {}
+    real_merge = run.merge
+
+    def merge(out, spec, sequences, written, progress=False):
+        seen["videos"] = {f.name for f in (Path(out) / "mot").glob("USDCROWD-*/*") if (f / "gt" / "gt.txt").is_file()}
+        seen["expected"] = {layout.video_name(s.name, c) for s in sequences for c, _ in s.cameras}
+        seen["coco"] = (Path(out) / "coco").exists()
+        return real_merge(out, spec, sequences, written, progress)
+
+    monkeypatch.setattr(run, "merge", merge)
+    make_dataset(write_spec(tmp_path), tmp_path / "out", executor="inline", progress=False)
+    assert seen["videos"] == seen["expected"] and len(seen["expected"]) >= 3 and not seen["coco"]

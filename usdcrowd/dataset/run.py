@@ -279,11 +279,12 @@ def make_dataset(spec_path, out_dir, executor: str = "local", workers: int = 1, 
     pending: dict = {}
     rendered = n_prepared = 0
     notes: list[str] = []
-    merged: dict[tuple, Path] = {}
+    written: set = set()                    # (sequence, camera) whose MOT folder is written
+    clear_merged(out)
 
     def status():
         bar.set_postfix_str(f"sequences {len(prepared)}/{len(indices)} filmed, "
-                            f"{sum(1 for k in cams if k in merged)}/{max(len(cams), 1)} cameras done")
+                            f"{len(written)}/{max(len(cams), 1)} cameras done")
 
     try:
         for i in indices:
@@ -317,7 +318,8 @@ def make_dataset(spec_path, out_dir, executor: str = "local", workers: int = 1, 
                                               os.fspath(cam_out), ex.threads)] = ("render", i, camera)
                         if not todo:
                             manifest.flush()
-                            merged[(i, camera)] = cam_out
+                            write_video(out, seq, camera)
+                            written.add((seq.name, camera))
                 else:
                     _, i, camera = what
                     state = cams[(i, camera)]
@@ -326,9 +328,10 @@ def make_dataset(spec_path, out_dir, executor: str = "local", workers: int = 1, 
                     state["left"] -= len(result)
                     rendered += len(result)
                     bar.update(len(result))
-                    if state["left"] == 0:
+                    if state["left"] == 0:          # its last frame is in: merge it now
                         state["manifest"].flush()
-                        merged[(i, camera)] = state["dir"]
+                        write_video(out, prepared[i], camera)
+                        written.add((prepared[i].name, camera))
                 status()
     finally:
         for state in cams.values():
@@ -342,7 +345,7 @@ def make_dataset(spec_path, out_dir, executor: str = "local", workers: int = 1, 
             if seq is not None:
                 prepared[i] = seq
     made = [prepared[i] for i in sorted(prepared)]
-    outputs = merge(out, spec, made, settings, progress)
+    outputs = merge(out, spec, made, written, progress)
     frames = sum(len(s.frames) * len(s.cameras) for s in made)
     videos = sum(len(s.cameras) for s in made)
     complete = len(made) == spec.sequences
@@ -385,38 +388,56 @@ def _drop_stale(out: Path, keep: set[str]) -> None:
                 shutil.rmtree(d)
 
 
-def merge(out: Path, spec: DatasetSpec, sequences: list, settings, progress: bool = False) -> dict:
-    """MOT folders, seqmaps, COCO per split and the dataset card, from every camera's frames on disk."""
+def _video_files(out: Path, seq, camera: str):
+    """(png paths, json paths, frame records, fps) of one camera of a sequence, from its frames on disk."""
     from ..groundtruth import frame_json
-    from ..groundtruth.contact_sheet import contact_sheet
     from ..render.sequence import frame_files
-    from .card import CardStats, write_card
 
-    # The merged files are rebuilt from the frames each time: nothing stale survives a changed spec.
+    cam_out = out / "sequences" / seq.name / "render" / camera.rsplit("/", 1)[-1]
+    pngs = [os.fspath(cam_out / frame_files(t, False)["png"]) for t in seq.frames]
+    jsons = [os.fspath(cam_out / frame_files(t, True)["json"]) for t in seq.frames]
+    stride = float(np.median(np.diff(seq.frames))) if len(seq.frames) > 1 else 1.0
+    return pngs, jsons, frame_json.Records(jsons), _fps(seq.shot) / stride
+
+
+def write_video(out: Path, seq, camera: str) -> Path:
+    """One camera's MOTChallenge folder and contact sheet, as soon as its last frame is in."""
+    from ..groundtruth.contact_sheet import contact_sheet
+
+    pngs, jsons, records, fps = _video_files(out, seq, camera)
+    folder = layout.write_mot_video(out, seq.split, layout.video_name(seq.name, camera), records, pngs, jsons, fps)
+    contact_sheet(pngs, records, Path(pngs[0]).parent.parent / "contact_sheet.png")
+    return folder
+
+
+def clear_merged(out: Path) -> None:
+    """The merged files are rebuilt from the frames on every run: nothing stale survives a changed spec."""
     for folder in (out / "mot", out / "coco"):
         if folder.exists():
             shutil.rmtree(folder)
+
+
+def merge(out: Path, spec: DatasetSpec, sequences: list, written: set, progress: bool = False) -> dict:
+    """Seqmaps, COCO per split and the dataset card (and the MOT folders not ``written`` yet)."""
+    from .card import CardStats, write_card
+
     stats = CardStats()
     by_split: dict[str, list] = {}
     names_by_split: dict[str, list] = {}
     for seq in sequences:
         stats.add_sequence(seq)
         for camera, kind in seq.cameras:
-            cam_out = out / "sequences" / seq.name / "render" / camera.rsplit("/", 1)[-1]
-            pngs = [os.fspath(cam_out / frame_files(t, False)["png"]) for t in seq.frames]
-            jsons = [os.fspath(cam_out / frame_files(t, True)["json"]) for t in seq.frames]
-            records = frame_json.Records(jsons)
             name = layout.video_name(seq.name, camera)
-            stride = float(np.median(np.diff(seq.frames))) if len(seq.frames) > 1 else 1.0
-            fps = _fps(seq.shot) / stride
-            folder = layout.write_mot_video(out, seq.split, name, records, pngs, jsons, fps)
-            contact_sheet(pngs, records, cam_out / "contact_sheet.png")
+            if (seq.name, camera) not in written:
+                write_video(out, seq, camera)
+            folder = layout.mot_dir(out, seq.split) / name
+            _, _, records, fps = _video_files(out, seq, camera)
             stats.add_video(kind, records)
             names_by_split.setdefault(seq.split, []).append(name)
             by_split.setdefault(seq.split, []).append({
                 "name": name, "sequence": seq.name, "camera": camera, "kind": kind, "fps": fps,
                 "records": records,
-                "images": [os.path.relpath(folder / "img1" / f"{k:06d}.png", out) for k in range(1, len(pngs) + 1)]})
+                "images": [os.path.relpath(folder / "img1" / f"{k:06d}.png", out) for k in range(1, len(records) + 1)]})
     outputs = {"mot": os.fspath(out / "mot")}
     outputs.update({f"seqmap_{k}": v for k, v in layout.write_seqmaps(out, names_by_split).items()})
     for split, videos in by_split.items():
