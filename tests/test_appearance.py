@@ -154,7 +154,8 @@ def _over_body(shot, agent: str, display_color: str) -> str:
     from pxr import Sdf
 
     base = Sdf.Layer.FindOrOpen(str(shot))
-    meta = (f"    startTimeCode = {base.startTimeCode}\n    endTimeCode = {base.endTimeCode}\n"
+    meta = ('    defaultPrim = "World"\n'
+            f"    startTimeCode = {base.startTimeCode}\n    endTimeCode = {base.endTimeCode}\n"
             f"    timeCodesPerSecond = {base.timeCodesPerSecond}\n    framesPerSecond = {base.framesPerSecond}\n"
             f'    upAxis = "{base.pseudoRoot.GetInfo("upAxis")}"\n    metersPerUnit = {base.pseudoRoot.GetInfo("metersPerUnit")}\n')
     return f"#usda 1.0\n(\n{meta}    subLayers = [@{shot}@]\n)\n{opening}\n{display_color}\n{closing}"
@@ -284,3 +285,16 @@ def test_mitsuba_reads_each_faces_roughness_from_its_material(dialogue_shot):
             expected[np.array(subset.GetIndicesAttr().Get())] = shader.GetInput("roughness").Get()
         assert np.allclose(got[row], expected, atol=1e-6)
     assert len(np.unique(got)) == len(REGIONS)
+
+
+def test_validate_names_a_palette_that_does_not_fit_the_body(dialogue_shot, tmp_path):
+    from usdcrowd.validation import validate
+
+    assert not [p for p in validate(dialogue_shot) if p.severity == "error" and "displayColor" in p.attribute]
+    path = tmp_path / "bad.usda"
+    path.write_text(_over_body(dialogue_shot, "/World/Crowd/Pair/B",
+                               'color3f[] primvars:displayColor = [(0.1, 0.2, 0.3), (0.3, 0.2, 0.1)] '
+                               '(interpolation = "vertex")'))
+    errors = [p for p in validate(path) if p.severity == "error"]
+    assert [(p.prim, p.attribute) for p in errors] == [("/World/Crowd/Pair/B/Body", "primvars:displayColor")]
+    assert "2 colours" in errors[0].message and "5" in errors[0].message

@@ -206,6 +206,10 @@ def schema_problems(stage, source: str) -> list[Problem]:
                         add(prim, name, f"target {target} is not an agent of this stage")
                         break
         if schema.is_agent(prim):
+            body = prim.GetChild("Body")
+            problem = _palette_problem(body) if body and body.IsA(UsdGeom.Mesh) else None
+            if problem:
+                add(body, "primvars:displayColor", problem)
             aid = prim.GetAttribute("crowd:agentId").Get()
             if aid is not None and aid != -1:
                 if aid in ids:
@@ -230,6 +234,22 @@ def schema_problems(stage, source: str) -> list[Problem]:
     for prim, attr_name, msg in _animation_problems(anims):
         add(prim, attr_name, msg)
     return out
+
+
+def _palette_problem(body) -> str | None:
+    """An agent body's colours that its vertices' indices cannot use (character.appearance)."""
+    from pxr import UsdGeom
+
+    pv = UsdGeom.PrimvarsAPI(body).GetPrimvar("displayColor")
+    if not pv or not pv.IsIndexed() or not pv.HasAuthoredValue():
+        return None
+    values, indices = pv.Get(), pv.GetIndices()
+    rows = (max(indices) + 1) if len(indices) else 1
+    if values is not None and len(values) not in (1, rows):
+        return f"has {len(values)} colours but the body's indices ask for {rows} (or 1 for the whole body)"
+    if len(indices) and min(indices) < 0:
+        return "primvars:displayColor:indices has a negative index"
+    return None
 
 
 def frame_problems(stage) -> list[Problem]:
