@@ -23,6 +23,7 @@ from ...shading import SCENERY_ID_BASE
 from ...view import CameraView
 from ..scene import ShotScene
 from .camera import sensor_dict
+from .integrator import integrator_dict
 from .lights import emitters, has_shape, light_id
 from .materials import agent_bsdf_dict, bsdf_dict, usd_uv_to_mitsuba
 from .meshes import flat_or_smooth, make_mesh
@@ -97,7 +98,9 @@ def build_scene(shot: ShotScene, cam: CameraView, width: int, height: int, spp: 
     spp : int
         Beauty samples per pixel.
     max_depth : int
-        Longest light path (``path`` integrator; 2 = direct light only).
+        Longest light path (2 = direct light only); the path tracer is
+        :mod:`.integrator`'s (a shadow ray to every light) for up to
+        ``integrator.MAX_LIGHTS`` lights, Mitsuba's ``path`` above.
     time : float
         Time code the agents and animated scenery are first posed at.
     sampler : str
@@ -109,7 +112,8 @@ def build_scene(shot: ShotScene, cam: CameraView, width: int, height: int, spp: 
     """
     import mitsuba as mi
 
-    integrator = {"type": "path", "max_depth": int(max_depth)}
+    # A stage without lights gets one default sky (below).
+    integrator = integrator_dict(max(len(shot.lights), 1), max_depth)
     scene: dict = {"type": "scene", "integrator": integrator,
                    SENSOR_KEY: sensor_dict(cam, width, height, spp, sampler=sampler)}
     id_paths: dict[int, str] = {}
