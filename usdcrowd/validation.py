@@ -144,7 +144,7 @@ def schema_problems(stage, source: str) -> list[Problem]:
     """Crowd-schema rules: allowed tokens, documented ranges, relationships, assets, ids."""
     from pxr import UsdGeom
 
-    from .scenario.read import range_problem
+    from .scenario.ranges import range_problem
 
     out: list[Problem] = []
     ids: dict[int, str] = {}

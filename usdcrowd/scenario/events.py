@@ -190,7 +190,7 @@ def read_camera_agents(stage, time: float | None = None) -> model.CameraAgentTab
 
     from ..scenery import camera_lens
     from ..view import lens_problem
-    from .read import range_problem
+    from .ranges import range_problem
 
     frame = stage_frame(stage)
     t = time_range(stage).start if time is None else float(time)
