@@ -52,6 +52,29 @@ def int_at_least(minimum: int):
     return parse
 
 
+def int_list(minimum: int, what: str):
+    """An argparse type: comma-separated whole numbers >= ``minimum`` (``what`` names them in the error)."""
+    def parse(text: str) -> tuple[int, ...]:
+        try:
+            values = tuple(int(v) for v in text.split(","))
+        except ValueError:
+            values = ()
+        if not values or min(values) < minimum:
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
+        return values
+
+    return parse
+
+
+def add_executor(parser: argparse.ArgumentParser, workers_help: str, address_help: str,
+                 min_workers: int = 1) -> None:
+    """Where the work runs: --executor local|inline|ray, --workers N, --address ADDR (a Ray cluster's)."""
+    parser.add_argument("--executor", choices=("local", "inline", "ray"), default="local",
+                        help="local processes (default), this process, or Ray")
+    parser.add_argument("--workers", type=int_at_least(min_workers), default=1, help=workers_help)
+    parser.add_argument("--address", help=address_help)
+
+
 def add_frames(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--frames", type=parse_frames, metavar="SPEC",
                         help="frames to use: N, START:END or START:ENDxSTRIDE (default: the stage's range)")

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .args import add_progress, int_at_least
+from .args import add_executor, add_progress, int_list
 
 
 def add_parser(sub):
@@ -14,30 +14,15 @@ def add_parser(sub):
                     "the same command to finish what a killed run left.")
     p.add_argument("spec", help="the dataset spec (TOML; see the README's \"make a dataset\")")
     p.add_argument("-o", "--output", required=True, help="dataset folder")
-    p.add_argument("--executor", choices=("local", "inline", "ray"), default="local",
-                   help="local processes (default), this process, or Ray tasks")
-    p.add_argument("--workers", type=int_at_least(1), default=1,
-                   help="processes, or concurrent tasks on a Ray instance started here (default 1)")
-    p.add_argument("--address", help="a running Ray cluster's address (with --executor ray); the dataset "
-                                     "folder must then be on a file system every node mounts at the same path")
+    add_executor(p, "processes, or concurrent tasks on a Ray instance started here (default 1)",
+                 "a running Ray cluster's address (with --executor ray); the dataset folder must then be on "
+                 "a file system every node mounts at the same path")
     p.add_argument("--force", action="store_true",
                    help="accept a changed spec: sequences whose plan changed are made again, the rest kept")
-    p.add_argument("--sequences", metavar="LIST", type=_indices,
+    p.add_argument("--sequences", metavar="LIST", type=int_list(0, "sequence numbers like 3 or 0,5,7"),
                    help="make only these sequences, e.g. 3 or 0,5,7 (to re-make one alone)")
     add_progress(p)
     p.set_defaults(run=run)
-
-
-def _indices(text: str) -> list[int]:
-    import argparse
-
-    try:
-        values = [int(v) for v in text.split(",") if v.strip()]
-    except ValueError:
-        values = []
-    if not values or min(values) < 0:
-        raise argparse.ArgumentTypeError(f"expected sequence numbers like 3 or 0,5,7, got {text!r}")
-    return values
 
 
 def run(args) -> int:

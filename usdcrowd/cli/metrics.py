@@ -2,19 +2,7 @@
 
 from __future__ import annotations
 
-import argparse
-
-from .args import add_limits, add_progress, add_seed, limits_of
-
-
-def _counts(text: str) -> tuple[int, ...]:
-    try:
-        values = tuple(int(v) for v in text.split(","))
-    except ValueError:
-        values = ()
-    if not values or min(values) < 1:
-        raise argparse.ArgumentTypeError(f"expected camera counts like 4,8, got {text!r}")
-    return values
+from .args import add_limits, add_progress, add_seed, int_list, limits_of
 
 
 def add_parser(sub):
@@ -25,7 +13,7 @@ def add_parser(sub):
                                    "Figures 12 to 15.")
     p.add_argument("shot", help="the shot stage (shot.usda)")
     p.add_argument("-o", "--output", required=True, help="output folder for CSVs and plots")
-    p.add_argument("--counts", type=_counts, default=(4, 8), metavar="N,M", help="camera counts (default 4,8)")
+    p.add_argument("--counts", type=int_list(1, "camera counts like 4,8"), default=(4, 8), metavar="N,M", help="camera counts (default 4,8)")
     add_seed(p)
     add_limits(p)
     add_progress(p)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .args import add_camera, add_frames, add_progress, add_resolution, int_at_least
+from .args import add_camera, add_executor, add_frames, add_progress, add_resolution, int_at_least
 
 
 def add_parser(sub):
@@ -26,11 +26,9 @@ def add_parser(sub):
     p.add_argument("--working-space", choices=("sRGB", "ACEScg"), help="linear RGB space of the EXR beauty")
     p.add_argument("--variant", default="auto", help="Mitsuba variant (default: auto: cuda_ad_rgb, llvm_ad_rgb, "
                                                      "scalar_rgb, the first that works)")
-    p.add_argument("--executor", choices=("local", "inline", "ray"), default="local",
-                   help="local worker processes (default), inline (this process) or a Ray cluster")
-    p.add_argument("--workers", type=int, default=1, help="worker processes or Ray actors (default 1: Mitsuba "
-                                                          "already uses every core)")
-    p.add_argument("--address", help="Ray cluster address (default: start a local Ray instance)")
+    # 0 workers: render in this process, as --executor inline.
+    add_executor(p, "worker processes or Ray actors (default 1: Mitsuba already uses every core)",
+                 "Ray cluster address (default: start a local Ray instance)", min_workers=0)
     p.add_argument("--mp4", action="store_true", help="also write render.mp4 (needs imageio-ffmpeg)")
     p.add_argument("--seed", type=int, default=0, help="sampler seed of the beauty pass")
     p.add_argument("--sampler", choices=("independent", "stratified", "multijitter", "orthogonal", "ldsampler"),
