@@ -29,6 +29,16 @@ def _split(total: int, weights: np.ndarray) -> np.ndarray:
     return out
 
 
+def _cast(stage):
+    """A template stage's cast: its groups, authored agent count, clones per group ((g,) float64) and
+    the groups ((g,) bool) that clone and have no agent of their own, so must keep at least one clone."""
+    groups = [p for p in stage.Traverse() if p.GetTypeName() == schema.GROUP]
+    n_authored = sum(1 for p in stage.Traverse() if schema.is_agent(p))
+    clones = np.array([p.GetAttribute("crowd:clones").Get() or 0 for p in groups], dtype=np.float64)
+    own = np.array([any(schema.is_agent(c) for c in p.GetChildren()) for p in groups], dtype=bool)
+    return groups, n_authored, clones, (clones > 0) & ~own
+
+
 def agent_range(template: str) -> tuple[int, int | None]:
     """(fewest, most) agents ``new_scenario`` can give a template (most None: no limit).
 
@@ -36,30 +46,24 @@ def agent_range(template: str) -> tuple[int, int | None]:
     """
     from pxr import Usd
 
-    stage = Usd.Stage.Open(str(data_dir("stages") / f"{template}.usda"))
-    groups = [p for p in stage.Traverse() if p.GetTypeName() == schema.GROUP]
-    n_authored = sum(1 for p in stage.Traverse() if schema.is_agent(p))
-    clones = np.array([p.GetAttribute("crowd:clones").Get() or 0 for p in groups], dtype=np.float64)
+    _, n_authored, clones, needs_one = _cast(Usd.Stage.Open(str(data_dir("stages") / f"{template}.usda")))
     if clones.sum() == 0:
         return n_authored, n_authored
-    own = np.array([any(schema.is_agent(c) for c in p.GetChildren()) for p in groups])
-    return n_authored + int(((clones > 0) & ~own).sum()), None
+    return n_authored + int(needs_one.sum()), None
 
 
-def _resize(stage, groups, n_authored: int, agents: int, template: str) -> None:
+def _resize(stage, agents: int, template: str) -> None:
     """Rescale the groups' clones so the scenario has ``agents`` agents in all.
 
     Groups keep their proportions; a group that had clones and no authored
     agent of its own keeps at least one, so no group is left empty.
     """
-    clones = np.array([p.GetAttribute("crowd:clones").Get() for p in groups], dtype=np.float64)
+    groups, n_authored, clones, needs_one = _cast(stage)
     if clones.sum() == 0:
         if agents != n_authored:
             raise UsdcrowdError(f"template {template!r} has a fixed cast of {n_authored} agents; "
                                 f"--agents cannot change it")
         return
-    own = np.array([any(schema.is_agent(c) for c in p.GetChildren()) for p in groups])
-    needs_one = (clones > 0) & ~own
     minimum = n_authored + int(needs_one.sum())
     if agents < minimum:
         raise UsdcrowdError(f"template {template!r} needs at least {minimum} agents "
@@ -101,10 +105,8 @@ def new_scenario(template: str, out: str | os.PathLike, agents: int | None = Non
     layer = Sdf.Layer.CreateAnonymous(out.suffix)
     layer.TransferContent(Sdf.Layer.FindOrOpen(str(src)))
     stage = Usd.Stage.Open(layer)
-    groups = [p for p in stage.Traverse() if p.GetTypeName() == schema.GROUP]
-    n_authored = sum(1 for p in stage.Traverse() if schema.is_agent(p))
     if agents is not None:
-        _resize(stage, groups, n_authored, agents, template)
+        _resize(stage, agents, template)
     data = dict(layer.customLayerData)
     crowd = dict(data.get("usdcrowd", {}))
     if seed is not None:
@@ -124,9 +126,10 @@ def new_scenario(template: str, out: str | os.PathLike, agents: int | None = Non
                     source_file = src.parent / rel
                     if source_file.is_file():
                         assets.append((source_file, out.parent / rel))
-    total = n_authored + sum(int(p.GetAttribute("crowd:clones").Get()) for p in groups)
+    _, n_authored, clones, _ = _cast(stage)
+    total = n_authored + int(clones.sum())
     if scenery is not None:
-        del stage, groups   # an open stage would try to compose the reference from an anonymous layer
+        del stage           # an open stage would try to compose the reference from an anonymous layer
         _replace_scenery(layer, scenery, out)
     with atomic_path(out) as tmp:
         if not layer.Export(str(tmp)):
