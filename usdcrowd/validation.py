@@ -243,10 +243,12 @@ def _palette_problem(body) -> str | None:
     pv = UsdGeom.PrimvarsAPI(body).GetPrimvar("displayColor")
     if not pv or not pv.IsIndexed() or not pv.HasAuthoredValue():
         return None
+    from .character.appearance import fit_problem
+
     values, indices = pv.Get(), pv.GetIndices()
-    rows = (max(indices) + 1) if len(indices) else 1
-    if values is not None and len(values) not in (1, rows):
-        return f"has {len(values)} colours but the body's indices ask for {rows} (or 1 for the whole body)"
+    problem = fit_problem(len(values), (max(indices) + 1) if len(indices) else 1) if values is not None else None
+    if problem:
+        return problem
     if len(indices) and min(indices) < 0:
         return "primvars:displayColor:indices has a negative index"
     return None

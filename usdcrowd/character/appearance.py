@@ -117,3 +117,13 @@ def plain_palettes(top: np.ndarray) -> np.ndarray:
     top = np.asarray(top, dtype=np.float64).reshape(-1, 3)
     fixed = {name: srgb_to_linear([h])[0] for name, h in _PLAIN.items()}
     return np.stack([top if name == "top" else np.broadcast_to(fixed[name], top.shape) for name in REGIONS], axis=1)
+
+
+def fit_problem(n_colours: int, rows: int) -> str | None:
+    """What is wrong with a body's ``n_colours`` displayColor values for indices asking for ``rows``, or None.
+
+    One colour dresses the whole body; otherwise there is one per row.
+    """
+    if n_colours in (1, rows):
+        return None
+    return f"has {n_colours} colours but the body's indices ask for {rows} (or 1 for the whole body)"

@@ -240,6 +240,7 @@ class ShotScene:
     def _agent_static(self):
         from pxr import Gf
 
+        from ..character.appearance import fit_problem
         from ..errors import StageError
 
         rows = int(self.body.regions.max()) + 1 if len(self.body.regions) else 1
@@ -251,12 +252,10 @@ class ShotScene:
             body = prim.GetChild("Body")
             dc = body.GetAttribute("primvars:displayColor").Get() if body else None
             dc = np.array(dc if dc else [c], dtype=np.float32).reshape(-1, 3)
-            if len(dc) == 1:
-                dc = np.repeat(dc, rows, axis=0)      # one colour for the whole body
-            elif len(dc) != rows:
-                raise StageError.at(body, "primvars:displayColor",
-                                    f"has {len(dc)} colours but the body's indices ask for {rows}")
-            palettes.append(dc)
+            problem = fit_problem(len(dc), rows)
+            if problem:
+                raise StageError.at(body, "primvars:displayColor", problem)
+            palettes.append(np.broadcast_to(dc, (rows, 3)))       # one colour dresses the whole body
         palettes = np.array(palettes, dtype=np.float32).reshape(-1, rows, 3)
         return paths, np.array(ids, dtype=np.int32), palettes
 
