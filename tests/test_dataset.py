@@ -412,12 +412,24 @@ def test_each_cameras_mot_folder_is_written_when_its_last_frame_is_in(tmp_path, 
     seen = {}
     real_merge = run.merge
 
-    def merge(out, spec, sequences, written, progress=False):
+    def merge(out, spec, sequences, written):
         seen["videos"] = {f.name for f in (Path(out) / "mot").glob("USDCROWD-*/*") if (f / "gt" / "gt.txt").is_file()}
         seen["expected"] = {layout.video_name(s.name, c) for s in sequences for c, _ in s.cameras}
         seen["coco"] = (Path(out) / "coco").exists()
-        return real_merge(out, spec, sequences, written, progress)
+        return real_merge(out, spec, sequences, written)
 
     monkeypatch.setattr(run, "merge", merge)
     make_dataset(write_spec(tmp_path), tmp_path / "out", executor="inline", progress=False)
     assert seen["videos"] == seen["expected"] and len(seen["expected"]) >= 3 and not seen["coco"]
+
+
+def test_sequences_made_under_other_render_settings_are_not_merged_as_finished(tiny_dataset, tmp_path):
+    """--force with a new spp, re-making sequence 0 alone: the others' frames are stale, so left out."""
+    spec, root, _ = tiny_dataset
+    copy = tmp_path / "copy"
+    shutil.copytree(root, copy)
+    changed = tmp_path / "spp.toml"
+    changed.write_text(Path(spec).read_text().replace("spp = 2", "spp = 1"))
+    again = make_dataset(changed, copy, executor="inline", progress=False, force=True, only=[0])
+    assert again.sequences == 1
+    assert json.loads((copy / "manifest.json").read_text())["state"] == "partial"

@@ -275,7 +275,7 @@ def make_dataset(spec_path, out_dir, executor: str = "local", workers: int = 1, 
     ex = _executor(executor, workers, address)
     spec_dict = asdict(spec)
     prepared: dict[int, object] = {}
-    cams: dict[tuple, dict] = {}            # (seq index, camera) -> manifest, remaining count, out dir
+    cams: dict[tuple, dict] = {}            # (seq index, camera) -> manifest, remaining count
     pending: dict = {}
     rendered = n_prepared = 0
     notes: list[str] = []
@@ -304,14 +304,12 @@ def make_dataset(spec_path, out_dir, executor: str = "local", workers: int = 1, 
                     notes += [f"{seq.name}: {n}" for n in seq.notes]
                     bar.total += (len(seq.cameras) - guess[i]) * len(seq.frames)
                     for camera, _kind in seq.cameras:
-                        cam_out = out / "sequences" / seq.name / "render" / camera.rsplit("/", 1)[-1]
+                        cam_out = camera_dir(out, seq.name, camera)
                         cam_out.mkdir(parents=True, exist_ok=True)
-                        header = {"shot": seq.shot, "camera": camera, "plan": plans[i]["digest"],
-                                  "settings": settings.fingerprint()}
-                        manifest = Manifest(cam_out, header)
+                        manifest = Manifest(cam_out, _render_header(seq, camera, plans[i], settings))
                         todo = [t for t in seq.frames if not verify_frame(cam_out, t, manifest, settings)]
                         bar.update(len(seq.frames) - len(todo))
-                        cams[(i, camera)] = {"manifest": manifest, "left": len(todo), "dir": cam_out}
+                        cams[(i, camera)] = {"manifest": manifest, "left": len(todo)}
                         for k in range(0, len(todo), CHUNK_FRAMES):
                             chunk = todo[k:k + CHUNK_FRAMES]
                             pending[ex.submit(render_task, seq.shot, camera, asdict(settings), chunk,
@@ -345,7 +343,7 @@ def make_dataset(spec_path, out_dir, executor: str = "local", workers: int = 1, 
             if seq is not None:
                 prepared[i] = seq
     made = [prepared[i] for i in sorted(prepared)]
-    outputs = merge(out, spec, made, written, progress)
+    outputs = merge(out, spec, made, written)
     frames = sum(len(s.frames) * len(s.cameras) for s in made)
     videos = sum(len(s.cameras) for s in made)
     complete = len(made) == spec.sequences
@@ -367,16 +365,24 @@ def _finished(out: Path, plan: dict, settings):
         return None
     for camera, _ in seq.cameras:
         try:
-            doc = json.loads((out / "sequences" / seq.name / "render" / camera.rsplit("/", 1)[-1]
-                              / FRAMES_MANIFEST).read_text())
+            doc = json.loads((camera_dir(out, seq.name, camera) / FRAMES_MANIFEST).read_text())
         except (OSError, ValueError):
             return None
-        header = doc.get("header", {})
-        if header.get("plan") != plan["digest"] or header.get("settings") != settings.fingerprint():
+        if doc.get("header") != _render_header(seq, camera, plan, settings):
             return None
         if not all(frame_tag(t) in doc.get("frames", {}) for t in seq.frames):
             return None
     return seq
+
+
+def camera_dir(out: Path, sequence: str, camera: str) -> Path:
+    """Where one camera of a sequence renders its frames: ``sequences/<seq>/render/<camera name>/``."""
+    return Path(out) / "sequences" / sequence / "render" / camera.rsplit("/", 1)[-1]
+
+
+def _render_header(seq, camera: str, plan: dict, settings) -> dict:
+    """A camera's render manifest header: its frames count only for this shot, camera, plan and settings."""
+    return {"shot": seq.shot, "camera": camera, "plan": plan["digest"], "settings": settings.fingerprint()}
 
 
 def _drop_stale(out: Path, keep: set[str]) -> None:
@@ -393,7 +399,7 @@ def _video_files(out: Path, seq, camera: str):
     from ..groundtruth import frame_json
     from ..render.sequence import frame_files
 
-    cam_out = out / "sequences" / seq.name / "render" / camera.rsplit("/", 1)[-1]
+    cam_out = camera_dir(out, seq.name, camera)
     pngs = [os.fspath(cam_out / frame_files(t, False)["png"]) for t in seq.frames]
     jsons = [os.fspath(cam_out / frame_files(t, True)["json"]) for t in seq.frames]
     stride = float(np.median(np.diff(seq.frames))) if len(seq.frames) > 1 else 1.0
@@ -417,7 +423,7 @@ def clear_merged(out: Path) -> None:
             shutil.rmtree(folder)
 
 
-def merge(out: Path, spec: DatasetSpec, sequences: list, written: set, progress: bool = False) -> dict:
+def merge(out: Path, spec: DatasetSpec, sequences: list, written: set) -> dict:
     """Seqmaps, COCO per split and the dataset card (and the MOT folders not ``written`` yet)."""
     from .card import CardStats, write_card
 
