@@ -61,7 +61,7 @@ class PreparedSequence:
     frames: list
     notes: list
     agents: int = 0
-    density: list = None
+    density: list | None = None
 
     def to_json(self) -> dict:
         return {"name": self.name, "split": self.split, "shot": self.shot, "cameras": self.cameras,
