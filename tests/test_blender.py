@@ -414,3 +414,96 @@ def test_blender_dresses_each_agent_in_its_palette(blender_python, tmp_path):
         for name, roughness, attribute in body["slots"]:
             assert roughness == pytest.approx(rough[name.split(".")[0].lower()], abs=1e-6)
             assert attribute == "displayColor"
+
+
+SUN_LEVEL_SCRIPT = '''
+import bpy, json, sys
+out = {}
+for path in sys.argv[1:]:
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.wm.usd_import(filepath=path)
+    sc = bpy.context.scene
+    sc.render.engine = "CYCLES"
+    sc.cycles.device = "CPU"
+    sc.cycles.samples = 16
+    sc.cycles.use_denoising = False
+    sc.render.resolution_x, sc.render.resolution_y, sc.render.resolution_percentage = 32, 32, 100
+    sc.view_settings.view_transform = "Standard"
+    sc.camera = bpy.data.objects["Cam"]
+    sc.render.image_settings.file_format = "OPEN_EXR"
+    sc.render.filepath = path + ".exr"
+    bpy.ops.render.render(write_still=True)
+    sun = bpy.data.objects["Sun"].data
+    out[path] = {"energy": sun.energy, "normalize": sun.normalize}
+print("RESULT " + json.dumps(out))
+'''
+
+
+def test_blender_lights_the_ground_with_our_sun_as_usdlux_means_it(blender_python, tmp_path):
+    """UsdLux: a DistantLight's intensity is its disc's luminance unless ``inputs:normalize`` makes it the
+    illuminance. Our suns are normalised, so Blender Cycles lights the ground with them (4x brighter than
+    usdcrowd: Blender's importer multiplies a sun's intensity by 4, "approximately matches Karma" says its
+    source); the same sun unnormalised is all but dark in both renderers."""
+    import OpenEXR
+
+    from usdcrowd.render.final.frame import FrameRenderer
+
+    stage = '''#usda 1.0
+(
+    defaultPrim = "World"
+    metersPerUnit = 1
+    upAxis = "Z"
+    startTimeCode = 1
+    endTimeCode = 1
+)
+def Xform "World"
+{
+    def Mesh "Ground"
+    {
+        int[] faceVertexCounts = [4]
+        int[] faceVertexIndices = [0, 1, 2, 3]
+        point3f[] points = [(-20, -20, 0), (20, -20, 0), (20, 20, 0), (-20, 20, 0)]
+        color3f[] primvars:displayColor = [(0.8, 0.8, 0.8)]
+    }
+    def DistantLight "Sun"
+    {
+        bool inputs:normalize = NORMALIZE
+        float inputs:intensity = 3
+        float3 xformOp:rotateXYZ = (0, -45, 0)
+        uniform token[] xformOpOrder = ["xformOp:rotateXYZ"]
+    }
+    def Camera "Cam"
+    {
+        float focalLength = 18
+        float horizontalAperture = 36
+        float verticalAperture = 36
+        double3 xformOp:translate = (0, 0, 5)
+        uniform token[] xformOpOrder = ["xformOp:translate"]
+    }
+}
+'''
+    paths = []
+    for normalize in ("true", "false"):
+        paths.append(tmp_path / f"sun_{normalize}.usda")
+        paths[-1].write_text(stage.replace("NORMALIZE", normalize))
+    script = tmp_path / "sun.py"
+    script.write_text(SUN_LEVEL_SCRIPT)
+    run = subprocess.run([blender_python, str(script), *map(str, paths)], capture_output=True, text=True,
+                         timeout=600)
+    assert run.returncode == 0, run.stderr[-2000:]
+    got = json.loads(next(ln for ln in run.stdout.splitlines() if ln.startswith("RESULT "))[len("RESULT "):])
+
+    def theirs(path):
+        with OpenEXR.File(f"{path}.exr") as f:
+            ch = f.channels()
+            rgb = ch["RGBA"].pixels if "RGBA" in ch else ch["RGB"].pixels
+        return float(np.median(np.asarray(rgb, dtype=np.float64)[..., 1]))
+
+    ours = [float(np.median(FrameRenderer(p, "/World/Cam", (32, 32), spp=16, max_depth=2, ground_truth=False)
+                            .render(1).beauty[..., 1])) for p in paths]
+    cycles = [theirs(p) for p in paths]
+    assert got[str(paths[0])]["normalize"] and not got[str(paths[1])]["normalize"]
+    assert ours[0] > 0.2                                       # a grey ground under a sun of illuminance 3
+    print(f"sun-lit ground: Cycles {cycles}, usdcrowd {ours}")
+    assert 3.4 < cycles[0] / ours[0] < 4.8, (cycles, ours)
+    assert ours[1] / ours[0] < 1e-3 and cycles[1] / cycles[0] < 1e-3, (cycles, ours)

@@ -347,6 +347,7 @@ def test_a_dcc_scenery_is_used_and_its_own_sun_set_to_the_time_of_day(tmp_path):
             }
             def DistantLight "Sun"
             {
+                bool inputs:normalize = true
                 float inputs:intensity = 2
                 float3 xformOp:rotateXYZ = (-60, 20, 0)
                 uniform token[] xformOpOrder = ["xformOp:rotateXYZ"]

@@ -591,6 +591,7 @@ def Xform "World"
     }
     def DistantLight "Sun"
     {
+        bool inputs:normalize = true
         float inputs:intensity = 3
         float inputs:angle = {angle}
         float3 xformOp:rotateXYZ = (0, -45, 0)
@@ -641,6 +642,29 @@ def test_the_suns_angle_gives_the_penumbra_a_disc_of_that_size_casts(tmp_path, a
         assert lit == pytest.approx(float(np.median(lit_row(0.0)[-30:])), rel=0.02)
     # The edge itself is where the roof's edge casts it: x = 4 m, the image's centre column.
     assert abs(crossing(0.5) - w / 2) < 1.5
+
+
+def test_an_unnormalised_sun_gives_its_discs_luminance_as_usdlux_says(tmp_path):
+    """UsdLux: a DistantLight's intensity is its disc's luminance, and ``inputs:normalize`` divides it by the
+    size factor pi sin^2(angle / 2), making the intensity the illuminance. So the same 10-degree sun lights the
+    ground pi sin^2(5 deg) = 0.0239 times as brightly unnormalised (Blender reads it so too)."""
+    from conftest import HEADER
+
+    from usdcrowd.render.scene import distant_illuminance
+
+    def lit(normalize):
+        path = tmp_path / f"sun{normalize}.usda"
+        stage = SUN_STAGE.replace("{angle}", "10").replace("normalize = true", f"normalize = {normalize}")
+        path.write_text(HEADER.format(up="Z", mpu=1, end=1) + stage)
+        row = FrameRenderer(path, "/World/Cam", (64, 64), spp=64, max_depth=2).render(1).beauty.mean(-1)[20:44]
+        return float(np.median(row[:, -10:]))
+
+    assert lit("false") / lit("true") == pytest.approx(np.pi * np.sin(np.radians(5.0)) ** 2, rel=0.03)
+    assert distant_illuminance(0.53, False) == pytest.approx(6.72e-5, rel=1e-3)
+    assert distant_illuminance(0.53, True) == distant_illuminance(0.0, False) == 1.0
+    assert distant_illuminance(180.0, False) == pytest.approx(np.pi)          # a hemisphere
+    assert distant_illuminance(270.0, False) == pytest.approx(1.5 * np.pi)    # (2 - sin^2 135 deg) pi
+    assert distant_illuminance(360.0, False) == pytest.approx(2 * np.pi)      # the whole sphere
 
 
 def test_motion_blur_spreads_a_moving_edge_over_the_shutters_travel(tmp_path):

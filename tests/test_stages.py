@@ -78,6 +78,25 @@ def test_stage_loads_and_validates_without_errors(name):
     assert errors == []
 
 
+def test_every_stages_sun_is_normalised_and_validate_warns_of_one_that_is_not(tmp_path):
+    """UsdLux: an unnormalised DistantLight's intensity is its disc's luminance, so a 0.53-degree sun of
+    intensity 3 would light nothing (Blender renders it so). Every example sun is normalised; validate warns,
+    naming the attribute, about one that is not."""
+    from pxr import Usd, UsdLux
+
+    for name in NAMES:
+        path = data_dir("stages") / f"{name}.usda"
+        stage = Usd.Stage.Open(str(path))
+        suns = [p for p in stage.Traverse() if p.IsA(UsdLux.DistantLight)]
+        assert suns and all(UsdLux.DistantLight(p).GetNormalizeAttr().Get() for p in suns), name
+        assert not [p for p in validate(path) if p.attribute == "inputs:normalize"]
+    old = tmp_path / "old_museum.usda"
+    old.write_text((data_dir("stages") / "museum.usda").read_text().replace("bool inputs:normalize = true", ""))
+    warned = [p for p in validate(old) if p.attribute == "inputs:normalize"]
+    assert [(p.prim, p.severity) for p in warned] == [("/World/Lights/Sun", "warning")]
+    assert "6.7e-05" in warned[0].message
+
+
 @pytest.mark.parametrize("name", NAMES)
 def test_agent_counts_are_as_intended(name):
     sc = _scenario(name)

@@ -87,11 +87,33 @@ CYCLES_SPP = 64
 CYCLES_REFERENCE_SPP = 512
 
 CYCLES_SCRIPT = """
-import bpy, json, sys, time
-shot, cam, w, h, spp, denoise, out, frame = sys.argv[1:9]
+import bpy, json, math, sys, time
+shot, cam, w, h, spp, denoise, out, frame, lights = sys.argv[1:10]
 bpy.ops.wm.read_factory_settings(use_empty=True)
 bpy.ops.wm.usd_import(filepath=shot)
 sc = bpy.context.scene
+# Blender's importer reads UsdLux with its own factors (a DistantLight's intensity times 4, sphere lights as
+# watts, an untextured DomeLight left out): set each light to what UsdLux means, as usdcrowd renders it.
+world = bpy.data.worlds.new("Sky")
+world.use_nodes = True
+sc.world = world
+background = world.node_tree.nodes["Background"]
+background.inputs[0].default_value = (0, 0, 0, 1)
+for light in json.loads(lights):
+    rgb = light["rgb"]
+    peak = max(max(rgb), 1e-12)
+    if light["kind"] == "dome":
+        background.inputs[0].default_value = (*rgb, 1)
+        background.inputs[1].default_value = 1.0
+        continue
+    data = bpy.data.objects[light["name"]].data
+    data.use_temperature = False
+    data.color = [c / peak for c in rgb]
+    data.normalize = True
+    if light["kind"] == "distant":              # Cycles' sun strength is the irradiance it gives
+        data.energy = peak
+    elif light["kind"] == "sphere":             # Cycles: a point light of power P has radiance P / (4 pi^2 r^2)
+        data.energy = peak * 4 * math.pi ** 2 * light["radius"] ** 2
 sc.render.engine = "CYCLES"
 sc.cycles.device = "CPU"
 sc.cycles.samples = int(spp)
@@ -108,6 +130,43 @@ t0 = time.perf_counter()
 bpy.ops.render.render(write_still=True)
 print("RESULT " + json.dumps({"seconds": time.perf_counter() - t0}))
 """
+
+
+def usdlux_lights(shot: str) -> list[dict]:
+    """The shot's lights as UsdLux defines them, read with plain usd-core (not usdcrowd's reader).
+
+    Each: the prim's name, its kind, and its emission: the radiance of sphere and dome lights, the
+    illuminance of a distant light (its intensity when normalised, else times pi sin^2(angle / 2)).
+    Only the kinds the bench scene uses.
+    """
+    from pxr import Usd, UsdLux
+
+    out, stage = [], Usd.Stage.Open(shot)
+    for prim in stage.Traverse():
+        if not prim.HasAPI(UsdLux.LightAPI):
+            continue
+        api = UsdLux.LightAPI(prim)
+        rgb = np.array(api.GetColorAttr().Get(), dtype=np.float64)
+        if api.GetEnableColorTemperatureAttr().Get():
+            rgb = rgb * np.array(UsdLux.BlackbodyTemperatureAsRgb(api.GetColorTemperatureAttr().Get()))
+        rgb = rgb * api.GetIntensityAttr().Get() * 2.0 ** api.GetExposureAttr().Get()
+        row = {"name": prim.GetName(), "radius": 0.0}
+        if prim.IsA(UsdLux.DistantLight):
+            half = np.radians(UsdLux.DistantLight(prim).GetAngleAttr().Get()) / 2
+            if not api.GetNormalizeAttr().Get() and half > 0:
+                rgb = rgb * np.pi * np.sin(half) ** 2
+            row["kind"] = "distant"
+        elif prim.IsA(UsdLux.SphereLight):
+            row["kind"], row["radius"] = "sphere", float(UsdLux.SphereLight(prim).GetRadiusAttr().Get())
+            if api.GetNormalizeAttr().Get():
+                rgb = rgb / (4 * np.pi * row["radius"] ** 2)
+        elif prim.IsA(UsdLux.DomeLight):
+            row["kind"] = "dome"
+        else:
+            raise ValueError(f"{prim.GetPath()}: the Cycles comparison sets only distant, sphere and dome lights")
+        out.append(dict(row, rgb=rgb.tolist()))
+    return out
+
 
 
 def relative_mse(x: np.ndarray, ref: np.ndarray) -> float:
@@ -131,7 +190,8 @@ def cycles_frame(python: str, shot: str, camera: str, spp: int, denoise: bool, o
     script = out.with_suffix(".py")
     script.write_text(CYCLES_SCRIPT)
     run = subprocess.run([python, str(script), shot, camera, str(RESOLUTION[0]), str(RESOLUTION[1]), str(spp),
-                          "1" if denoise else "0", str(out), str(QUALITY_FRAME)], capture_output=True, text=True)
+                          "1" if denoise else "0", str(out), str(QUALITY_FRAME), json.dumps(usdlux_lights(shot))],
+                         capture_output=True, text=True)
     if run.returncode != 0:
         raise RuntimeError(run.stderr[-2000:])
     seconds = json.loads(next(ln for ln in run.stdout.splitlines() if ln.startswith("RESULT "))[7:])["seconds"]

@@ -57,6 +57,7 @@ TINY_STAGE = textwrap.dedent('''\
 
         def DistantLight "Sun"
         {
+            bool inputs:normalize = true
             float inputs:intensity = 3
             color3f inputs:color = (1, 0.96, 0.9)
             float3 xformOp:rotateXYZ = (35, 0, 40)

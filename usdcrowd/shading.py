@@ -39,7 +39,10 @@ class Light:
     rgb : (3,) float
         Linear colour times the colour-temperature tint.
     intensity : float
-        ``inputs:intensity * 2 ** inputs:exposure``.
+        ``inputs:intensity * 2 ** inputs:exposure``; for a DistantLight, the
+        illuminance it gives a surface facing it (UsdLux: the intensity when
+        ``inputs:normalize`` is on, else that times its disc's size factor,
+        :func:`usdcrowd.render.scene.distant_illuminance`).
     to_world : (4, 4) float
         Light space to canonical world (lights shine along their local -Z).
     radius, width, height, length, angle : float

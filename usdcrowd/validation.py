@@ -164,6 +164,10 @@ def schema_problems(stage, source: str) -> list[Problem]:
         for attr_name, msg in _non_finite(prim):
             add(prim, attr_name, msg)
         tname = prim.GetTypeName()
+        if tname == "DistantLight":
+            problem = _dim_sun_problem(prim)
+            if problem:
+                out.append(Problem(source, str(prim.GetPath()), "inputs:normalize", problem, "usdcrowd", "warning"))
         ours = tname in (schema.GROUP, schema.BEHAVIOR_LAYER, schema.INTEREST_POINT, schema.EVENT) \
             or schema.is_agent(prim) or prim.HasAPI(schema.CAMERA_AGENT_API) \
             or prim.HasAPI(schema.SCENERY_API) or prim.HasAPI(schema.TORIC_CAMERA_API)
@@ -234,6 +238,24 @@ def schema_problems(stage, source: str) -> list[Problem]:
     for prim, attr_name, msg in _animation_problems(anims):
         add(prim, attr_name, msg)
     return out
+
+
+def _dim_sun_problem(prim) -> str | None:
+    """An unnormalised DistantLight that gives under 1 % of its intensity as illuminance: an older usdcrowd
+    stage, or one meant for a renderer that ignores inputs:normalize (UsdLux: its intensity is the disc's
+    luminance)."""
+    from pxr import UsdLux
+
+    from .render.scene import distant_illuminance
+
+    light = UsdLux.DistantLight(prim)
+    angle, normalize = light.GetAngleAttr().Get(), light.GetNormalizeAttr().Get()
+    factor = distant_illuminance(angle, bool(normalize))
+    if factor >= 0.01:
+        return None
+    return (f"not normalised, so UsdLux reads its intensity as the {angle:g}-degree disc's luminance and the "
+            f"sun gives {factor:.2g} of it as illuminance; author inputs:normalize = true to make the intensity "
+            f"the illuminance")
 
 
 def _palette_problem(body) -> str | None:

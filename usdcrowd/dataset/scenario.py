@@ -135,6 +135,7 @@ def write_scenario(plan: dict, spec, out_dir: Path) -> str:
     for prim in suns[:1]:
         sun = UsdLux.DistantLight(prim)
         sun.CreateIntensityAttr(float(light["sun_strength"]))
+        sun.CreateNormalizeAttr(True)                 # the strength is the illuminance (UsdLux)
         sun.CreateEnableColorTemperatureAttr(True)
         sun.CreateColorTemperatureAttr(float(light["color_temperature"]))
         world = frame.to_canonical @ sun_transform(light["sun_elevation"], light["sun_azimuth"]) @ frame.from_canonical

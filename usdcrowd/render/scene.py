@@ -28,7 +28,7 @@ from ..scenery import camera_lens
 from ..view import CameraView
 
 __all__ = ["SCENERY_ID_BASE", "AgentPoses", "CameraView", "Light", "Material", "SceneryItem", "ShotScene",
-           "color_temperature_rgb"]
+           "color_temperature_rgb", "distant_illuminance"]
 
 
 @dataclass
@@ -481,6 +481,23 @@ def color_temperature_rgb(kelvin: float) -> np.ndarray:
     return rgb / (0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2])
 
 
+def distant_illuminance(angle: float, normalize: bool) -> float:
+    """Illuminance on a surface facing a DistantLight, per unit of its intensity.
+
+    UsdLux: the intensity is the sun disc's luminance, divided by a size
+    factor when ``inputs:normalize`` is on, which makes the intensity the
+    illuminance itself. Unnormalised, the illuminance is the intensity times
+    the size factor ``pi sin^2(t)`` (``(2 - sin^2(t)) pi`` past t = pi/2),
+    ``t`` half the angular diameter ``angle`` (degrees); a 0.53-degree sun
+    then gives 6.7e-5 of its intensity. Angle 0 (a delta light): 1 either way.
+    """
+    t = min(max(np.radians(float(angle)) / 2.0, 0.0), np.pi)
+    if normalize or t == 0.0:
+        return 1.0
+    s2 = np.sin(t) ** 2
+    return float(np.pi * (s2 if t <= np.pi / 2 else 2.0 - s2))
+
+
 def _light_of(prim, to_world: np.ndarray, mpu: float, up_axis: str = "Z") -> Light | None:
     from pxr import UsdLux
 
@@ -506,6 +523,7 @@ def _light_of(prim, to_world: np.ndarray, mpu: float, up_axis: str = "Z") -> Lig
     s = float(scale.mean())           # to_world already holds metersPerUnit
     if kind == "distant":
         light.angle = float(UsdLux.DistantLight(prim).GetAngleAttr().Get())
+        light.intensity *= distant_illuminance(light.angle, light.normalize)
     elif kind == "dome":
         f = UsdLux.DomeLight(prim).GetTextureFileAttr().Get()
         light.texture = (f.resolvedPath or None) if f else None

@@ -60,6 +60,8 @@ def write_shot(out_dir: str | os.PathLike, scenario_path: str, time: model.TimeR
             sun.specifier, sun.typeName = Sdf.SpecifierDef, "DistantLight"
             _set(sun, "inputs:intensity", Sdf.ValueTypeNames.Float, 3.0)
             _set(sun, "inputs:angle", Sdf.ValueTypeNames.Float, 0.53)
+            # UsdLux: normalised, the intensity is the illuminance, not the 0.53-degree disc's luminance
+            _set(sun, "inputs:normalize", Sdf.ValueTypeNames.Bool, True)
             _set(sun, "inputs:color", Sdf.ValueTypeNames.Color3f, Gf.Vec3f(1.0, 0.96, 0.9))
             rot = (40.0, 0.0, 30.0) if frame.up_axis == "Z" else (-50.0, 30.0, 0.0)
             _set(sun, "xformOp:rotateXYZ", Sdf.ValueTypeNames.Float3, Gf.Vec3f(*rot))

@@ -9,7 +9,10 @@ times the colour-temperature tint (both from :class:`ShotScene.Light`):
   ``L = I * c`` on the light's surface (``area`` emitter on a mesh); with
   ``inputs:normalize`` the radiance is divided by the surface area, so the
   power no longer depends on the size (UsdLux's definition).
-- DistantLight: irradiance on a surface facing the light ``E = I * c``.
+- DistantLight: irradiance on a surface facing the light ``E = I * c``
+  with ``inputs:normalize`` on; unnormalised, UsdLux makes ``I`` the disc's
+  luminance, so ``E`` is that times the disc's size factor (read once, in
+  :func:`usdcrowd.render.scene.distant_illuminance`).
   With ``inputs:angle`` (its angular diameter, 0.53 degrees for the sun by
   default) it is a disc of that angular size far away (``area`` emitter on
   a disc DISTANT_DISC_DISTANCE metres off, radiance ``E`` over the disc's
