@@ -21,7 +21,12 @@ Then noise against time on one frame: the relative MSE of usdcrowd's beauty
 to 64 spp) against its own 1,024-spp frame, and of Blender Cycles on the CPU
 (the bpy wheel in its own venv imports the same shot; 64 spp denoised, as
 Blender does by default, and raw) against Cycles' own 512-spp frame. Target:
-Cycles' 64-spp quality in at most a third of its time.
+Cycles' 64-spp quality in at most a third of its time. Blender's importer reads
+UsdLux lights with factors of its own (a DistantLight's intensity times 4, an
+untextured DomeLight left out), so the Cycles script sets each light to what
+UsdLux means (read here with plain usd-core): the two converged frames' mean
+levels then agree within 8 % per channel (before, Cycles' frame was 20 to
+100 times darker, lit by the lamp alone, which flattered its relative MSE).
 
 Usage::
 
@@ -254,7 +259,9 @@ def print_quality(q: dict) -> None:
             print(f"    usdcrowd reaches Cycles' {label} 64-spp quality with {name} at {spp} spp in {sec:.2f} s: "
                   f"{seconds / sec:.1f}x faster" + ("  [target: >= 3x]" if label == "denoised" else ""))
         else:
-            print(f"    usdcrowd does not reach Cycles' {label} 64-spp quality at up to 64 spp"
+            err, sec, spp, name = min((err, sec, spp, name) for (name, spp), (err, sec) in q["ours"].items())
+            print(f"    usdcrowd does not reach Cycles' {label} 64-spp quality at up to 64 spp; its best, {name} at "
+                  f"{spp} spp: {err / target:.2f}x Cycles' error in {sec / seconds:.2f}x its time"
                   + ("  [target: the same quality in a third of Cycles' time: not met]" if label == "denoised" else ""))
 
 
