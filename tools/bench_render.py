@@ -26,8 +26,9 @@ Blender does by default, and raw) against Cycles' own 512-spp frame. Target:
 Cycles' 64-spp quality in at most a third of its time. Blender's importer reads
 UsdLux lights with factors of its own (a DistantLight's intensity times 4, an
 untextured DomeLight left out), so the Cycles script sets each light to what
-UsdLux means (read here with plain usd-core): the two converged frames' mean
-levels then agree within 8 % per channel (before, Cycles' frame was 20 to
+UsdLux means (read here with plain usd-core), and gives meshes without a material
+their displayColor as usdcrowd does: the two converged frames' mean
+levels then agree within 10 % per channel (before, Cycles' frame was 20 to
 100 times darker, lit by the lamp alone, which flattered its relative MSE).
 
 Usage::
@@ -99,7 +100,7 @@ shot, cam, w, h, spp, denoise, out, frame, lights = sys.argv[1:10]
 bpy.ops.wm.read_factory_settings(use_empty=True)
 bpy.ops.wm.usd_import(filepath=shot)
 sc = bpy.context.scene
-# Blender's importer reads UsdLux with its own factors (a DistantLight's intensity times 4, sphere lights as
+# The same scene as usdcrowd renders. Blender's importer reads UsdLux with its own factors (a DistantLight's intensity times 4, sphere lights as
 # watts, an untextured DomeLight left out): set each light to what UsdLux means, as usdcrowd renders it.
 world = bpy.data.worlds.new("Sky")
 world.use_nodes = True
@@ -121,6 +122,22 @@ for light in json.loads(lights):
         data.energy = peak
     elif light["kind"] == "sphere":             # Cycles: a point light of power P has radiance P / (4 pi^2 r^2)
         data.energy = peak * 4 * math.pi ** 2 * light["radius"] ** 2
+# Meshes with no material: Blender draws them in its default grey, usdcrowd (as Hydra) in their displayColor
+# with UsdPreviewSurface's defaults (roughness 0.5).
+for obj in bpy.data.objects:
+    if obj.type != "MESH" or len(obj.data.materials):
+        continue
+    mat = bpy.data.materials.new(obj.name + "_displayColor")
+    mat.use_nodes = True
+    bsdf = mat.node_tree.nodes["Principled BSDF"]
+    bsdf.inputs["Roughness"].default_value = 0.5
+    if "displayColor" in obj.data.color_attributes:
+        attr = mat.node_tree.nodes.new("ShaderNodeAttribute")
+        attr.attribute_name = "displayColor"
+        mat.node_tree.links.new(attr.outputs["Color"], bsdf.inputs["Base Color"])
+    else:
+        bsdf.inputs["Base Color"].default_value = (0.6, 0.6, 0.6, 1)
+    obj.data.materials.append(mat)
 sc.render.engine = "CYCLES"
 sc.cycles.device = "CPU"
 sc.cycles.samples = int(spp)
@@ -229,6 +246,8 @@ def bench_quality(shot: str, camera: str = "/World/Cameras/Overview") -> dict:
             # A frame's whole cost, as Cycles' is timed: posing and BVH update, beauty, denoising.
             seconds = res.seconds["update"] + res.seconds["beauty"] + res.seconds["denoise"]
             ours[(name, spp)] = (relative_mse(res.beauty, ref), seconds)
+            if spp == CYCLES_SPP and denoise:
+                ours_frame = res.beauty
     out = {"ours": ours}
     try:
         sys.path.insert(0, str(ROOT / "tests"))
@@ -246,7 +265,35 @@ def bench_quality(shot: str, camera: str = "/World/Cameras/Overview") -> dict:
                                         Path(tmp) / "c64raw.exr")
     out["cycles"] = {"denoised": (relative_mse(c64, cref), c64_s), "raw": (relative_mse(c64raw, cref), c64raw_s),
                      "reference_seconds": cref_s}
+    out["figure"] = comparison_figure(
+        [(ours_frame, f"usdcrowd {CYCLES_SPP} spp + OIDN: relMSE {ours[('multijitter + OIDN', CYCLES_SPP)][0]:.5f}, "
+                      f"{ours[('multijitter + OIDN', CYCLES_SPP)][1]:.2f} s"),
+         (c64, f"Cycles {CYCLES_SPP} spp denoised: relMSE {out['cycles']['denoised'][0]:.5f}, {c64_s:.2f} s"),
+         (ref, f"usdcrowd {REFERENCE_SPP} spp (its reference)"),
+         (cref, f"Cycles {CYCLES_REFERENCE_SPP} spp (its reference)")], FIGURE)
     return out
+
+
+FIGURE = ROOT / "build" / "bench" / "render_vs_cycles.png"
+
+
+def comparison_figure(panels: list[tuple[np.ndarray, str]], path: Path) -> str:
+    """A 2 x 2 sheet of (h, w, 3) linear frames, each under its label (sRGB, clipped), written to ``path``."""
+    from PIL import Image, ImageDraw
+
+    tiles = []
+    for img, label in panels:
+        srgb = np.where(img <= 0.0031308, 12.92 * img, 1.055 * np.clip(img, 0.0031308, None) ** (1 / 2.4) - 0.055)
+        tile = Image.fromarray((np.clip(srgb, 0, 1) * 255 + 0.5).astype(np.uint8))
+        ImageDraw.Draw(tile).text((8, 6), label, fill=(255, 255, 255), stroke_width=2, stroke_fill=(0, 0, 0))
+        tiles.append(tile)
+    w, h = tiles[0].size
+    sheet = Image.new("RGB", (2 * w, 2 * h))
+    for k, tile in enumerate(tiles):
+        sheet.paste(tile, ((k % 2) * w, (k // 2) * h))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    sheet.save(path)
+    return str(path)
 
 
 def print_quality(q: dict) -> None:
@@ -260,6 +307,7 @@ def print_quality(q: dict) -> None:
         print(f"    {c}")
         return
     (ce, cs), (re_, rs) = c["denoised"], c["raw"]
+    print(f"    side by side: {q['figure']}")
     print(f"    Cycles CPU {CYCLES_SPP} spp, denoised (Blender's default)  relMSE {ce:.5f}  {cs:.2f} s")
     print(f"    Cycles CPU {CYCLES_SPP} spp, raw                         relMSE {re_:.5f}  {rs:.2f} s")
     for label, (target, seconds) in (("denoised", (ce, cs)), ("raw", (re_, rs))):
