@@ -434,3 +434,26 @@ def test_sequences_made_under_other_render_settings_are_not_merged_as_finished(t
     again = make_dataset(changed, copy, executor="inline", progress=False, force=True, only=[0])
     assert again.sequences == 1
     assert json.loads((copy / "manifest.json").read_text())["state"] == "partial"
+
+
+def test_frames_rendered_under_other_presets_are_rendered_again(tiny_dataset, tmp_path, monkeypatch):
+    """An edit of presets.toml changes the render settings but not the spec or its plans: no frame made under
+    the old settings is kept, neither through its camera's manifest nor adopted from disk (its EXR header
+    names the settings it was rendered with)."""
+    import dataclasses
+
+    import usdcrowd.dataset.run as run
+
+    spec, root, first = tiny_dataset
+    copy = tmp_path / "copy"
+    shutil.copytree(root, copy)
+    edited = run._settings
+
+    def brighter(s):
+        return dataclasses.replace(edited(s), exposure=edited(s).exposure + 1.0)
+
+    monkeypatch.setattr(run, "_settings", brighter)
+    again = make_dataset(spec, copy, executor="inline", progress=False)
+    assert again.prepared == 0 and again.rendered == again.frames == first.frames
+    png = sorted((copy / "sequences").glob("*/render/*/png/*.png"))[0]
+    assert png.read_bytes() != (root / png.relative_to(copy)).read_bytes()

@@ -175,6 +175,7 @@ def render_frame_to_disk(renderer, metadata, t: float, out_dir, settings: Render
     write_frame_exr(out / files["exr"], channels, result.id_paths,
                     {"usdcrowd:camera": result.camera.path, "usdcrowd:time": result.time,
                      "usdcrowd:workingSpace": settings.working_space,
+                     SETTINGS_ATTRIBUTE: settings_json(settings),
                      "usdcrowd:depthConvention": "depth.z: along the view axis; depth.distance: to the camera "
                                                  "centre; metres; +inf where no surface"})
     write_png(beauty, out / files["png"], settings.working_space, settings.exposure)
@@ -230,6 +231,16 @@ class Manifest:
             self._saved_at = time.monotonic()
 
 
+# The EXR header attribute naming the settings a frame was rendered with: a frame found on disk but not in
+# the manifest is adopted only if they are the current ones.
+SETTINGS_ATTRIBUTE = "usdcrowd:renderSettings"
+
+
+def settings_json(settings: RenderSettings) -> str:
+    """The settings that change a frame's pixels, as the JSON its EXR header holds."""
+    return json.dumps(settings.fingerprint(), sort_keys=True)
+
+
 def verify_frame(out_dir, t: float, manifest: Manifest, settings: RenderSettings) -> bool:
     """True if frame ``t``'s outputs exist and are whole (see the module's notes)."""
     from ..groundtruth import frame_json
@@ -249,6 +260,8 @@ def verify_frame(out_dir, t: float, manifest: Manifest, settings: RenderSettings
     try:
         header, _ = read_frame_exr(out / files["exr"], header_only=True)
         if set(channel_names(header)) != set(expected_channels(settings)):
+            return False
+        if header.get(SETTINGS_ATTRIBUTE) != settings_json(settings):     # made under other settings
             return False
         if settings.ground_truth:
             frame_json.read(out / files["json"])

@@ -14,6 +14,7 @@ Channels (single part, scanline, ZIP; float32 unless said):
 
 Header attributes: ``usdcrowd:idTable`` (JSON object, id -> prim path),
 ``usdcrowd:camera``, ``usdcrowd:time``, ``usdcrowd:workingSpace``,
+``usdcrowd:renderSettings`` (JSON: the settings that change pixels),
 ``usdcrowd:depthConvention``.
 """
 
