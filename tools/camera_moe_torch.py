@@ -30,6 +30,11 @@ from torch import nn
 N_CHAR, N_CAM = 9, 6
 
 
+def absolute(pred: torch.Tensor, base: torch.Tensor, cfg: dict) -> torch.Tensor:
+    """(b, out * 6) predicted features; a residual model's are changes from ``base`` (b, 6), the last sample."""
+    return pred + base.repeat(1, cfg["out"]) if cfg.get("residual") else pred
+
+
 class Gate(nn.Module):
     """LSTM over the reference features, its last state through FC and softmax."""
 
@@ -144,15 +149,18 @@ class Windows:
         past = self.cam[clips[:, None], past_idx]
         if noise:
             past = past + self.rng.normal(0.0, noise, past.shape)
-            # Some samples see no past camera at all: the framing must then come from the characters and
-            # the gate, which is what makes the gate learn the behavior (and roll-outs not drift).
+            # Optionally some samples see no past camera at all: the framing must then come from the
+            # characters and the gate (config "blind"; the residual model, which mends its fed-back past,
+            # does without).
             blind = self.rng.random(len(rows)) < self.cfg.get("blind", 0.0)
             past[blind] = 0.0
+        base = past[:, -1].copy()       # the last sample as fed: a residual model learns to mend its errors
         x = np.concatenate([past.reshape(len(rows), -1), self.char[clips[:, None], char_idx].reshape(len(rows), -1)], 1)
         out_idx = np.clip(frames[:, None] + np.arange(1, cfg["out"] + 1) * cfg["step"], 0, t - 1)
         y = self.cam[clips[:, None], out_idx].reshape(len(rows), -1)
         return (torch.tensor(self.gate_inputs(clips, random_gate), dtype=torch.float32),
-                torch.tensor(x, dtype=torch.float32), torch.tensor(y, dtype=torch.float32))
+                torch.tensor(x, dtype=torch.float32), torch.tensor(y, dtype=torch.float32),
+                torch.tensor(base, dtype=torch.float32))
 
 
     def unrolled(self, rows, steps: int, noise: float):
@@ -162,7 +170,8 @@ class Windows:
         clips, frames = self.index[rows, 0], self.index[rows, 1]
         t = self.char.shape[1]
         past_idx = frames[:, None] + np.arange(-(cfg["past"] - 1), 1) * cfg["step"]
-        past = self.cam[clips[:, None], past_idx] + self.rng.normal(0.0, noise, (len(rows), cfg["past"], N_CAM))
+        clean = self.cam[clips[:, None], past_idx]
+        past = clean + self.rng.normal(0.0, noise, clean.shape)
         past[self.rng.random(len(rows)) < cfg.get("blind", 0.0)] = 0.0
         chars, ys = [], []
         for r in range(steps):
@@ -173,7 +182,8 @@ class Windows:
             out_idx = np.clip(at[:, None] + np.arange(1, cfg["out"] + 1) * cfg["step"], 0, t - 1)
             ys.append(self.cam[clips[:, None], out_idx].reshape(len(rows), -1))
         f32 = lambda a: torch.tensor(np.asarray(a), dtype=torch.float32)  # noqa: E731
-        return (f32(self.gate_inputs(clips)), f32(past.reshape(len(rows), -1)), f32(chars), f32(ys))
+        return (f32(self.gate_inputs(clips)), f32(past.reshape(len(rows), -1)), f32(chars), f32(ys),
+                f32(past[:, -1]))
 
 
 def _stats(data) -> dict:
@@ -189,12 +199,18 @@ def _errors(model, windows: Windows, stats, batch=2048):
     with torch.no_grad():
         for lo in range(0, len(windows), batch):
             rows = np.arange(lo, min(lo + batch, len(windows)))
-            g, x, y = windows.batch(rows, random_gate=False)
+            g, x, y, base = windows.batch(rows, random_gate=False)
             pred, _ = model(g, x)
-            diff = (pred - y).numpy().reshape(len(rows), -1, N_CAM) * stats["cam_std"]
-            errs.append(np.abs(diff).mean(axis=1))
+            pred = absolute(pred, base, windows.cfg)
+            p = pred.numpy().reshape(len(rows), -1, N_CAM) * stats["cam_std"] + stats["cam_mean"]
+            t = y.numpy().reshape(len(rows), -1, N_CAM) * stats["cam_std"] + stats["cam_mean"]
+            # and the angle between predicted and true directions from A to the camera (features 3-5), degrees
+            cos = np.einsum("bsk,bsk->bs", p[..., 3:], t[..., 3:]) / np.maximum(
+                np.linalg.norm(p[..., 3:], axis=-1) * np.linalg.norm(t[..., 3:], axis=-1), 1e-12)
+            angle = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))).mean(axis=1)
+            errs.append(np.column_stack([np.abs(p - t).mean(axis=1), angle]))
     model.train()
-    return np.concatenate(errs)                        # (n, 6)
+    return np.concatenate(errs)                        # (n, 7): 6 features, then the direction's angle
 
 
 def _gate_outputs(model, windows: Windows):
@@ -231,20 +247,22 @@ def train(data_path: str, out_dir: str, epochs: int, seed: int, batch: int = 256
             steps = cfg.get("unroll", 1)
             for lo in range(0, len(order), batch):
                 # Trained on its own roll-outs: after the first step the past camera is the model's prediction.
-                g, past, chars, ys = tr.unrolled(order[lo:lo + batch], steps, cfg.get("noise", 0.2))
+                g, past, chars, ys, base = tr.unrolled(order[lo:lo + batch], steps, cfg.get("noise", 0.2))
                 w = model.weights(g)
                 loss = 0.0
                 for r in range(steps):
-                    pred = model.step(torch.cat([past, chars[r]], 1), w)
+                    pred = absolute(model.step(torch.cat([past, chars[r]], 1), w), base, cfg)
                     loss = loss + torch.mean((pred - ys[r]) ** 2) / steps
-                    past = pred.view(len(pred), cfg["out"], N_CAM)[:, -cfg["past"]:].reshape(len(pred), -1)
+                    samples = pred.view(len(pred), cfg["out"], N_CAM)
+                    past = samples[:, -cfg["past"]:].reshape(len(pred), -1)
+                    base = samples[:, -1]
                 y = ys[0]
                 opt.zero_grad()
                 loss.backward()
                 opt.step()
                 total += float(loss.detach()) * len(y)
             sched.step()
-            test_err = _errors(model, te, stats).mean(axis=0)
+            test_err = _errors(model, te, stats)[:, :N_CAM].mean(axis=0)
             row = {"model": name, "epoch": epoch, "train_loss": total / len(tr),
                    "test_error": float(test_err.mean()), "seconds": time.perf_counter() - t0}
             if name == "moe":
@@ -255,7 +273,7 @@ def train(data_path: str, out_dir: str, epochs: int, seed: int, batch: int = 256
     # Errors per test sample and behavior, both models.
     with open(out / "errors.csv", "w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(["model", "behavior", "clip", *[f"err_{k}" for k in range(N_CAM)]])
+        w.writerow(["model", "behavior", "clip", *[f"err_{k}" for k in range(N_CAM)], "err_direction_deg"])
         for name, model in models.items():
             errs = _errors(model, te, stats)
             for (clip, _), e in zip(te.index, errs):

@@ -37,7 +37,7 @@ sys.path.insert(0, str(ROOT))
 
 TORCH_PACKAGES = ["torch==2.13.0", "numpy", "scikit-learn"]
 CONFIG = {"step": 2, "past": 4, "char_past": 12, "char_future": 12, "out": 6, "gate_step": 4, "gate_len": 60,
-          "experts": 9, "hidden": 128, "gate_hidden": 32, "noise": 0.3, "blind": 0.6}
+          "experts": 9, "hidden": 128, "gate_hidden": 32, "noise": 0.3, "blind": 0.0, "residual": True}
 
 
 def torch_python() -> str:
@@ -67,7 +67,7 @@ def retarget_errors(weights: Path, test) -> list[dict]:
     """Each test clip's behavior, gated from the clip, rolled out: on its own characters, on another
     clip's characters doing the same kind of motion, and on a clip of another kind of motion; each
     compared with the controller (same parameters) filming those characters itself."""
-    from usdcrowd.cameras.moe import CameraMoE
+    from usdcrowd.cameras.moe import CameraMoE, camera_angles
     from usdcrowd.cameras.moe_data import refilm
 
     model = CameraMoE(weights)
@@ -81,10 +81,10 @@ def retarget_errors(weights: Path, test) -> list[dict]:
         for name, target in (("own_clip", ref), ("same_motion", same), ("other_motion", other)):
             truth = ref.camera if target is ref else refilm(target, ref.params)
             pred = model.rollout(w, target.character, truth[0])
-            dphi = np.angle(np.exp(1j * (np.arctan2(pred[:, 4], pred[:, 5]) - np.arctan2(truth[:, 4], truth[:, 5]))))
+            (theta_p, phi_p), (theta_t, phi_t) = camera_angles(pred), camera_angles(truth)
             row[f"{name}_features"] = float(np.abs(pred - truth).mean())
-            row[f"{name}_theta_deg"] = float(np.degrees(np.pi * np.abs(pred[:, 3] - truth[:, 3])).mean())
-            row[f"{name}_phi_deg"] = float(np.degrees(np.abs(dphi)).mean())
+            row[f"{name}_theta_deg"] = float(np.degrees(np.abs(theta_p - theta_t)).mean())
+            row[f"{name}_phi_deg"] = float(np.degrees(np.abs(np.angle(np.exp(1j * (phi_p - phi_t))))).mean())
         rows.append(row)
     return rows
 
@@ -103,15 +103,14 @@ def plots(out: Path, errors_csv: Path, history_csv: Path) -> list[str]:
     data, labels = [], []
     for b, name in enumerate(BEHAVIORS):
         for model in ("moe", "shared_bottom"):
-            v = [np.mean([float(r[f"err_{k}"]) for k in (3,)]) * 180 for r in err
-                 if r["model"] == model and int(r["behavior"]) == b]
+            v = [float(r["err_direction_deg"]) for r in err if r["model"] == model and int(r["behavior"]) == b]
             data.append(v)
             labels.append(f"{name.replace('-track', '')}\n{'MoE' if model == 'moe' else 'shared'}")
     bp = ax[0].boxplot(data, showfliers=False, patch_artist=True)
     for k, box in enumerate(bp["boxes"]):
         box.set_facecolor("#4c72b0" if k % 2 == 0 else "#dd8452")
     ax[0].set_xticks(range(1, len(labels) + 1), labels, fontsize=8)
-    ax[0].set_ylabel("theta error over the 6 predicted samples (deg)")
+    ax[0].set_ylabel("camera direction error over the 6 predicted samples (deg)")
     ax[0].set_title("Prediction error per behavior (cf. seed 002, Fig. 9)")
     moe = [r for r in hist if r["model"] == "moe"]
     ax[1].plot([int(r["epoch"]) for r in moe], [float(r["silhouette"]) for r in moe], "o-")
@@ -131,9 +130,11 @@ def main() -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default="build/camera_moe")
     p.add_argument("--install", action="store_true", help="copy the weights into the package")
+    p.add_argument("--config", default="{}", help='JSON overriding the model and training config, e.g. \'{"noise": 0.1}\'')
     p.add_argument("--evaluate-only", action="store_true",
                    help="evaluate the weights, CSV and history already in --out (no training)")
     a = p.parse_args()
+    CONFIG.update(json.loads(a.config))
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
@@ -157,9 +158,9 @@ def main() -> int:
     for b, name in enumerate(BEHAVIORS):
         line = {"behavior": name}
         for model in ("moe", "shared_bottom"):
-            sel = np.array([[float(r[f"err_{k}"]) for k in range(6)] for r in err
+            sel = np.array([[float(r[f"err_{k}"]) for k in range(6)] + [float(r["err_direction_deg"])] for r in err
                             if r["model"] == model and int(r["behavior"]) == b])
-            line[f"{model}_theta_deg"] = float(sel[:, 3].mean() * 180)
+            line[f"{model}_direction_deg"] = float(sel[:, 6].mean())
             line[f"{model}_screen"] = float(sel[:, :3].mean())
         ret = [r for r in rows if r["behavior"] == b]
         for name in ("own_clip", "same_motion", "other_motion"):

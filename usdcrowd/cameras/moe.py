@@ -18,10 +18,14 @@ character, 9 (they do not depend on any camera):
     :func:`usdcrowd.cameras.features.pair_orientation`), and the pair's
     velocity along AB and across it (m/s, the heads' midpoint, smoothed
     over half a second).
-camera, 6 (the paper's five, with phi as its sine and cosine: phi wraps
-round at +-pi where a level camera passes to the other side of AB, which
-a regression cannot follow):
-    pA.x, pB.x, the heads' mean screen height, theta / pi, sin phi, cos phi.
+camera, 6 (the paper's five, with theta and phi as the unit direction from
+A to the camera in the pair's frame: an orbit crosses the line AB by
+craning over it, where theta turns back and phi sweeps through pi / 2;
+as angles that is a fold a regression cannot time, as a direction it is
+a smooth arc):
+    pA.x, pB.x, the heads' mean screen height, and
+    u = (cos(theta / 2), sin(theta / 2) cos phi, sin(theta / 2) sin phi)
+    (along AB, across it level, up; :mod:`usdcrowd.cameras.toric`).
 
 The paper's sizes are 60 past and 60 future frames, 30 predicted, hidden
 512 and 9 experts at 60 fps; here the windows are sampled every ``step``
@@ -75,9 +79,16 @@ def character_features(heads_a, heads_b, yaw_a, yaw_b, fps: float) -> np.ndarray
 def camera_features(p_a, p_b, theta, phi) -> np.ndarray:
     """(t, 6) float64 camera features from toric coordinates (see the module)."""
     p_a, p_b = np.asarray(p_a, dtype=np.float64), np.asarray(p_b, dtype=np.float64)
-    theta, phi = np.asarray(theta, dtype=np.float64), np.asarray(phi, dtype=np.float64)
-    return np.column_stack([p_a[:, 0], p_b[:, 0], 0.5 * (p_a[:, 1] + p_b[:, 1]), theta / np.pi,
-                            np.sin(phi), np.cos(phi)])
+    half, phi = 0.5 * np.asarray(theta, dtype=np.float64), np.asarray(phi, dtype=np.float64)
+    return np.column_stack([p_a[:, 0], p_b[:, 0], 0.5 * (p_a[:, 1] + p_b[:, 1]), np.cos(half),
+                            np.sin(half) * np.cos(phi), np.sin(half) * np.sin(phi)])
+
+
+def camera_angles(cam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(theta, phi), each (t,), of camera features' direction (normalised first; no range clipping)."""
+    u = np.asarray(cam, dtype=np.float64)[:, 3:6]
+    u = u / np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-12)
+    return 2.0 * np.arctan2(np.hypot(u[:, 1], u[:, 2]), u[:, 0]), np.arctan2(u[:, 2], u[:, 1])
 
 
 def toric_of_features(cam: np.ndarray, fov_x: float, aspect: float):
@@ -100,8 +111,8 @@ def toric_of_features(cam: np.ndarray, fov_x: float, aspect: float):
     p_a, p_b = np.stack([x_a, y], -1), np.stack([x_b, y], -1)
     alpha = framing_angle(p_a, p_b, fov_x, aspect)
     margin = np.radians(2.0)
-    theta = np.clip(cam[:, 3] * np.pi, 2 * margin, 2 * (np.pi - alpha - margin))
-    return p_a, p_b, theta, np.arctan2(cam[:, 4], cam[:, 5])
+    theta, phi = camera_angles(cam)
+    return p_a, p_b, np.clip(theta, 2 * margin, 2 * (np.pi - alpha - margin)), phi
 
 
 # ---------------------------------------------------------------------------------- the network
@@ -130,6 +141,7 @@ class Config:
     noise: float = 0.0    # training: noise added to the past camera input (robust roll-outs)
     blind: float = 0.0    # training: share of samples shown no past camera (the gate must carry the behavior)
     unroll: int = 1       # training: predictions in a row, each fed the one before (as a roll-out)
+    residual: bool = False  # the network predicts the camera's change from its last sample
 
     @property
     def n_in(self) -> int:
@@ -239,7 +251,9 @@ class CameraMoE:
 
         The network predicts ``out`` samples (``out * step`` frames) at a
         time, which become the past of the next prediction; frames between
-        samples are interpolated linearly.
+        samples are interpolated linearly. A residual model predicts them
+        as changes from the last sample: the camera keeps where it is and
+        the network says how it moves (an orbit's turn).
         """
         c = self.config
         layers = self.blend(weights)
@@ -250,11 +264,11 @@ class CameraMoE:
         while frame < t - 1:
             x = self.inputs(char_n, np.array(samples[-c.past:]), frame)
             # Fed back, a prediction must stay within what the network has seen, or a roll-out can diverge.
-            samples.extend(np.clip(self.predict(layers, x[None])[0].reshape(c.out, N_CAMERA), -CLIP, CLIP))
+            pred = self.predict(layers, x[None])[0].reshape(c.out, N_CAMERA)
+            samples.extend(np.clip(pred + samples[-1] if c.residual else pred, -CLIP, CLIP))
             frame += c.out * c.step
         known = np.array(samples[c.past - 1:]) * self.w["cam_std"] + self.w["cam_mean"]
         at = np.arange(len(known)) * c.step
         out = np.column_stack([np.interp(np.arange(t), at, known[:, k]) for k in range(N_CAMERA)])
-        norm = np.hypot(out[:, 4], out[:, 5])
-        out[:, 4:6] /= np.maximum(norm, 1e-9)[:, None]
+        out[:, 3:6] /= np.maximum(np.linalg.norm(out[:, 3:6], axis=1), 1e-9)[:, None]
         return out
