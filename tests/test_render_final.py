@@ -650,7 +650,7 @@ def test_an_unnormalised_sun_gives_its_discs_luminance_as_usdlux_says(tmp_path):
     ground pi sin^2(5 deg) = 0.0239 times as brightly unnormalised (Blender reads it so too)."""
     from conftest import HEADER
 
-    from usdcrowd.render.scene import distant_illuminance
+    from usdcrowd.shading import distant_illuminance
 
     def lit(normalize):
         path = tmp_path / f"sun{normalize}.usda"

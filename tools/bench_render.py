@@ -100,8 +100,9 @@ shot, cam, w, h, spp, denoise, out, frame, lights = sys.argv[1:10]
 bpy.ops.wm.read_factory_settings(use_empty=True)
 bpy.ops.wm.usd_import(filepath=shot)
 sc = bpy.context.scene
-# The same scene as usdcrowd renders. Blender's importer reads UsdLux with its own factors (a DistantLight's intensity times 4, sphere lights as
-# watts, an untextured DomeLight left out): set each light to what UsdLux means, as usdcrowd renders it.
+# The same scene as usdcrowd renders. Blender's importer reads UsdLux with its own factors (a DistantLight's
+# intensity times 4, sphere lights as watts, an untextured DomeLight left out): set each light to what
+# UsdLux means, as usdcrowd renders it.
 world = bpy.data.worlds.new("Sky")
 world.use_nodes = True
 sc.world = world
@@ -151,14 +152,12 @@ sc.render.image_settings.color_depth = "32"
 # Warm up on the frame before, as usdcrowd's frames are timed warm (a sequence pays its start-up once).
 sc.frame_set(int(float(frame)) - 1)
 sc.render.filepath = out + ".warmup.exr"
-t0 = time.perf_counter()
 bpy.ops.render.render(write_still=True)
-cold = time.perf_counter() - t0
 sc.frame_set(int(float(frame)))
 sc.render.filepath = out
 t0 = time.perf_counter()
 bpy.ops.render.render(write_still=True)
-print("RESULT " + json.dumps({"seconds": time.perf_counter() - t0, "cold": cold}))
+print("RESULT " + json.dumps({"seconds": time.perf_counter() - t0}))
 """
 
 
@@ -196,7 +195,6 @@ def usdlux_lights(shot: str) -> list[dict]:
             raise ValueError(f"{prim.GetPath()}: the Cycles comparison sets only distant, sphere and dome lights")
         out.append(dict(row, rgb=rgb.tolist()))
     return out
-
 
 
 def relative_mse(x: np.ndarray, ref: np.ndarray) -> float:
@@ -281,10 +279,11 @@ def comparison_figure(panels: list[tuple[np.ndarray, str]], path: Path) -> str:
     """A 2 x 2 sheet of (h, w, 3) linear frames, each under its label (sRGB, clipped), written to ``path``."""
     from PIL import Image, ImageDraw
 
+    from usdcrowd.render.colour import to_display
+
     tiles = []
     for img, label in panels:
-        srgb = np.where(img <= 0.0031308, 12.92 * img, 1.055 * np.clip(img, 0.0031308, None) ** (1 / 2.4) - 0.055)
-        tile = Image.fromarray((np.clip(srgb, 0, 1) * 255 + 0.5).astype(np.uint8))
+        tile = Image.fromarray(to_display(img))
         ImageDraw.Draw(tile).text((8, 6), label, fill=(255, 255, 255), stroke_width=2, stroke_fill=(0, 0, 0))
         tiles.append(tile)
     w, h = tiles[0].size

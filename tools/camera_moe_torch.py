@@ -170,8 +170,8 @@ class Windows:
         clips, frames = self.index[rows, 0], self.index[rows, 1]
         t = self.char.shape[1]
         past_idx = frames[:, None] + np.arange(-(cfg["past"] - 1), 1) * cfg["step"]
-        clean = self.cam[clips[:, None], past_idx]
-        past = clean + self.rng.normal(0.0, noise, clean.shape)
+        past = self.cam[clips[:, None], past_idx]
+        past = past + self.rng.normal(0.0, noise, past.shape)
         past[self.rng.random(len(rows)) < cfg.get("blind", 0.0)] = 0.0
         chars, ys = [], []
         for r in range(steps):

@@ -42,7 +42,7 @@ class Light:
         ``inputs:intensity * 2 ** inputs:exposure``; for a DistantLight, the
         illuminance it gives a surface facing it (UsdLux: the intensity when
         ``inputs:normalize`` is on, else that times its disc's size factor,
-        :func:`usdcrowd.render.scene.distant_illuminance`).
+        :func:`distant_illuminance`).
     to_world : (4, 4) float
         Light space to canonical world (lights shine along their local -Z).
     radius, width, height, length, angle : float
@@ -71,3 +71,20 @@ class Light:
     texture: str | None = None
     normalize: bool = False
     pole_axis: str = "Y"
+
+
+def distant_illuminance(angle: float, normalize: bool) -> float:
+    """Illuminance on a surface facing a DistantLight, per unit of its intensity.
+
+    UsdLux: the intensity is the sun disc's luminance, divided by a size
+    factor when ``inputs:normalize`` is on, which makes the intensity the
+    illuminance itself. Unnormalised, the illuminance is the intensity times
+    the size factor ``pi sin^2(t)`` (``(2 - sin^2(t)) pi`` past t = pi/2),
+    ``t`` half the angular diameter ``angle`` (degrees); a 0.53-degree sun
+    then gives 6.7e-5 of its intensity. Angle 0 (a delta light): 1 either way.
+    """
+    t = min(max(np.radians(float(angle)) / 2.0, 0.0), np.pi)
+    if normalize or t == 0.0:
+        return 1.0
+    s2 = np.sin(t) ** 2
+    return float(np.pi * (s2 if t <= np.pi / 2 else 2.0 - s2))

@@ -246,7 +246,7 @@ def _dim_sun_problem(prim) -> str | None:
     luminance)."""
     from pxr import UsdLux
 
-    from .render.scene import distant_illuminance
+    from .shading import distant_illuminance
 
     light = UsdLux.DistantLight(prim)
     angle, normalize = light.GetAngleAttr().Get(), light.GetNormalizeAttr().Get()

@@ -23,12 +23,12 @@ from ..character import rig
 from ..geometry import MeshData, mesh_of
 # The shared types live in the pure core; imported here for renderers and old imports.
 from ..poses import AgentPoses
-from ..shading import SCENERY_ID_BASE, Light, Material
+from ..shading import SCENERY_ID_BASE, Light, Material, distant_illuminance
 from ..scenery import camera_lens
 from ..view import CameraView
 
 __all__ = ["SCENERY_ID_BASE", "AgentPoses", "CameraView", "Light", "Material", "SceneryItem", "ShotScene",
-           "color_temperature_rgb", "distant_illuminance"]
+           "color_temperature_rgb"]
 
 
 @dataclass
@@ -479,23 +479,6 @@ def color_temperature_rgb(kelvin: float) -> np.ndarray:
     xyz = colour.sd_to_XYZ(sd, method="Integration")
     rgb = np.clip(colour.XYZ_to_RGB(xyz / xyz[1], "sRGB", apply_cctf_encoding=False), 0.0, None)
     return rgb / (0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2])
-
-
-def distant_illuminance(angle: float, normalize: bool) -> float:
-    """Illuminance on a surface facing a DistantLight, per unit of its intensity.
-
-    UsdLux: the intensity is the sun disc's luminance, divided by a size
-    factor when ``inputs:normalize`` is on, which makes the intensity the
-    illuminance itself. Unnormalised, the illuminance is the intensity times
-    the size factor ``pi sin^2(t)`` (``(2 - sin^2(t)) pi`` past t = pi/2),
-    ``t`` half the angular diameter ``angle`` (degrees); a 0.53-degree sun
-    then gives 6.7e-5 of its intensity. Angle 0 (a delta light): 1 either way.
-    """
-    t = min(max(np.radians(float(angle)) / 2.0, 0.0), np.pi)
-    if normalize or t == 0.0:
-        return 1.0
-    s2 = np.sin(t) ** 2
-    return float(np.pi * (s2 if t <= np.pi / 2 else 2.0 - s2))
 
 
 def _light_of(prim, to_world: np.ndarray, mpu: float, up_axis: str = "Z") -> Light | None:

@@ -12,7 +12,7 @@ times the colour-temperature tint (both from :class:`ShotScene.Light`):
 - DistantLight: irradiance on a surface facing the light ``E = I * c``
   with ``inputs:normalize`` on; unnormalised, UsdLux makes ``I`` the disc's
   luminance, so ``E`` is that times the disc's size factor (read once, in
-  :func:`usdcrowd.render.scene.distant_illuminance`).
+  :func:`usdcrowd.shading.distant_illuminance`).
   With ``inputs:angle`` (its angular diameter, 0.53 degrees for the sun by
   default) it is a disc of that angular size far away (``area`` emitter on
   a disc DISTANT_DISC_DISTANCE metres off, radiance ``E`` over the disc's
