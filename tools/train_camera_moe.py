@@ -110,7 +110,7 @@ def plots(out: Path, errors_csv: Path, history_csv: Path) -> list[str]:
     for k, box in enumerate(bp["boxes"]):
         box.set_facecolor("#4c72b0" if k % 2 == 0 else "#dd8452")
     ax[0].set_xticks(range(1, len(labels) + 1), labels, fontsize=8)
-    ax[0].set_ylabel("camera direction error over the 6 predicted samples (deg)")
+    ax[0].set_ylabel("direction error, 6 samples (deg)")
     ax[0].set_title("Prediction error per behavior (cf. seed 002, Fig. 9)")
     moe = [r for r in hist if r["model"] == "moe"]
     ax[1].plot([int(r["epoch"]) for r in moe], [float(r["silhouette"]) for r in moe], "o-")
