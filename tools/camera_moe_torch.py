@@ -118,6 +118,10 @@ class Windows:
         self.char = (data["character"] - stats["char_mean"]) / stats["char_std"]      # (c, t, 9)
         self.cam = (data["camera"] - stats["cam_mean"]) / stats["cam_std"]            # (c, t, 6)
         self.cam_raw = data["camera"]
+        # The same behavior filming other characters (see train_camera_moe.paired_references), if made.
+        paired = "ref_character" in data
+        self.ref_char = (data["ref_character"] - stats["char_mean"]) / stats["char_std"] if paired else None
+        self.ref_cam = (data["ref_camera"] - stats["cam_mean"]) / stats["cam_std"] if paired else None
         self.labels = data["behavior"]
         c, t, _ = self.char.shape
         lo = (cfg["past"] - 1) * cfg["step"]
@@ -137,7 +141,11 @@ class Windows:
         else:
             start = np.full(len(clips), (t - 1 - span) // 2)
         idx = start[:, None] + np.arange(cfg["gate_len"]) * cfg["gate_step"]
-        return np.concatenate([self.char[clips[:, None], idx], self.cam[clips[:, None], idx]], axis=-1)
+        own = np.concatenate([self.char[clips[:, None], idx], self.cam[clips[:, None], idx]], axis=-1)
+        if not random or self.ref_char is None or not cfg.get("pair", 0.0):
+            return own
+        paired = np.concatenate([self.ref_char[clips[:, None], idx], self.ref_cam[clips[:, None], idx]], axis=-1)
+        return np.where((self.rng.random(len(clips)) < cfg["pair"])[:, None, None], paired, own)
 
     def batch(self, rows, noise=0.0, random_gate=True):
         cfg = self.cfg
@@ -228,8 +236,9 @@ def train(data_path: str, out_dir: str, epochs: int, seed: int, batch: int = 256
     data = np.load(data_path)
     cfg = json.loads(str(data["config"]))
     split = data["test"]                                # 1 for test clips
-    train_d = {k: data[k][split == 0] for k in ("character", "camera", "behavior")}
-    test_d = {k: data[k][split == 1] for k in ("character", "camera", "behavior")}
+    keys = [k for k in ("character", "camera", "behavior", "ref_character", "ref_camera") if k in data.files]
+    train_d = {k: data[k][split == 0] for k in keys}
+    test_d = {k: data[k][split == 1] for k in keys}
     train_d["config"] = test_d["config"] = data["config"]
     stats = _stats(train_d)
     tr, te = Windows(train_d, cfg, stats, rng), Windows(test_d, cfg, stats, np.random.default_rng(seed + 1), stride=8)
@@ -238,7 +247,13 @@ def train(data_path: str, out_dir: str, epochs: int, seed: int, batch: int = 256
     history = []
     models = {"moe": MoE(cfg), "shared_bottom": SharedBottom(cfg)}
     for name, model in models.items():
-        opt = torch.optim.Adam(model.parameters(), lr=lr)
+        # The gate's few weights steer all the experts; a larger step lets it leave the uniform mix.
+        gate_params = list(model.gate.parameters()) if name == "moe" else []
+        rest = [p for p in model.parameters() if all(p is not q for q in gate_params)]
+        groups = [{"params": rest}]
+        if gate_params:
+            groups.append({"params": gate_params, "lr": lr * cfg.get("gate_lr", 1.0)})
+        opt = torch.optim.Adam(groups, lr=lr)
         sched = torch.optim.lr_scheduler.ExponentialLR(opt, 0.95)
         for epoch in range(1, epochs + 1):
             t0 = time.perf_counter()

@@ -1,10 +1,12 @@
 """Train the learned camera behaviors (seed 002, section 5) and evaluate them as the paper does.
 
-    python tools/train_camera_moe.py [--epochs 50] [--per-behavior 100] [--seed 0] [--out build/camera_moe]
-                                     [--install]
+    python tools/train_camera_moe.py [--epochs 25] [--per-behavior 400] [--seed 0] [--out build/camera_moe]
+                                     [--install] [--config JSON] [--evaluate-only]
 
 1. makes a seeded dataset with usdcrowd: two-character motions filmed by the
-   four controllers with drawn parameters (usdcrowd.cameras.moe_data);
+   four controllers with drawn parameters (usdcrowd.cameras.moe_data), and
+   for each clip the same behavior filming another pair (the gate's
+   references, :func:`paired_references`);
 2. trains the mixture of experts and the shared-bottom baseline with PyTorch
    in its own venv (tools/camera_moe_torch.py; torch==2.13.0, numpy,
    scikit-learn; $USDCROWD_TORCH_VENV or one made in the temporary folder);
@@ -12,7 +14,8 @@
    bottom (Figure 9), the silhouette coefficient of the gating outputs over
    training (Figure 10), and retargeting: each test clip's behavior, read by
    the gating network from that clip, rolled out on another clip's
-   characters and compared with the controller filming them itself;
+   characters and compared with the controller filming them itself (theta
+   and phi errors; for orbits also how far and which way they turn);
 4. writes CSV and plots to --out, and with --install copies the weights to
    usdcrowd/cameras/camera_moe.npz (what the package ships).
 """
@@ -37,7 +40,8 @@ sys.path.insert(0, str(ROOT))
 
 TORCH_PACKAGES = ["torch==2.13.0", "numpy", "scikit-learn"]
 CONFIG = {"step": 2, "past": 4, "char_past": 12, "char_future": 12, "out": 6, "gate_step": 4, "gate_len": 60,
-          "experts": 9, "hidden": 128, "gate_hidden": 32, "noise": 0.3, "blind": 0.0, "residual": True}
+          "experts": 9, "hidden": 128, "gate_hidden": 32, "noise": 0.3, "blind": 0.0, "residual": True,
+          "pair": 0.8, "gate_lr": 10.0}
 
 
 def torch_python() -> str:
@@ -57,10 +61,41 @@ def make_dataset(path: Path, per_behavior: int, seed: int, frames: int = 480):
     train = make_clips(seed, per_behavior, frames)
     test = make_clips(seed + 1000, max(4, per_behavior // 4), frames)
     clips = train + test
-    np.savez(path, config=json.dumps(CONFIG), character=np.array([c.character for c in clips], dtype=np.float32),
-             camera=np.array([c.camera for c in clips], dtype=np.float32),
+    rng = np.random.default_rng(seed + 2000)
+    ref_char, ref_cam = (sum(pair, []) for pair in zip(paired_references(train, rng), paired_references(test, rng)))
+    f32 = lambda a: np.asarray(a, dtype=np.float32)  # noqa: E731
+    np.savez(path, config=json.dumps(CONFIG), character=f32([c.character for c in clips]),
+             camera=f32([c.camera for c in clips]), ref_character=f32(ref_char), ref_camera=f32(ref_cam),
              behavior=np.array([c.behavior for c in clips]), test=np.array([0] * len(train) + [1] * len(test)))
     return train, test
+
+
+def paired_references(clips, rng):
+    """For each clip, the same behavior (same drawn parameters) filming another clip's characters doing
+    another kind of motion: a reference that shares the clip's style and nothing else, so a gate fed it
+    must carry the style (config "pair", the share of training samples gated from it). The other clip
+    is drawn from ``clips`` only: train and test are paired apart."""
+    from usdcrowd.cameras.moe_data import refilm
+
+    chars, cams = [], []
+    for clip in clips:
+        others = [c for c in clips if c.motion != clip.motion]
+        other = others[int(rng.integers(len(others)))]
+        chars.append(other.character)
+        cams.append(refilm(other, clip.params))
+    return chars, cams
+
+
+def turned(cam: np.ndarray) -> float:
+    """Degrees the direction from A to the camera travels over (t, 6) camera features."""
+    u = cam[:, 3:6] / np.linalg.norm(cam[:, 3:6], axis=1, keepdims=True)
+    return float(np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", u[1:], u[:-1]), -1.0, 1.0))).sum())
+
+
+def around(cam: np.ndarray) -> float:
+    """Degrees the camera turns round A in the ground plane of the pair's frame (signed: its direction)."""
+    azimuth = np.unwrap(np.arctan2(cam[:, 4], cam[:, 3]))
+    return float(np.degrees(azimuth[-1] - azimuth[0]))
 
 
 def retarget_errors(weights: Path, test) -> list[dict]:
@@ -68,9 +103,11 @@ def retarget_errors(weights: Path, test) -> list[dict]:
     clip's characters doing the same kind of motion, and on a clip of another kind of motion; each
     compared with the controller (same parameters) filming those characters itself."""
     from usdcrowd.cameras.moe import CameraMoE, camera_angles
+    from usdcrowd.cameras.behaviors import BEHAVIORS
     from usdcrowd.cameras.moe_data import refilm
 
     model = CameraMoE(weights)
+    orbit = BEHAVIORS.index("orbit")
     rows = []
     for k, ref in enumerate(test):
         w = model.gate(ref.character, ref.camera)
@@ -85,6 +122,10 @@ def retarget_errors(weights: Path, test) -> list[dict]:
             row[f"{name}_features"] = float(np.abs(pred - truth).mean())
             row[f"{name}_theta_deg"] = float(np.degrees(np.abs(theta_p - theta_t)).mean())
             row[f"{name}_phi_deg"] = float(np.degrees(np.abs(np.angle(np.exp(1j * (phi_p - phi_t))))).mean())
+            # An orbit's phase drifts over 20 s whatever its speed; how far and which way it turns is its style.
+            row[f"{name}_turn_ratio"] = float(turned(pred) / turned(truth)) if ref.behavior == orbit else float("nan")
+            row[f"{name}_same_way"] = float(np.sign(around(pred)) == np.sign(around(truth))) \
+                if ref.behavior == orbit else float("nan")
         rows.append(row)
     return rows
 
@@ -125,12 +166,13 @@ def plots(out: Path, errors_csv: Path, history_csv: Path) -> list[str]:
 
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--epochs", type=int, default=50)
-    p.add_argument("--per-behavior", type=int, default=100, help="training clips per behavior (20 s each)")
+    p.add_argument("--epochs", type=int, default=25)
+    p.add_argument("--per-behavior", type=int, default=400, help="training clips per behavior (20 s each)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default="build/camera_moe")
     p.add_argument("--install", action="store_true", help="copy the weights into the package")
-    p.add_argument("--config", default="{}", help='JSON overriding the model and training config, e.g. \'{"noise": 0.1}\'')
+    p.add_argument("--config", default="{}",
+                   help='JSON overriding the model and training config, e.g. \'{"noise": 0.1}\'')
     p.add_argument("--evaluate-only", action="store_true",
                    help="evaluate the weights, CSV and history already in --out (no training)")
     a = p.parse_args()
@@ -166,6 +208,10 @@ def main() -> int:
         for name in ("own_clip", "same_motion", "other_motion"):
             for what in ("features", "theta_deg", "phi_deg"):
                 line[f"rollout_{name}_{what}"] = float(np.mean([r[f"{name}_{what}"] for r in ret]))
+            line[f"rollout_{name}_theta_median_deg"] = float(np.median([r[f"{name}_theta_deg"] for r in ret]))
+            for what in ("turn_ratio", "same_way"):      # orbits only (NaN for the tracks)
+                v = [r[f"{name}_{what}"] for r in ret]
+                line[f"rollout_{name}_{what}"] = float(np.median(v) if what == "turn_ratio" else np.mean(v))
         summary.append(line)
     with open(out / "summary.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(summary[0]))

@@ -140,6 +140,8 @@ class Config:
     gate_hidden: int
     noise: float = 0.0    # training: noise added to the past camera input (robust roll-outs)
     blind: float = 0.0    # training: share of samples shown no past camera (the gate must carry the behavior)
+    pair: float = 0.0     # training: share of samples gated from the same behavior filming other characters
+    gate_lr: float = 1.0  # training: the gate's learning rate, a multiple of the experts'
     unroll: int = 1       # training: predictions in a row, each fed the one before (as a roll-out)
     residual: bool = False  # the network predicts the camera's change from its last sample
 
