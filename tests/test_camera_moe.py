@@ -13,6 +13,7 @@ from usdcrowd.cameras.moe import N_CAMERA, N_CHARACTER, WEIGHTS, CameraMoE, came
 from usdcrowd.cameras.moe_data import ASPECT, FOV_X, make_clip
 from usdcrowd.cameras.toric import toric_to_poses
 from usdcrowd.cli import main
+from usdcrowd.toric_filming import SETTLE_FRAMES
 
 TOOLS = Path(__file__).resolve().parents[1] / "tools"
 
@@ -89,27 +90,32 @@ def test_the_gate_carries_the_behavior_a_clip_shows(moe):
 
 
 def test_a_learned_orbit_keeps_turning_round_the_pair(moe):
-    """An orbit's gate, rolled out on its clip's characters, turns the camera round them about as far as the
-    orbit does (an earlier model, fed its own absolute predictions, stalled after a second: a tenth of it)."""
+    """An orbit's gate, rolled out on its clip's characters from a blind start (as `frame --like` does), turns
+    the camera round them about as far as the orbit does: the median of five clips within 0.67 and 1.5 times,
+    each within 0.25 and 4 (the shipped model's single orbits turn 0.3 to 2.4 times as far; an earlier model,
+    fed its own absolute predictions, stalled after a second: a tenth)."""
     rng = np.random.default_rng(11)
 
     def turn(cam):                                  # degrees the direction from A to the camera travels
         u = cam[:, 3:6] / np.linalg.norm(cam[:, 3:6], axis=1, keepdims=True)
         return np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", u[1:], u[:-1]), -1, 1))).sum()
 
+    ratios = []
     for kind in ("talking", "side-by-side", "in-line", "circling", "walk-then-talk"):
         clip = make_clip(rng, BEHAVIORS.index("orbit"), frames=480, kind=kind)
-        out = moe.rollout(moe.gate(clip.character, clip.camera), clip.character, clip.camera[0])
+        out = moe.rollout(moe.gate(clip.character, clip.camera), clip.character, None, settle=SETTLE_FRAMES)
         assert turn(clip.camera) > 200
-        assert 0.5 < turn(out) / turn(clip.camera) < 2.0, (kind, turn(out), turn(clip.camera))
+        ratios.append(turn(out) / turn(clip.camera))
+    assert 0.67 < np.median(ratios) < 1.5 and all(0.25 < r < 4 for r in ratios), ratios
 
 
 def test_a_tracks_style_carries_onto_a_pair_doing_something_else(moe):
-    """Retargeting (section 5): a track's gate, read from a reference clip, rolled out on another pair doing
-    another kind of motion, films them about as the same controller with the same parameters would, and far
-    closer than an orbit's gate does. Theta, degrees on average over the clips: direct and side tracks within
-    15, the relative track (anchored on A's shoulders, the hardest) within 30. (The model trained on 100
-    clips a behavior without references of other characters was 38, 33 and 145 degrees off here.)"""
+    """Retargeting (section 5) as `usdcrowd frame --like` runs it: a track's gate, read from a reference clip,
+    rolled out from a blind start on another pair doing another kind of motion, films them about as the same
+    controller with the same parameters would, and far closer than an orbit's gate does. Theta, degrees on
+    average over the clips: direct and side tracks within 15, the relative track (anchored on A's shoulders,
+    the hardest) within 30. (The model trained without references of other characters and without blind
+    samples, started from the reference's framing as the command then did, was 66, 44 and 207 off here.)"""
     from usdcrowd.cameras.moe import camera_angles
     from usdcrowd.cameras.moe_data import MOTIONS, refilm
 
@@ -123,7 +129,7 @@ def test_a_tracks_style_carries_onto_a_pair_doing_something_else(moe):
             orbit = make_clip(rng, BEHAVIORS.index("orbit"), frames=480, kind=kind)
             truth = refilm(target, ref.params)
             for clip, out in ((ref, errs), (orbit, errs_orbit)):
-                cam = moe.rollout(moe.gate(clip.character, clip.camera), target.character, truth[0])
+                cam = moe.rollout(moe.gate(clip.character, clip.camera), target.character, None, settle=SETTLE_FRAMES)
                 out.append(np.degrees(np.abs(camera_angles(cam)[0] - camera_angles(truth)[0])).mean())
         assert np.mean(errs) < limit and np.mean(errs) < 0.4 * np.mean(errs_orbit), (name, errs, errs_orbit)
 
@@ -164,6 +170,18 @@ def test_frame_like_films_a_new_pair_like_a_reference_camera(tmp_path, capsys):
                 "--targets", "A", "B", "--name", "Learned", "--no-progress") == 0
     out = capsys.readouterr().out
     assert "Learned" in out and "experts" in out
+    # It films A and B as the reference's side track would: theta near the controller's, read with plain
+    # usd-core (started from the reference's own framing, as the command did before blind starts: 170 off).
+    assert _run("frame", shot / "shot.usda", "--behavior", "side-track", "--targets", "A", "B", "--shot", "medium",
+                "--name", "Controller", "--no-progress") == 0
+    from pxr import Usd
+
+    stage = Usd.Stage.Open(str(shot / "shot.usda"))
+    theta = [stage.GetPrimAtPath(f"/World/Cameras/{name}").GetAttribute("crowd:toric:theta") for name in
+             ("Learned", "Controller")]
+    diff = [abs(theta[0].Get(t) - theta[1].Get(t)) for t in range(1, 241, 4)]
+    assert np.mean(diff) < 30, np.mean(diff)
+    del stage
     scene = ShotScene(shot / "shot.usda")
     rows = [scene.agent_row("A"), scene.agent_row("B")]
     seen = 0

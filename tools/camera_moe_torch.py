@@ -179,6 +179,12 @@ class Windows:
         t = self.char.shape[1]
         past_idx = frames[:, None] + np.arange(-(cfg["past"] - 1), 1) * cfg["step"]
         past = self.cam[clips[:, None], past_idx]
+        # Some samples start from another clip's camera (config "reset"): a roll-out starts from the
+        # reference's framing, not the new pair's, and must find the style's framing from there.
+        reset = np.flatnonzero(self.rng.random(len(rows)) < cfg.get("reset", 0.0))
+        if len(reset):
+            src = self.index[self.rng.integers(len(self.index), size=len(reset))]
+            past[reset] = self.cam[src[:, :1], src[:, 1:] + np.arange(-(cfg["past"] - 1), 1) * cfg["step"]]
         past = past + self.rng.normal(0.0, noise, past.shape)
         past[self.rng.random(len(rows)) < cfg.get("blind", 0.0)] = 0.0
         chars, ys = [], []

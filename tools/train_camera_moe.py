@@ -40,7 +40,7 @@ sys.path.insert(0, str(ROOT))
 
 TORCH_PACKAGES = ["torch==2.13.0", "numpy", "scikit-learn"]
 CONFIG = {"step": 2, "past": 4, "char_past": 12, "char_future": 12, "out": 6, "gate_step": 4, "gate_len": 60,
-          "experts": 9, "hidden": 128, "gate_hidden": 32, "noise": 0.3, "blind": 0.0, "residual": True,
+          "experts": 9, "hidden": 128, "gate_hidden": 32, "noise": 0.3, "blind": 0.2, "residual": True,
           "pair": 0.8, "gate_lr": 10.0}
 
 
@@ -105,19 +105,24 @@ def retarget_errors(weights: Path, test) -> list[dict]:
     from usdcrowd.cameras.moe import CameraMoE, camera_angles
     from usdcrowd.cameras.behaviors import BEHAVIORS
     from usdcrowd.cameras.moe_data import refilm
+    from usdcrowd.toric_filming import SETTLE_FRAMES
 
     model = CameraMoE(weights)
     orbit = BEHAVIORS.index("orbit")
     rows = []
     for k, ref in enumerate(test):
         w = model.gate(ref.character, ref.camera)
+        # Starting as `usdcrowd frame --like` does, blind (the new pair's framing is what the model must
+        # find); "_warm" from the truth's first framing, for comparison.
         same = next(c for c in test[k + 1:] + test[:k] if c.motion == ref.motion)
         other = next(c for c in test[k + 1:] + test[:k] if c.motion != ref.motion)
         row = {"behavior": ref.behavior, "shot": ref.shot, "motion": ref.motion,
                "gate": " ".join(f"{v:.3f}" for v in w)}
-        for name, target in (("own_clip", ref), ("same_motion", same), ("other_motion", other)):
+        for name, target, warm in (("own_clip", ref, False), ("same_motion", same, False),
+                                   ("other_motion", other, False), ("other_motion_warm", other, True)):
             truth = ref.camera if target is ref else refilm(target, ref.params)
-            pred = model.rollout(w, target.character, truth[0])
+            cold = target is not ref and not warm
+            pred = model.rollout(w, target.character, None if cold else truth[0], settle=SETTLE_FRAMES if cold else 0)
             (theta_p, phi_p), (theta_t, phi_t) = camera_angles(pred), camera_angles(truth)
             row[f"{name}_features"] = float(np.abs(pred - truth).mean())
             row[f"{name}_theta_deg"] = float(np.degrees(np.abs(theta_p - theta_t)).mean())
@@ -205,7 +210,7 @@ def main() -> int:
             line[f"{model}_direction_deg"] = float(sel[:, 6].mean())
             line[f"{model}_screen"] = float(sel[:, :3].mean())
         ret = [r for r in rows if r["behavior"] == b]
-        for name in ("own_clip", "same_motion", "other_motion"):
+        for name in ("own_clip", "same_motion", "other_motion", "other_motion_warm"):
             for what in ("features", "theta_deg", "phi_deg"):
                 line[f"rollout_{name}_{what}"] = float(np.mean([r[f"{name}_{what}"] for r in ret]))
             line[f"rollout_{name}_theta_median_deg"] = float(np.median([r[f"{name}_theta_deg"] for r in ret]))

@@ -30,6 +30,7 @@ if TYPE_CHECKING:
 FOCAL_LENGTH = 50.0        # mm: a 40 degree horizontal field on 36 mm, within the seed's 30-45 degrees
 APERTURE = 36.0            # mm, horizontal
 TRANSITION = 1.0           # seconds a switch of pair takes
+SETTLE_FRAMES = 48         # a learned camera's blind start, rolled out before the shot begins (2 s at 24 fps)
 
 
 @dataclass(frozen=True)
@@ -479,8 +480,9 @@ def frame_like(shot_path, reference: Reference, spans: list[PairSpan] | str, nam
 
     The gating network reads the reference's features once (the behavior mix
     it shows); the prediction network, with the experts blended by it, is
-    rolled out over the new pair's character features from the reference's
-    first framing.
+    rolled out over the new pair's character features, its first framing
+    made from the gate and the characters alone (a blind start, settled
+    over :data:`SETTLE_FRAMES` frames before the shot).
 
     Returns
     -------
@@ -504,7 +506,11 @@ def frame_like(shot_path, reference: Reference, spans: list[PairSpan] | str, nam
     signals = target_signals(scene, spans, times, TRANSITION, progress)
     weights = model.gate(reference.character, reference.camera_features)
     char = character_features(signals.heads_a, signals.heads_b, signals.yaw_a, signals.yaw_b, scene.fps)
-    cam = model.rollout(weights, char, reference.camera_features[0])
+    # A model trained with blind samples frames the new pair itself; the reference's first framing is
+    # another pair's (an older model starts from it).
+    blind = model.config.blind > 0
+    cam = model.rollout(weights, char, None if blind else reference.camera_features[0],
+                        settle=SETTLE_FRAMES if blind else 0)
     fov_x = 2.0 * np.arctan(0.5 * APERTURE / focal_length)
     p_a, p_b, theta, phi = toric_of_features(cam, fov_x, aspect)
     m = toric_to_poses(signals.heads_a, signals.heads_b, p_a, p_b, theta, phi, fov_x, aspect)

@@ -140,6 +140,7 @@ class Config:
     gate_hidden: int
     noise: float = 0.0    # training: noise added to the past camera input (robust roll-outs)
     blind: float = 0.0    # training: share of samples shown no past camera (the gate must carry the behavior)
+    reset: float = 0.0    # training: share of samples whose past camera is another clip's (a cold start)
     pair: float = 0.0     # training: share of samples gated from the same behavior filming other characters
     gate_lr: float = 1.0  # training: the gate's learning rate, a multiple of the experts'
     unroll: int = 1       # training: predictions in a row, each fed the one before (as a roll-out)
@@ -239,7 +240,8 @@ class CameraMoE:
         window = char_n[np.clip(idx, 0, len(char_n) - 1)]
         return np.concatenate([past_n.ravel(), window.ravel()])
 
-    def rollout(self, weights: np.ndarray, char: np.ndarray, start_cam: np.ndarray) -> np.ndarray:
+    def rollout(self, weights: np.ndarray, char: np.ndarray, start_cam: np.ndarray | None,
+                settle: int = 0) -> np.ndarray:
         """(t, 6) camera features filming characters ``char`` (t, 9) in the style of ``weights``.
 
         Parameters
@@ -248,8 +250,16 @@ class CameraMoE:
             Expert mix (:meth:`gate`).
         char : (t, 9) float
             The new scene's character features.
-        start_cam : (6,) float
-            Camera features to start from (held over the first past window).
+        start_cam : (6,) float or None
+            Camera features to start from (held over the first past window);
+            None starts blind, the first prediction made from the gate and
+            the characters alone (a model trained with ``blind`` samples
+            frames a new pair so; another pair's framing, the reference's,
+            is not one for these characters).
+        settle : int
+            Frames rolled out before the first, on the first frame's character
+            features repeated, so that the shot begins on a framing the network
+            has made and mended (a blind start's first sample is no camera).
 
         The network predicts ``out`` samples (``out * step`` frames) at a
         time, which become the past of the next prediction; frames between
@@ -259,8 +269,14 @@ class CameraMoE:
         """
         c = self.config
         layers = self.blend(weights)
-        char_n = (np.asarray(char, dtype=np.float64) - self.w["char_mean"]) / self.w["char_std"]
-        cam_n = np.clip((np.asarray(start_cam, dtype=np.float64) - self.w["cam_mean"]) / self.w["cam_std"], -CLIP, CLIP)
+        char = np.asarray(char, dtype=np.float64)
+        char = np.concatenate([np.repeat(char[:1], settle, axis=0), char]) if settle > 0 else char
+        char_n = (char - self.w["char_mean"]) / self.w["char_std"]
+        if start_cam is None:       # blind: the past all zeros, as the training's "blind" samples
+            cam_n = np.zeros(N_CAMERA)
+        else:
+            cam_n = np.clip((np.asarray(start_cam, dtype=np.float64) - self.w["cam_mean"]) / self.w["cam_std"],
+                            -CLIP, CLIP)
         samples = [cam_n] * c.past
         frame, t = 0, len(char_n)
         while frame < t - 1:
@@ -273,4 +289,4 @@ class CameraMoE:
         at = np.arange(len(known)) * c.step
         out = np.column_stack([np.interp(np.arange(t), at, known[:, k]) for k in range(N_CAMERA)])
         out[:, 3:6] /= np.maximum(np.linalg.norm(out[:, 3:6], axis=1), 1e-9)[:, None]
-        return out
+        return out[max(settle, 0):]
