@@ -111,7 +111,8 @@ class SharedBottom(nn.Module):
 
 # ------------------------------------------------------------------------------------ samples
 class Windows:
-    """Training samples cut from clips: prediction windows and, from the same clip, a reference window."""
+    """Samples cut from clips: prediction windows, and the gate's reference window (from the same clip, or
+    with probability config "pair" from its paired reference: the same behavior filming another pair)."""
 
     def __init__(self, data, cfg: dict, stats: dict, rng, stride: int = 4):
         self.cfg, self.rng = cfg, rng
@@ -147,7 +148,8 @@ class Windows:
         paired = np.concatenate([self.ref_char[clips[:, None], idx], self.ref_cam[clips[:, None], idx]], axis=-1)
         return np.where((self.rng.random(len(clips)) < cfg["pair"])[:, None, None], paired, own)
 
-    def batch(self, rows, noise=0.0, random_gate=True):
+    def batch(self, rows, random_gate=True):
+        """An evaluation batch: the true past camera (training's batches are :meth:`unrolled`)."""
         cfg = self.cfg
         clips, frames = self.index[rows, 0], self.index[rows, 1]
         t = self.char.shape[1]
@@ -155,14 +157,7 @@ class Windows:
         char_idx = np.clip(frames[:, None] + np.arange(-(cfg["char_past"] - 1), cfg["char_future"] + 1) * cfg["step"],
                            0, t - 1)
         past = self.cam[clips[:, None], past_idx]
-        if noise:
-            past = past + self.rng.normal(0.0, noise, past.shape)
-            # Optionally some samples see no past camera at all: the framing must then come from the
-            # characters and the gate (config "blind"; the residual model, which mends its fed-back past,
-            # does without).
-            blind = self.rng.random(len(rows)) < self.cfg.get("blind", 0.0)
-            past[blind] = 0.0
-        base = past[:, -1].copy()       # the last sample as fed: a residual model learns to mend its errors
+        base = past[:, -1].copy()       # the last sample: a residual model predicts the change from it
         x = np.concatenate([past.reshape(len(rows), -1), self.char[clips[:, None], char_idx].reshape(len(rows), -1)], 1)
         out_idx = np.clip(frames[:, None] + np.arange(1, cfg["out"] + 1) * cfg["step"], 0, t - 1)
         y = self.cam[clips[:, None], out_idx].reshape(len(rows), -1)
@@ -179,13 +174,15 @@ class Windows:
         t = self.char.shape[1]
         past_idx = frames[:, None] + np.arange(-(cfg["past"] - 1), 1) * cfg["step"]
         past = self.cam[clips[:, None], past_idx]
-        # Some samples start from another clip's camera (config "reset"): a roll-out starts from the
-        # reference's framing, not the new pair's, and must find the style's framing from there.
+        # Some samples start from another clip's camera (config "reset"; tried, worse than blind samples,
+        # off by default; its draw is kept so that the default recipe stays bit-reproducible).
         reset = np.flatnonzero(self.rng.random(len(rows)) < cfg.get("reset", 0.0))
         if len(reset):
             src = self.index[self.rng.integers(len(self.index), size=len(reset))]
             past[reset] = self.cam[src[:, :1], src[:, 1:] + np.arange(-(cfg["past"] - 1), 1) * cfg["step"]]
         past = past + self.rng.normal(0.0, noise, past.shape)
+        # Some see no past camera at all (config "blind"): the framing must come from the gate and the
+        # characters, as in a roll-out that starts blind (`usdcrowd frame --like`).
         past[self.rng.random(len(rows)) < cfg.get("blind", 0.0)] = 0.0
         chars, ys = [], []
         for r in range(steps):

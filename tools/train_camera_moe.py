@@ -14,8 +14,10 @@
    bottom (Figure 9), the silhouette coefficient of the gating outputs over
    training (Figure 10), and retargeting: each test clip's behavior, read by
    the gating network from that clip, rolled out on another clip's
-   characters and compared with the controller filming them itself (theta
-   and phi errors; for orbits also how far and which way they turn);
+   characters from a blind start as `usdcrowd frame --like` does (and, as
+   "_warm", from the true first framing) and compared with the controller
+   filming them itself (theta and phi errors; for orbits also how far and
+   which way they turn);
 4. writes CSV and plots to --out, and with --install copies the weights to
    usdcrowd/cameras/camera_moe.npz (what the package ships).
 """
@@ -99,9 +101,11 @@ def around(cam: np.ndarray) -> float:
 
 
 def retarget_errors(weights: Path, test) -> list[dict]:
-    """Each test clip's behavior, gated from the clip, rolled out: on its own characters, on another
-    clip's characters doing the same kind of motion, and on a clip of another kind of motion; each
-    compared with the controller (same parameters) filming those characters itself."""
+    """Each test clip's behavior, gated from the clip, rolled out: on its own characters (from its first
+    framing), and blind (settled over SETTLE_FRAMES, as `usdcrowd frame --like`) on another clip's
+    characters doing the same kind of motion and on a clip of another kind of motion, the last also from
+    the true first framing ("other_motion_warm"); each compared with the controller (same parameters)
+    filming those characters itself."""
     from usdcrowd.cameras.moe import CameraMoE, camera_angles
     from usdcrowd.cameras.behaviors import BEHAVIORS
     from usdcrowd.cameras.moe_data import refilm
