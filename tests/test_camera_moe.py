@@ -94,12 +94,9 @@ def test_a_learned_orbit_keeps_turning_round_the_pair(moe):
     the camera round them about as far as the orbit does: the median of five clips within 0.67 and 1.5 times,
     each within 0.25 and 4 (the shipped model's single orbits turn 0.3 to 2.4 times as far; an earlier model,
     fed its own absolute predictions, stalled after a second: a tenth)."""
+    from usdcrowd.cameras.moe import turned as turn
+
     rng = np.random.default_rng(11)
-
-    def turn(cam):                                  # degrees the direction from A to the camera travels
-        u = cam[:, 3:6] / np.linalg.norm(cam[:, 3:6], axis=1, keepdims=True)
-        return np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", u[1:], u[:-1]), -1, 1))).sum()
-
     ratios = []
     for kind in ("talking", "side-by-side", "in-line", "circling", "walk-then-talk"):
         clip = make_clip(rng, BEHAVIORS.index("orbit"), frames=480, kind=kind)

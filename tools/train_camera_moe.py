@@ -79,19 +79,14 @@ def paired_references(clips, rng):
     is drawn from ``clips`` only: train and test are paired apart."""
     from usdcrowd.cameras.moe_data import refilm
 
+    unlike = {m: [c for c in clips if c.motion != m] for m in {c.motion for c in clips}}
     chars, cams = [], []
     for clip in clips:
-        others = [c for c in clips if c.motion != clip.motion]
+        others = unlike[clip.motion]
         other = others[int(rng.integers(len(others)))]
         chars.append(other.character)
         cams.append(refilm(other, clip.params))
     return chars, cams
-
-
-def turned(cam: np.ndarray) -> float:
-    """Degrees the direction from A to the camera travels over (t, 6) camera features."""
-    u = cam[:, 3:6] / np.linalg.norm(cam[:, 3:6], axis=1, keepdims=True)
-    return float(np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", u[1:], u[:-1]), -1.0, 1.0))).sum())
 
 
 def around(cam: np.ndarray) -> float:
@@ -106,8 +101,8 @@ def retarget_errors(weights: Path, test) -> list[dict]:
     characters doing the same kind of motion and on a clip of another kind of motion, the last also from
     the true first framing ("other_motion_warm"); each compared with the controller (same parameters)
     filming those characters itself."""
-    from usdcrowd.cameras.moe import CameraMoE, camera_angles
     from usdcrowd.cameras.behaviors import BEHAVIORS
+    from usdcrowd.cameras.moe import CameraMoE, camera_angles, turned
     from usdcrowd.cameras.moe_data import refilm
     from usdcrowd.toric_filming import SETTLE_FRAMES
 
@@ -116,8 +111,6 @@ def retarget_errors(weights: Path, test) -> list[dict]:
     rows = []
     for k, ref in enumerate(test):
         w = model.gate(ref.character, ref.camera)
-        # Starting as `usdcrowd frame --like` does, blind (the new pair's framing is what the model must
-        # find); "_warm" from the truth's first framing, for comparison.
         same = next(c for c in test[k + 1:] + test[:k] if c.motion == ref.motion)
         other = next(c for c in test[k + 1:] + test[:k] if c.motion != ref.motion)
         row = {"behavior": ref.behavior, "shot": ref.shot, "motion": ref.motion,
@@ -125,6 +118,8 @@ def retarget_errors(weights: Path, test) -> list[dict]:
         for name, target, warm in (("own_clip", ref, False), ("same_motion", same, False),
                                    ("other_motion", other, False), ("other_motion_warm", other, True)):
             truth = ref.camera if target is ref else refilm(target, ref.params)
+            # On another pair, blind as `usdcrowd frame --like` starts (the new pair's framing is what the model
+            # must find); "_warm" from the truth's first framing, for comparison.
             cold = target is not ref and not warm
             pred = model.rollout(w, target.character, None if cold else truth[0], settle=SETTLE_FRAMES if cold else 0)
             (theta_p, phi_p), (theta_t, phi_t) = camera_angles(pred), camera_angles(truth)

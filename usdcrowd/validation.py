@@ -149,8 +149,8 @@ def schema_problems(stage, source: str) -> list[Problem]:
     out: list[Problem] = []
     ids: dict[int, str] = {}
 
-    def add(prim, attr, msg):
-        out.append(Problem(source, str(prim.GetPath()), attr, msg, "usdcrowd"))
+    def add(prim, attr, msg, severity="error"):
+        out.append(Problem(source, str(prim.GetPath()), attr, msg, "usdcrowd", severity))
 
     from pxr import UsdSkel
 
@@ -167,7 +167,7 @@ def schema_problems(stage, source: str) -> list[Problem]:
         if tname == "DistantLight":
             problem = _dim_sun_problem(prim)
             if problem:
-                out.append(Problem(source, str(prim.GetPath()), "inputs:normalize", problem, "usdcrowd", "warning"))
+                add(prim, "inputs:normalize", problem, "warning")
         ours = tname in (schema.GROUP, schema.BEHAVIOR_LAYER, schema.INTEREST_POINT, schema.EVENT) \
             or schema.is_agent(prim) or prim.HasAPI(schema.CAMERA_AGENT_API) \
             or prim.HasAPI(schema.SCENERY_API) or prim.HasAPI(schema.TORIC_CAMERA_API)

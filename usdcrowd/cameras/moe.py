@@ -91,6 +91,13 @@ def camera_angles(cam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return 2.0 * np.arctan2(np.hypot(u[:, 1], u[:, 2]), u[:, 0]), np.arctan2(u[:, 2], u[:, 1])
 
 
+def turned(cam: np.ndarray) -> float:
+    """Degrees the direction from A to the camera travels over (t, 6) camera features (an orbit's turn)."""
+    u = np.asarray(cam, dtype=np.float64)[:, 3:6]
+    u = u / np.linalg.norm(u, axis=1, keepdims=True)
+    return float(np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", u[1:], u[:-1]), -1.0, 1.0))).sum())
+
+
 def toric_of_features(cam: np.ndarray, fov_x: float, aspect: float):
     """Toric coordinates (p_a, p_b, theta, phi) of camera features, made valid.
 
