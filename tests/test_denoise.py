@@ -110,3 +110,29 @@ def test_a_missing_denoiser_is_one_clear_line(monkeypatch):
     monkeypatch.setitem(sys.modules, "pyoidn", None)
     with pytest.raises(UsdcrowdError, match="pip install 'usdcrowd\\[final\\]'"):
         require_denoiser()
+
+
+
+def test_a_pinhole_frames_guides_are_trusted_as_clean(walking_museum, reference, monkeypatch):
+    """A pinhole's averaged first hits are noise-free guides: told so (no prefilter), OIDN comes closer.
+
+    Through a lens (defocus) or a shutter (sharp guides, blurred beauty) they are not, and OIDN prefilters.
+    """
+    import usdcrowd.render.final.frame as frame
+
+    oidn, calls = frame.denoise, []
+
+    def spy(color, albedo, normal, clean_aux=False):
+        calls.append((color, albedo, normal, clean_aux))
+        return oidn(color, albedo, normal, clean_aux)
+
+    monkeypatch.setattr(frame, "denoise", spy)
+    for seed in (1, 2, 3):
+        FrameRenderer(walking_museum, None, (W, H), spp=16, max_depth=4, ground_truth=False, denoise=True,
+                      seed=seed).render(FRAME)
+    FrameRenderer(walking_museum, None, (W, H), spp=4, max_depth=2, ground_truth=False, denoise=True,
+                  shutter=0.5, subframes=2).render(FRAME)
+    assert [c[3] for c in calls] == [True, True, True, False]
+    err = {clean: np.mean([relative_mse(oidn(*c[:3], clean_aux=clean), reference) for c in calls[:3]])
+           for clean in (True, False)}
+    assert err[True] < err[False], err

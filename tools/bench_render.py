@@ -22,8 +22,17 @@ scene sync, render and denoising): the relative MSE of usdcrowd's beauty
 (independent and multijitter samples, and multijitter denoised by OIDN, at 4
 to 64 spp) against its own 1,024-spp frame, and of Blender Cycles on the CPU
 (the bpy wheel in its own venv imports the same shot; 64 spp denoised, as
-Blender does by default, and raw) against Cycles' own 512-spp frame. Target:
-Cycles' 64-spp quality in at most a third of its time. Blender's importer reads
+Blender does by default, and raw) against Cycles' own 1,024-spp frame. Target:
+Cycles' 64-spp quality in at most a third of its time.
+
+Each reference is two halves rendered with seeds of their own (never the
+measured frames' seeds: Cycles' default seed is 0 for every render, and its
+first 64 Sobol samples would be shared), and Cycles' with adaptive sampling
+off (left on, as Blender's default, its "512 spp" stopped most pixels early:
+two such references with two seeds differed from each other by as much as
+the 64-spp frame differed from either). The halves give the reference's own
+noise, which the error against it holds too and which is taken out
+(:func:`error_against`); both figures are printed. Blender's importer reads
 UsdLux lights with factors of its own (a DistantLight's intensity times 4, an
 untextured DomeLight left out), so the Cycles script sets each light to what
 UsdLux means (read here with plain usd-core), and gives meshes without a material
@@ -90,13 +99,14 @@ def bench_variant(shot: str, variant: str, frames: int) -> dict:
 
 # ----------------------------------------------------------------- quality against time
 QUALITY_FRAME = 12.0
-REFERENCE_SPP = 1024                 # usdcrowd's converged frame (independent samples, no denoiser)
+REFERENCE_SPP = 1024                 # each renderer's converged frame: two halves, no denoiser
+REFERENCE_SEEDS = (999, 1999)        # usdcrowd's halves (the measured frames use seed 0)
+CYCLES_REFERENCE_SEEDS = (1, 2)      # Cycles' halves (the measured frames use Blender's default, 0)
 CYCLES_SPP = 64
-CYCLES_REFERENCE_SPP = 512
 
 CYCLES_SCRIPT = """
 import bpy, json, math, sys, time
-shot, cam, w, h, spp, denoise, out, frame, lights = sys.argv[1:10]
+shot, cam, w, h, spp, denoise, out, frame, lights, seed, adaptive, warm = sys.argv[1:13]
 bpy.ops.wm.read_factory_settings(use_empty=True)
 bpy.ops.wm.usd_import(filepath=shot)
 sc = bpy.context.scene
@@ -144,15 +154,18 @@ sc.cycles.device = "CPU"
 sc.cycles.samples = int(spp)
 sc.cycles.use_denoising = denoise == "1"
 sc.cycles.max_bounces = 6
+sc.cycles.seed = int(seed)
+sc.cycles.use_adaptive_sampling = adaptive == "1"
 sc.render.resolution_x, sc.render.resolution_y, sc.render.resolution_percentage = int(w), int(h), 100
 sc.camera = bpy.data.objects[cam]
 sc.view_settings.view_transform = "Standard"
 sc.render.image_settings.file_format = "OPEN_EXR"
 sc.render.image_settings.color_depth = "32"
 # Warm up on the frame before, as usdcrowd's frames are timed warm (a sequence pays its start-up once).
-sc.frame_set(int(float(frame)) - 1)
-sc.render.filepath = out + ".warmup.exr"
-bpy.ops.render.render(write_still=True)
+if warm == "1":
+    sc.frame_set(int(float(frame)) - 1)
+    sc.render.filepath = out + ".warmup.exr"
+    bpy.ops.render.render(write_still=True)
 sc.frame_set(int(float(frame)))
 sc.render.filepath = out
 t0 = time.perf_counter()
@@ -197,9 +210,22 @@ def usdlux_lights(shot: str) -> list[dict]:
     return out
 
 
-def relative_mse(x: np.ndarray, ref: np.ndarray) -> float:
-    """Mean of (x - ref)^2 / (ref^2 + 0.01) over pixels and channels."""
-    return float(np.mean((x - ref) ** 2 / (ref ** 2 + 1e-2)))
+def error_against(x: np.ndarray, halves: tuple[np.ndarray, np.ndarray]) -> tuple[float, float]:
+    """Relative MSE of ``x`` against the mean of a reference's two independent halves (each (h, w, 3)).
+
+    Relative MSE: the mean of (x - ref)^2 / (ref^2 + 0.01) over pixels and channels.
+
+    Returns (measured, corrected). ``measured`` holds the reference's own
+    noise too; ``corrected`` takes out its estimate, a quarter of the halves'
+    weighted squared difference (each half has twice the mean's variance),
+    which leaves an unbiased estimate of ``x``'s error against the converged
+    picture when ``x`` shares no samples with the reference.
+    """
+    a, b = halves
+    ref = (a + b) / 2
+    weight = 1.0 / (ref ** 2 + 1e-2)
+    measured = float(np.mean((x - ref) ** 2 * weight))
+    return measured, measured - float(np.mean((a - b) ** 2 * weight)) / 4
 
 
 def _read_rgb(path) -> np.ndarray:
@@ -214,11 +240,15 @@ def _read_rgb(path) -> np.ndarray:
         return np.stack([np.asarray(ch[names[c]].pixels, dtype=np.float32) for c in "RGB"], -1)
 
 
-def cycles_frame(python: str, shot: str, camera: str, spp: int, denoise: bool, out: Path) -> tuple[np.ndarray, float]:
+def cycles_frame(python: str, shot: str, camera: str, spp: int, denoise: bool, out: Path, seed: int = 0,
+                 reference: bool = False) -> tuple[np.ndarray, float]:
+    """Cycles' frame and its time; as Blender renders by default, or (``reference``) without adaptive
+    sampling and without the timed warm-up."""
     script = out.with_suffix(".py")
     script.write_text(CYCLES_SCRIPT)
     run = subprocess.run([python, str(script), shot, camera, str(RESOLUTION[0]), str(RESOLUTION[1]), str(spp),
-                          "1" if denoise else "0", str(out), str(QUALITY_FRAME), json.dumps(usdlux_lights(shot))],
+                          "1" if denoise else "0", str(out), str(QUALITY_FRAME), json.dumps(usdlux_lights(shot)),
+                          str(seed), "0" if reference else "1", "0" if reference else "1"],
                          capture_output=True, text=True)
     if run.returncode != 0:
         raise RuntimeError(run.stderr[-2000:])
@@ -227,11 +257,15 @@ def cycles_frame(python: str, shot: str, camera: str, spp: int, denoise: bool, o
 
 
 def bench_quality(shot: str, camera: str = "/World/Cameras/Overview") -> dict:
-    """Relative MSE against each renderer's own converged frame, and the time it took (one frame)."""
+    """Relative MSE against each renderer's own converged frame, and the time it took (one frame).
+
+    Each error is (measured, corrected), as :func:`error_against` gives them.
+    """
     from usdcrowd.render.final.frame import FrameRenderer
 
-    ref = FrameRenderer(shot, camera, RESOLUTION, REFERENCE_SPP, MAX_DEPTH, ground_truth=False,
-                        sampler="independent", seed=999).render(QUALITY_FRAME).beauty
+    halves = tuple(FrameRenderer(shot, camera, RESOLUTION, REFERENCE_SPP // 2, MAX_DEPTH, ground_truth=False,
+                                 seed=seed).render(QUALITY_FRAME).beauty for seed in REFERENCE_SEEDS)
+    ref = (halves[0] + halves[1]) / 2
     ours = {}
     for name, sampler, denoise in (("independent", "independent", False), ("multijitter", "multijitter", False),
                                    ("multijitter + OIDN", "multijitter", True)):
@@ -243,7 +277,7 @@ def bench_quality(shot: str, camera: str = "/World/Cameras/Overview") -> dict:
             res = r.render(QUALITY_FRAME)
             # A frame's whole cost, as Cycles' is timed: posing and BVH update, beauty, denoising.
             seconds = res.seconds["update"] + res.seconds["beauty"] + res.seconds["denoise"]
-            ours[(name, spp)] = (relative_mse(res.beauty, ref), seconds)
+            ours[(name, spp)] = (error_against(res.beauty, halves), seconds)
             if spp == CYCLES_SPP and denoise:
                 ours_frame = res.beauty
     out = {"ours": ours}
@@ -255,20 +289,20 @@ def bench_quality(shot: str, camera: str = "/World/Cameras/Overview") -> dict:
     except BaseException as exc:                                  # pytest.skip raises a BaseException
         out["cycles"] = f"Blender's bpy is not installed here ({exc}): Cycles not measured"
         return out
+    cam = camera.rsplit("/", 1)[-1]
     with tempfile.TemporaryDirectory() as tmp:
-        cref, cref_s = cycles_frame(python, shot, camera.rsplit("/", 1)[-1], CYCLES_REFERENCE_SPP, False,
-                                    Path(tmp) / "ref.exr")
-        c64, c64_s = cycles_frame(python, shot, camera.rsplit("/", 1)[-1], CYCLES_SPP, True, Path(tmp) / "c64.exr")
-        c64raw, c64raw_s = cycles_frame(python, shot, camera.rsplit("/", 1)[-1], CYCLES_SPP, False,
-                                        Path(tmp) / "c64raw.exr")
-    out["cycles"] = {"denoised": (relative_mse(c64, cref), c64_s), "raw": (relative_mse(c64raw, cref), c64raw_s),
-                     "reference_seconds": cref_s}
+        chalves = tuple(cycles_frame(python, shot, cam, REFERENCE_SPP // 2, False, Path(tmp) / f"ref{seed}.exr",
+                                     seed=seed, reference=True)[0] for seed in CYCLES_REFERENCE_SEEDS)
+        c64, c64_s = cycles_frame(python, shot, cam, CYCLES_SPP, True, Path(tmp) / "c64.exr")
+        c64raw, c64raw_s = cycles_frame(python, shot, cam, CYCLES_SPP, False, Path(tmp) / "c64raw.exr")
+    out["cycles"] = {"denoised": (error_against(c64, chalves), c64_s),
+                     "raw": (error_against(c64raw, chalves), c64raw_s)}
+    mine = ours[("multijitter + OIDN", CYCLES_SPP)]
     out["figure"] = comparison_figure(
-        [(ours_frame, f"usdcrowd {CYCLES_SPP} spp + OIDN: relMSE {ours[('multijitter + OIDN', CYCLES_SPP)][0]:.5f}, "
-                      f"{ours[('multijitter + OIDN', CYCLES_SPP)][1]:.2f} s"),
-         (c64, f"Cycles {CYCLES_SPP} spp denoised: relMSE {out['cycles']['denoised'][0]:.5f}, {c64_s:.2f} s"),
+        [(ours_frame, f"usdcrowd {CYCLES_SPP} spp + OIDN: relMSE {mine[0][1]:.5f}, {mine[1]:.2f} s"),
+         (c64, f"Cycles {CYCLES_SPP} spp denoised: relMSE {out['cycles']['denoised'][0][1]:.5f}, {c64_s:.2f} s"),
          (ref, f"usdcrowd {REFERENCE_SPP} spp (its reference)"),
-         (cref, f"Cycles {CYCLES_REFERENCE_SPP} spp (its reference)")], FIGURE)
+         ((chalves[0] + chalves[1]) / 2, f"Cycles {REFERENCE_SPP} spp (its reference)")], FIGURE)
     return out
 
 
@@ -297,26 +331,26 @@ def comparison_figure(panels: list[tuple[np.ndarray, str]], path: Path) -> str:
 
 def print_quality(q: dict) -> None:
     print(f"  noise against time, frame {QUALITY_FRAME:g}, {RESOLUTION[0]}x{RESOLUTION[1]}, max depth {MAX_DEPTH} "
-          f"(relative MSE against the same renderer's converged frame: usdcrowd {REFERENCE_SPP} spp, "
-          f"Cycles {CYCLES_REFERENCE_SPP} spp)")
-    for (name, spp), (err, sec) in q["ours"].items():
-        print(f"    usdcrowd {name:<20} {spp:3d} spp  relMSE {err:.5f}  {sec:.2f} s")
+          f"(relative MSE against the same renderer's {REFERENCE_SPP}-spp frame, as measured / with the "
+          f"reference's own noise taken out)")
+    for (name, spp), ((measured, err), sec) in q["ours"].items():
+        print(f"    usdcrowd {name:<20} {spp:3d} spp  relMSE {measured:.5f} / {err:.5f}  {sec:.2f} s")
     c = q["cycles"]
     if isinstance(c, str):
         print(f"    {c}")
         return
-    (ce, cs), (re_, rs) = c["denoised"], c["raw"]
+    ((cm, ce), cs), ((rm, re_), rs) = c["denoised"], c["raw"]
     print(f"    side by side: {q['figure']}")
-    print(f"    Cycles CPU {CYCLES_SPP} spp, denoised (Blender's default)  relMSE {ce:.5f}  {cs:.2f} s")
-    print(f"    Cycles CPU {CYCLES_SPP} spp, raw                         relMSE {re_:.5f}  {rs:.2f} s")
+    print(f"    Cycles CPU {CYCLES_SPP} spp, denoised (Blender's default)  relMSE {cm:.5f} / {ce:.5f}  {cs:.2f} s")
+    print(f"    Cycles CPU {CYCLES_SPP} spp, raw                         relMSE {rm:.5f} / {re_:.5f}  {rs:.2f} s")
     for label, (target, seconds) in (("denoised", (ce, cs)), ("raw", (re_, rs))):
-        best = [(sec, spp, name) for (name, spp), (err, sec) in q["ours"].items() if err <= target]
+        best = [(sec, spp, name) for (name, spp), ((_, err), sec) in q["ours"].items() if err <= target]
         if best:
             sec, spp, name = min(best)
             print(f"    usdcrowd reaches Cycles' {label} 64-spp quality with {name} at {spp} spp in {sec:.2f} s: "
                   f"{seconds / sec:.1f}x faster" + ("  [target: >= 3x]" if label == "denoised" else ""))
         else:
-            err, sec, spp, name = min((err, sec, spp, name) for (name, spp), (err, sec) in q["ours"].items())
+            err, sec, spp, name = min((err, sec, spp, name) for (name, spp), ((_, err), sec) in q["ours"].items())
             print(f"    usdcrowd does not reach Cycles' {label} 64-spp quality at up to 64 spp; its best, {name} at "
                   f"{spp} spp: {err / target:.2f}x Cycles' error in {sec / seconds:.2f}x its time"
                   + ("  [target: the same quality in a third of Cycles' time: not met]" if label == "denoised" else ""))

@@ -11,6 +11,19 @@ three lights, at 640x360: relative MSE 0.0029 in 1.00 s against 0.0073 in
 0.65 s at 16 spp, 0.00081 in 3.9 s against 0.00168 in 2.5 s at 64 spp (1.3
 to 1.6 times less noise per second).
 
+The bounce direction is drawn from a mixture: a cosine-weighted direction
+with probability :data:`DIFFUSE_SHARE`, else the BSDF's own sample. Mitsuba's
+principled BSDF picks its specular lobe half the time, though a dielectric's
+specular lobe (F0 0.04) carries about a twentieth of what it reflects, so
+half the bounces went where little light comes from. The mixture's density
+(both parts) weighs each bounce and the MIS against the shadow rays; one 2D
+sample both picks the part and, rescaled, draws the direction, so the
+cosine directions stay stratified. On the bench frame (200-person museum,
+640x360, 64 spp, multijitter) the noise of a frame fell from 0.00057 to
+0.00034 (relative MSE between two seeds / 2) for 15 % more time; shares of
+0.5 and 0.9 gave 0.00038 and 0.00039. With only diffuse materials it is
+0.00019: the rest is the specular lobe's own noise.
+
 With more than :data:`MAX_LIGHTS` lights the shadow rays would cost more
 than they save, and the scalar fallback variant has no JIT masks: ``path``
 is used there.
@@ -20,6 +33,8 @@ from __future__ import annotations
 
 # Above this many lights, Mitsuba's own one-light-per-vertex path tracer.
 MAX_LIGHTS = 4
+# The share of bounces drawn cosine-weighted (the rest: the BSDF's own sampling); in [0, 1).
+DIFFUSE_SHARE = 0.75
 NAME = "crowd_path"
 _REGISTERED = []
 
@@ -59,6 +74,14 @@ def _make_class(mi):
             super().__init__(props)
             self.max_depth = props.get("max_depth", 6)
             self.rr_depth = props.get("rr_depth", 5)
+            self.diffuse_share = props.get("diffuse_share", DIFFUSE_SHARE)
+            if not 0.0 <= self.diffuse_share < 1.0:
+                raise ValueError(f"diffuse_share must be in [0, 1), not {self.diffuse_share}")
+
+        def _mixture_pdf(self, bsdf_pdf, wo_local):
+            """Density of the bounce mixture at ``wo_local``, given the BSDF's own sampling density there."""
+            share = self.diffuse_share
+            return share * mi.warp.square_to_cosine_hemisphere_pdf(wo_local) + (1 - share) * bsdf_pdf
 
         @dr.syntax
         def sample(self, scene, sampler, ray, medium=None, active=True):
@@ -92,16 +115,31 @@ def _make_class(mi):
                     shadow = si.spawn_ray(ds_l.d) if infinite else si.spawn_ray_to(ds_l.p)
                     seen = lit & (ds_l.pdf > 0)
                     seen &= ~scene.ray_test(shadow, seen)
-                    f, bsdf_pdf = bsdf.eval_pdf(ctx, si, si.to_local(ds_l.d), seen)
+                    wl = si.to_local(ds_l.d)
+                    f, bsdf_pdf = bsdf.eval_pdf(ctx, si, wl, seen)
+                    bsdf_pdf = self._mixture_pdf(bsdf_pdf, wl)
                     mis = dr.select(ds_l.delta, 1.0, ds_l.pdf / (ds_l.pdf + bsdf_pdf))
                     result[seen] += beta * f * value * mis
 
-                bs, bsdf_weight = bsdf.sample(ctx, si, sampler.next_1d(), sampler.next_2d(), go_on)
-                beta *= bsdf_weight
-                ray = si.spawn_ray(si.to_world(bs.wo))
+                # The bounce: cosine-weighted (u.x < share, rescaled) or the BSDF's own sample.
+                share = self.diffuse_share
+                u = sampler.next_2d()
+                pick = sampler.next_1d()
+                cosine = u.x < share
+                wo_cosine = mi.warp.square_to_cosine_hemisphere(mi.Point2f(u.x / share, u.y))
+                bs, bsdf_weight = bsdf.sample(ctx, si, pick, mi.Point2f((u.x - share) / (1 - share), u.y),
+                                              go_on & ~cosine)
+                # A cut-out's pass-through (null) or a mirror (delta) has no density to mix: its own weight,
+                # over the share of bounces that could draw it.
+                delta = ~cosine & mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta | mi.BSDFFlags.Null)
+                wo = dr.select(cosine, wo_cosine, bs.wo)
+                f, bsdf_pdf = bsdf.eval_pdf(ctx, si, wo, go_on & ~delta)
+                mixture_pdf = self._mixture_pdf(bsdf_pdf, wo)
+                beta *= dr.select(delta, bsdf_weight / (1 - share), dr.select(mixture_pdf > 0, f / mixture_pdf, 0.0))
+                ray = si.spawn_ray(si.to_world(wo))
                 prev_si = dr.detach(si, True)
-                prev_bsdf_pdf = bs.pdf
-                prev_bsdf_delta = mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
+                prev_bsdf_pdf = mixture_pdf
+                prev_bsdf_delta = delta
                 depth[si.is_valid()] += 1
                 # Russian roulette from rr_depth on, as Mitsuba's path integrator.
                 survive = dr.minimum(dr.max(beta), 0.95)
