@@ -271,9 +271,9 @@ def bench_quality(shot: str, camera: str = "/World/Cameras/Overview") -> dict:
                                    ("multijitter + OIDN", "multijitter", True)):
         r = FrameRenderer(shot, camera, RESOLUTION, 4, MAX_DEPTH, ground_truth=False, sampler=sampler,
                           denoise=denoise)
-        r.render(QUALITY_FRAME)                                   # warm-up: kernels compile here
         for spp in (4, 8, 16, 32, 64):
             r.spp = spp
+            r.render(QUALITY_FRAME)         # a new sample count can mean a new kernel: compiled here, untimed
             res = r.render(QUALITY_FRAME)
             # A frame's whole cost, as Cycles' is timed: posing and BVH update, beauty, denoising.
             seconds = res.seconds["update"] + res.seconds["beauty"] + res.seconds["denoise"]
