@@ -100,7 +100,7 @@ def bench_variant(shot: str, variant: str, frames: int) -> dict:
 # ----------------------------------------------------------------- quality against time
 QUALITY_FRAME = 12.0
 REFERENCE_SPP = 1024                 # each renderer's converged frame: two halves, no denoiser
-REFERENCE_SEEDS = (999, 1999)        # usdcrowd's halves (the measured frames use seed 0)
+REFERENCE_SEEDS = (999, 1999)        # usdcrowd's halves (the measured frames use base seed 0)
 CYCLES_REFERENCE_SEEDS = (1, 2)      # Cycles' halves (the measured frames use Blender's default, 0)
 CYCLES_SPP = 64
 
@@ -218,8 +218,9 @@ def error_against(x: np.ndarray, halves: tuple[np.ndarray, np.ndarray]) -> tuple
     Returns (measured, corrected). ``measured`` holds the reference's own
     noise too; ``corrected`` takes out its estimate, a quarter of the halves'
     weighted squared difference (each half has twice the mean's variance),
-    which leaves an unbiased estimate of ``x``'s error against the converged
-    picture when ``x`` shares no samples with the reference.
+    which leaves an estimate of ``x``'s error against the converged picture
+    when ``x`` shares no samples with the reference (approximately unbiased:
+    the weight is taken from the noisy mean).
     """
     a, b = halves
     ref = (a + b) / 2
