@@ -112,7 +112,6 @@ def test_a_missing_denoiser_is_one_clear_line(monkeypatch):
         require_denoiser()
 
 
-
 def test_a_pinhole_frames_guides_are_trusted_as_clean(walking_museum, reference, monkeypatch):
     """A pinhole's averaged first hits are noise-free guides: told so (no prefilter), OIDN comes closer.
 

@@ -21,9 +21,10 @@ cosine directions stay stratified. The cosine part is drawn on the side
 the path arrives from, so a back face (which a one-sided BSDF does not
 reflect from) wastes those bounces but never gets a wrong density. On the
 same frame the noise fell from 0.00057 to 0.00034 in the same time (2.90 s
-against 2.88); shares of 0.5 and 0.9 gave 0.00038 and 0.00039. With only diffuse materials it is 0.00019: the
-rest is the specular lobe's own noise. Shadow rays towards lights behind a
-surface that only reflects are not traced (the same frame, 11 % sooner).
+against 2.88); shares of 0.5 and 0.9 gave 0.00038 and 0.00039. With only
+diffuse materials it is 0.00019: the rest is the specular lobe's own
+noise. Shadow rays towards lights behind a surface that only reflects are
+not traced (the same frame, 11 % sooner).
 
 With more than :data:`MAX_LIGHTS` lights the shadow rays would cost more
 than they save, and the scalar fallback variant has no JIT masks: ``path``
@@ -138,8 +139,8 @@ def _make_class(mi):
                 bs, bsdf_weight = bsdf.sample(ctx, si, pick, mi.Point2f((u.x - share) / (1 - share), u.y),
                                               go_on & ~cosine)
                 # A cut-out's pass-through (null) or a mirror (delta) has no density to mix: its own weight,
-                # over the share of bounces that could draw it.
-                delta = ~cosine & mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta | mi.BSDFFlags.Null)
+                # over the share of bounces that could draw it (Mitsuba's Delta flags include Null).
+                delta = ~cosine & mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
                 wo = dr.select(cosine, wo_cosine, bs.wo)
                 f, bsdf_pdf = bsdf.eval_pdf(ctx, si, wo, go_on & ~delta)
                 mixture_pdf = self._mixture_pdf(bsdf_pdf, wo, si.wi)
