@@ -48,14 +48,14 @@ def test_the_chosen_sampler_has_less_noise_than_independent_samples(walking_muse
     assert err["multijitter"] * 1.5 < err["independent"], err
 
 
-def test_denoising_brings_a_16_spp_frame_twice_as_close(walking_museum, reference):
-    # With a shadow ray to every light (render.final.integrator) the raw frame is itself three times
-    # as close as with Mitsuba's one-light path tracer (0.0022 against 0.0067 here; denoised 0.0010
-    # against 0.0019), so the denoiser's own share shrank from 3x.
+def test_denoising_brings_a_16_spp_frame_half_as_close_again(walking_museum, reference):
+    # The better the raw frame, the less the denoiser adds: 0.0067 -> 0.0019 with Mitsuba's one-light
+    # path tracer, 0.0022 -> 0.0010 with a shadow ray to every light, 0.00078 -> 0.00041 with the
+    # bounce mixture and analytic lights (render.final.integrator, .lights).
     noisy = FrameRenderer(walking_museum, None, (W, H), spp=16, max_depth=4, ground_truth=False, denoise=True, seed=1)
     r = noisy.render(FRAME)
     e_raw, e_den = relative_mse(r.raw, reference), relative_mse(r.beauty, reference)
-    if not e_den * 2 < e_raw:
+    if not e_den * 1.5 < e_raw:
         where = _save_failure("denoise", r.raw, r.beauty, reference)
         pytest.fail(f"relative MSE raw {e_raw:.5f}, denoised {e_den:.5f}; raw, denoised, reference in {where}")
     # The picture's level is kept: mean within 3 % of the converged frame's.

@@ -272,7 +272,7 @@ def bench_quality(shot: str, camera: str = "/World/Cameras/Overview") -> dict:
                                    ("multijitter + OIDN", "multijitter", True)):
         r = FrameRenderer(shot, camera, RESOLUTION, 4, MAX_DEPTH, ground_truth=False, sampler=sampler,
                           denoise=denoise)
-        for spp in (4, 8, 16, 32, 64):
+        for spp in (4, 8, 16, 24, 32, 48, 64):
             r.spp = spp
             r.render(QUALITY_FRAME)         # a new sample count can mean a new kernel: compiled here, untimed
             res = r.render(QUALITY_FRAME)

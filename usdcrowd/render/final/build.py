@@ -99,8 +99,9 @@ def build_scene(shot: ShotScene, cam: CameraView, width: int, height: int, spp: 
         Beauty samples per pixel.
     max_depth : int
         Longest light path (2 = direct light only); the path tracer is
-        :mod:`.integrator`'s (a shadow ray to every light) for up to
-        ``integrator.MAX_LIGHTS`` lights, Mitsuba's ``path`` above.
+        :mod:`.integrator`'s (a shadow ray to every light but a uniform sky)
+        for up to ``integrator.MAX_LIGHTS`` such lights, Mitsuba's ``path``
+        above.
     time : float
         Time code the agents and animated scenery are first posed at.
     sampler : str
@@ -112,8 +113,9 @@ def build_scene(shot: ShotScene, cam: CameraView, width: int, height: int, spp: 
     """
     import mitsuba as mi
 
-    # A stage without lights gets one default sky (below).
-    integrator = integrator_dict(max(len(shot.lights), 1), max_depth)
+    # A uniform sky (and the default one a stage without lights gets, below) takes no shadow rays.
+    integrator = integrator_dict(sum(not (light.kind == "dome" and not light.texture) for light in shot.lights),
+                                 max_depth)
     scene: dict = {"type": "scene", "integrator": integrator,
                    SENSOR_KEY: sensor_dict(cam, width, height, spp, sampler=sampler)}
     id_paths: dict[int, str] = {}

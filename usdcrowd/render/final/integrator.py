@@ -26,23 +26,33 @@ diffuse materials it is 0.00019: the rest is the specular lobe's own
 noise. Shadow rays towards lights behind a surface that only reflects are
 not traced (the same frame, 11 % sooner).
 
-With more than :data:`MAX_LIGHTS` lights the shadow rays would cost more
-than they save, and the scalar fallback variant has no JIT masks: ``path``
-is used there.
+A uniform sky (Mitsuba's ``constant``, a DomeLight without a texture) gets
+no shadow rays: Mitsuba samples it uniformly over the sphere, which the
+cosine-weighted bounce beats on every diffuse surface, and the bounce that
+escapes finds it anyway, so it takes the whole weight there. On the museum
+frame: 12 % sooner with 11 % less noise. A textured dome keeps its shadow
+rays (its importance sampling finds a bright sun in the texture).
+
+With more than :data:`MAX_LIGHTS` lights that get shadow rays, they would
+cost more than they save, and the scalar fallback variant has no JIT
+masks: ``path`` is used there.
 """
 
 from __future__ import annotations
 
-# Above this many lights, Mitsuba's own one-light-per-vertex path tracer.
+# Above this many lights with shadow rays (a uniform sky has none), Mitsuba's own one-light-per-vertex path tracer.
 MAX_LIGHTS = 4
 # The share of bounces drawn cosine-weighted (the rest: the BSDF's own sampling); in [0, 1).
 DIFFUSE_SHARE = 0.75
 NAME = "crowd_path"
+# Mitsuba's uniform sky (``constant``): reached by bounces only, no shadow rays.
+UNIFORM_SKY = "ConstantBackgroundEmitter"
 _REGISTERED = []
 
 
 def integrator_dict(n_lights: int, max_depth: int) -> dict:
-    """The scene dict's integrator for a scene with ``n_lights`` emitters (in the active variant)."""
+    """The scene dict's integrator for a scene with ``n_lights`` emitters that get shadow rays (in the active
+    variant; a uniform sky does not count)."""
     import mitsuba as mi
 
     # The scalar fallback (no LLVM) keeps Mitsuba's own: the vectorised masks here are JIT ones.
@@ -99,7 +109,9 @@ def _make_class(mi):
             prev_si = dr.zeros(mi.SurfaceInteraction3f)
             prev_bsdf_pdf = mi.Float(1.0)
             prev_bsdf_delta = mi.Bool(True)
-            emitters = scene.emitters()
+            # A uniform sky gets no shadow rays (see the module's docstring); a scene has one sky at most.
+            emitters = [e for e in scene.emitters() if e.class_name() != UNIFORM_SKY]
+            sky_has_shadow_rays = len(emitters) == len(scene.emitters())
             while dr.hint(active, max_iterations=self.max_depth, label="crowd_path"):
                 si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.All, coherent=(depth == 0))
                 # A light reached by BSDF sampling (or seen by the camera): MIS against its shadow ray.
@@ -108,7 +120,9 @@ def _make_class(mi):
                 light_pdf = mi.Float(0.0)
                 if ~prev_bsdf_delta:
                     light_pdf = emitter.pdf_direction(prev_si, ds)
-                weight = dr.select(prev_bsdf_delta, 1.0, prev_bsdf_pdf / (prev_bsdf_pdf + light_pdf))
+                if dr.hint(not sky_has_shadow_rays, mode="scalar"):     # found by the bounces alone
+                    light_pdf = dr.select(mi.has_flag(emitter.flags(), mi.EmitterFlags.Infinite), 0.0, light_pdf)
+                weight = dr.select(prev_bsdf_delta, 1.0, _balance(prev_bsdf_pdf, light_pdf))
                 result += beta * weight * emitter.eval(si)
 
                 go_on = (depth + 1 < self.max_depth) & si.is_valid()
@@ -126,7 +140,7 @@ def _make_class(mi):
                     seen &= ~scene.ray_test(shadow, seen)
                     f, bsdf_pdf = bsdf.eval_pdf(ctx, si, wl, seen)
                     bsdf_pdf = self._mixture_pdf(bsdf_pdf, wl, si.wi)
-                    mis = dr.select(ds_l.delta, 1.0, ds_l.pdf / (ds_l.pdf + bsdf_pdf))
+                    mis = dr.select(ds_l.delta, 1.0, _balance(ds_l.pdf, bsdf_pdf))
                     result[seen] += beta * f * value * mis
 
                 # The bounce: cosine-weighted (u.x < share, rescaled) or the BSDF's own sample.
@@ -158,3 +172,12 @@ def _make_class(mi):
             return result, mi.Bool(True), []
 
     return AllLightsPath
+
+
+def _balance(pdf, other_pdf):
+    """The balance heuristic's weight of the technique with density ``pdf`` (0 where it is not finite,
+    as at a light's grazing edge: Mitsuba's ``path`` guards the same way)."""
+    import drjit as dr
+
+    w = pdf / (pdf + other_pdf)
+    return dr.select(dr.isfinite(w), w, 0.0)

@@ -6,18 +6,20 @@ same arbitrary unit, the way Hydra's path tracers do. With
 times the colour-temperature tint (both from :class:`ShotScene.Light`):
 
 - SphereLight, RectLight, DiskLight, CylinderLight: emitted radiance
-  ``L = I * c`` on the light's surface (``area`` emitter on a mesh); with
-  ``inputs:normalize`` the radiance is divided by the surface area, so the
-  power no longer depends on the size (UsdLux's definition).
+  ``L = I * c`` on the light's surface (``area`` emitter on a mesh; on
+  Mitsuba's analytic ``sphere`` for a SphereLight whose transform scales
+  evenly, which samples the cone the sphere subtends instead of its whole
+  area); with ``inputs:normalize`` the radiance is divided by the surface
+  area, so the power no longer depends on the size (UsdLux's definition).
 - DistantLight: irradiance on a surface facing the light ``E = I * c``
   with ``inputs:normalize`` on; unnormalised, UsdLux makes ``I`` the disc's
   luminance, so ``E`` is that times the disc's size factor (read once, in
   :func:`usdcrowd.shading.distant_illuminance`).
   With ``inputs:angle`` (its angular diameter, 0.53 degrees for the sun by
   default) it is a disc of that angular size far away (``area`` emitter on
-  a disc DISTANT_DISC_DISTANCE metres off, radiance ``E`` over the disc's
-  solid angle), so shadows get the penumbra the angle gives; with angle 0,
-  Mitsuba's ``directional`` emitter (hard shadows).
+  Mitsuba's analytic ``disk`` DISTANT_DISC_DISTANCE metres off, radiance
+  ``E`` over the disc's solid angle), so shadows get the penumbra the angle
+  gives; with angle 0, Mitsuba's ``directional`` emitter (hard shadows).
 - DomeLight: radiance ``L = I * c`` from every direction (``constant``), or
   the latitude-longitude texture times ``I * c`` (``envmap``). A
   DomeLight's top pole is its +Y axis whatever the stage's up axis (UsdLux:
@@ -36,7 +38,7 @@ import numpy as np
 
 from ...shading import LIGHT_ID_BASE
 from ..scene import Light
-from .meshes import make_mesh
+from .meshes import GTID_ATTRIBUTE, id_texture, make_mesh
 
 # Far enough that the sun's direction varies by 0.06 degrees across a 10 m scene, near enough for float32.
 DISTANT_DISC_DISTANCE = 1.0e4
@@ -90,30 +92,42 @@ def _light_geometry(light: Light):
     raise ValueError(light.kind)
 
 
-def _distant_disc(key: str, k: int, direction: np.ndarray, angle: float, irradiance: np.ndarray):
+def _distant_disc(key: str, k: int, direction: np.ndarray, angle: float, irradiance: np.ndarray) -> dict:
     """A disc of angular diameter ``angle`` (radians) far along ``-direction`` whose irradiance is ``irradiance``.
 
     Radiance L over the disc's solid angle 2 pi (1 - cos(angle / 2)) gives the
     irradiance E on a surface facing it: L = E / (pi sin^2(angle / 2)).
+    Mitsuba's analytic disk, not a polygon: as a 64-gon mesh the beauty took
+    16 % longer and the disc lost 0.16 % of its area.
     """
     import mitsuba as mi
 
     half = 0.5 * angle
     radius = DISTANT_DISC_DISTANCE * np.tan(half)
     radiance = irradiance / (np.pi * np.sin(half) ** 2)
-    a = np.linspace(0, 2 * np.pi, 65)[:-1]
-    disc = np.vstack([[0, 0, 0], np.stack([np.cos(a), np.sin(a), np.zeros_like(a)], -1) * radius])
-    idx = np.arange(1, 65)
-    faces = np.stack([np.zeros_like(idx), idx, np.roll(idx, -1)], -1)      # faces +Z (toward the scene below)
     z = -direction                                                          # from the scene toward the light
-    x = np.cross([0.0, 0.0, 1.0] if abs(z[2]) < 0.9 else [1.0, 0.0, 0.0], z)
-    x /= np.linalg.norm(x)
-    y = np.cross(z, x)
-    world = (disc @ np.stack([x, y, z])) + z * DISTANT_DISC_DISTANCE
-    emitter = mi.load_dict({"type": "area", "radiance": {"type": "rgb", "value": radiance.tolist()}})
-    black = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.0, 0.0, 0.0]}})
-    # Faces must face the scene: the disc's normal is its local +Z mapped to -z (toward the scene).
-    return make_mesh(key, world, faces[:, ::-1], 0, bsdf=black, emitter=emitter)
+    up = [0.0, 0.0, 1.0] if abs(z[2]) < 0.9 else [1.0, 0.0, 0.0]
+    # look_at points the disk's local +Z, its emitting side, from the disc toward the scene.
+    T = mi.ScalarTransform4f
+    to_world = T().look_at(origin=(z * DISTANT_DISC_DISTANCE).tolist(), target=[0.0, 0.0, 0.0], up=up) @ T().scale(
+        [radius, radius, 1.0])
+    return {"type": "disk", "to_world": to_world, "emitter": _area_emitter(radiance), "bsdf": _black(),
+            GTID_ATTRIBUTE: id_texture(0)}
+
+
+def _area_emitter(radiance) -> dict:
+    return {"type": "area", "radiance": {"type": "rgb", "value": np.asarray(radiance, float).tolist()}}
+
+
+def _black() -> dict:
+    """A light's surface reflects nothing (Mitsuba would give it a diffuse BSDF)."""
+    return {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.0, 0.0, 0.0]}}
+
+
+def _even_scale(m3: np.ndarray) -> float | None:
+    """The scale of a rotation times an even scale (what Mitsuba's sphere allows), else None."""
+    sv = np.linalg.svd(np.asarray(m3, float), compute_uv=False)
+    return float(sv[0]) if sv[-1] > 0 and sv[0] - sv[-1] <= 1e-6 * sv[0] else None
 
 
 def emitters(lights: list[Light], up_axis: str = "Z") -> dict:
@@ -156,12 +170,17 @@ def emitters(lights: list[Light], up_axis: str = "Z") -> dict:
                             "to_world": mi.ScalarTransform4f(m.tolist())}
             else:
                 out[key] = {"type": "constant", "radiance": {"type": "rgb", "value": value}}
+        elif light.kind == "sphere" and _even_scale(light.to_world[:3, :3]) is not None:
+            # Analytic: shadow rays sample the cone the sphere subtends (a mesh's area samples waste
+            # the far half; the museum's frame took 10 % longer, with 12 % more noise).
+            out[key] = {"type": "sphere", "center": light.to_world[3, :3].tolist(),
+                        "radius": max(light.radius, 1e-3) * _even_scale(light.to_world[:3, :3]),
+                        "emitter": _area_emitter(value), "bsdf": _black(), GTID_ATTRIBUTE: id_texture(light_id(k))}
         else:
             v, f, n = _light_geometry(light)
             world = v @ light.to_world[:3, :3] + light.to_world[3, :3]
             if n is not None:
                 n = n @ light.to_world[:3, :3]
-            emitter = mi.load_dict({"type": "area", "radiance": {"type": "rgb", "value": value}})
-            black = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.0, 0.0, 0.0]}})
-            out[key] = make_mesh(key, world, f, light_id(k), normals=n, bsdf=black, emitter=emitter)
+            out[key] = make_mesh(key, world, f, light_id(k), normals=n, bsdf=mi.load_dict(_black()),
+                                 emitter=mi.load_dict(_area_emitter(value)))
     return out

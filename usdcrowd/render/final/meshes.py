@@ -1,10 +1,11 @@
 """numpy triangles -> Mitsuba meshes that carry their ground-truth id.
 
-Every shape in the scene is an ``mi.Mesh`` with a face attribute
-``face_gtid``: the id of the agent or scenery prim each triangle belongs to.
-The ground-truth pass reads it at the hit with ``eval_attribute_3``, so ids
-never depend on the order of ``scene.shapes()`` (which changes between runs).
-An id is split in two 16-bit halves stored as floats, ``(id >> 16, id &
+Every mesh in the scene has a face attribute ``face_gtid``: the id of the
+agent or scenery prim each triangle belongs to; the analytic shapes of
+lights (spheres, the sun's disc) carry theirs as a constant texture under
+the same name (:func:`id_texture`). The ground-truth pass reads it at the
+hit with ``eval_attribute_3``, so ids never depend on the order of
+``scene.shapes()`` (which changes between runs). An id is split in two 16-bit halves stored as floats, ``(id >> 16, id &
 0xFFFF, 0)``: float32 holds every integer below 2**24 exactly, but scenery
 ids start at 2**24.
 """
@@ -26,6 +27,14 @@ def decode_ids(halves: np.ndarray) -> np.ndarray:
     """(..., 3) float halves (as read at hits) -> (...) uint32 ids."""
     h = np.rint(np.asarray(halves)).astype(np.uint32)
     return (h[..., 0] << 16) | h[..., 1]
+
+
+def id_texture(shape_id: int):
+    """A constant texture holding ``shape_id`` (encoded as :func:`encode_ids`), for a shape without faces."""
+    import mitsuba as mi
+
+    texel = encode_ids(np.array([shape_id])).reshape(1, 1, 3)
+    return mi.load_dict({"type": "bitmap", "bitmap": mi.Bitmap(texel), "raw": True, "filter_type": "nearest"})
 
 
 def float_buffer(values: np.ndarray):
