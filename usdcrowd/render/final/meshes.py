@@ -2,12 +2,12 @@
 
 Every mesh in the scene has a face attribute ``face_gtid``: the id of the
 agent or scenery prim each triangle belongs to; the analytic shapes of
-lights (spheres, the sun's disc) carry theirs as a constant texture under
-the same name (:func:`id_texture`). The ground-truth pass reads it at the
-hit with ``eval_attribute_3``, so ids never depend on the order of
-``scene.shapes()`` (which changes between runs). An id is split in two 16-bit halves stored as floats, ``(id >> 16, id &
-0xFFFF, 0)``: float32 holds every integer below 2**24 exactly, but scenery
-ids start at 2**24.
+sphere lights carry theirs as a constant texture under the same name
+(:func:`id_texture`). The ground-truth pass reads it at the hit with
+``eval_attribute_3``, so ids never depend on the order of
+``scene.shapes()`` (which changes between runs). An id is split in two
+16-bit halves stored as floats, ``(id >> 16, id & 0xFFFF, 0)``: float32
+holds every integer below 2**24 exactly, but scenery ids start at 2**24.
 """
 
 from __future__ import annotations
