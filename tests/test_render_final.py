@@ -362,6 +362,49 @@ def test_lights_follow_the_documented_radiometric_mapping():
     assert np.allclose(emitted(sun), 3.0)
 
 
+def _sphere_lamp(to_world_3x3, centre, radius=0.25, intensity=5.0):
+    from usdcrowd.render.scene import Light
+
+    m = np.eye(4)
+    m[:3, :3] = to_world_3x3
+    m[3, :3] = centre
+    return Light("/Lamp", "sphere", np.ones(3), intensity, m, radius=radius)
+
+
+def test_an_evenly_scaled_sphere_light_is_analytic_and_lights_as_usdlux_means():
+    """A SphereLight whose transform scales evenly is Mitsuba's analytic sphere (radius times the scale,
+    centre where the transform puts it); a white diffuse floor right under it, d from its centre, gets
+    the irradiance E = pi L (R / d)^2 and so shows radiance L (R / d)^2. Stretched, it stays a mesh."""
+    from usdcrowd.render.final import integrator, variant
+    from usdcrowd.render.final.lights import emitters
+
+    mi = variant.activate(variant.choose_variant(None))
+    c, s = np.cos(0.5), np.sin(0.5)
+    turn_and_scale = 2.0 * np.array([[c, s, 0], [-s, c, 0], [0, 0, 1]])
+    lamp = emitters([_sphere_lamp(turn_and_scale, [0.3, -0.2, 1.5])])["light_0"]
+    assert lamp["type"] == "sphere"
+    assert lamp["radius"] == pytest.approx(0.5) and np.allclose(lamp["center"], [0.3, -0.2, 1.5])
+    stretched = emitters([_sphere_lamp(np.diag([1.0, 2.0, 1.0]), [0, 0, 0])])["light_0"]
+    assert isinstance(stretched, mi.Mesh)
+    box = stretched.bbox()
+    assert np.allclose(np.array(box.max) - np.array(box.min), [0.5, 1.0, 0.5], atol=1e-3)
+    if mi.variant().startswith("scalar"):
+        return
+    integrator.register()
+    T = mi.ScalarTransform4f
+    scene = mi.load_dict({
+        "type": "scene", "integrator": {"type": integrator.NAME, "max_depth": 2},
+        "sensor": {"type": "perspective", "fov": 2, "to_world": T().look_at(origin=[0.3, -2.0, 0.5],
+                                                                           target=[0.3, -0.2, 0], up=[0, 0, 1]),
+                   "film": {"type": "hdrfilm", "width": 8, "height": 8, "rfilter": {"type": "box"}},
+                   "sampler": {"type": "multijitter"}},
+        "floor": {"type": "rectangle", "to_world": T().translate([0.3, -0.2, 0]).scale(3),
+                  "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": 1.0}}},
+        "lamp": lamp})
+    seen = float(np.array(mi.render(scene, spp=256)).mean())
+    assert seen == pytest.approx(5.0 * (0.5 / 1.5) ** 2, rel=0.01)
+
+
 def test_materials_map_preview_surface_inputs():
     from usdcrowd.render.final.materials import bsdf_dict
     from usdcrowd.render.scene import Material
