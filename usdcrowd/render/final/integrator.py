@@ -30,7 +30,7 @@ A uniform sky (Mitsuba's ``constant``, a DomeLight without a texture) gets
 no shadow rays: Mitsuba samples it uniformly over the sphere, which the
 cosine-weighted bounce beats on every diffuse surface, and the bounce that
 escapes finds it anyway, so it takes the whole weight there. On the museum
-frame: 12 % sooner with 11 % less noise. A textured dome keeps its shadow
+frame: 11 % sooner with 11 % less noise. A textured dome keeps its shadow
 rays (its importance sampling finds a bright sun in the texture).
 
 With more than :data:`MAX_LIGHTS` lights that get shadow rays, they would

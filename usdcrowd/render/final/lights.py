@@ -183,7 +183,7 @@ def emitters(lights: list[Light], up_axis: str = "Z") -> dict:
                 out[key] = {"type": "constant", "radiance": {"type": "rgb", "value": value}}
         elif light.kind == "sphere" and _even_scale(light.to_world[:3, :3]) is not None:
             # Analytic: shadow rays sample the cone the sphere subtends (a mesh's area samples waste
-            # the far half; the museum's frame took 10 % longer, with 12 % more noise).
+            # the far half; the museum's frame took 10 % longer, with 14 % more noise).
             out[key] = {"type": "sphere", "center": light.to_world[3, :3].tolist(),
                         "radius": max(light.radius, 1e-3) * _even_scale(light.to_world[:3, :3]),
                         "emitter": _area_emitter(value), "bsdf": _black(), GTID_ATTRIBUTE: id_texture(light_id(k))}
