@@ -47,9 +47,16 @@ def test_every_light_path_tracer_converges_to_mitsubas_with_less_noise(walking_m
     assert noise_ours * 2 < noise_theirs, (noise_ours, noise_theirs)
 
 
-def _cutout_and_metal_scene(mi, integrator_type: str) -> dict:
+def _cutout_and_metal_scene(mi, integrator_type: str, sky: str = "constant") -> dict:
     """A metal floor (no diffuse lobe) seen through a half-opaque cut-out card, and a two-sided card seen
-    from behind, lit by a sky and a lamp."""
+    from behind, lit by a sky and a lamp. The sky is uniform (``constant``: no shadow rays) or a texture
+    with a bright patch (``envmap``: shadow rays, importance-sampled)."""
+    if sky == "envmap":
+        texels = np.full((16, 32, 3), 0.4, dtype=np.float32)
+        texels[3:5, 20:23] = 40.0
+        sky_dict = {"type": "envmap", "bitmap": mi.Bitmap(texels)}
+    else:
+        sky_dict = {"type": "constant", "radiance": {"type": "rgb", "value": 0.6}}
     def rect(to_world, bsdf):
         return {"type": "rectangle", "to_world": to_world, "bsdf": bsdf}
 
@@ -75,16 +82,17 @@ def _cutout_and_metal_scene(mi, integrator_type: str) -> dict:
         "wall": rect(T().translate([0, 1, -2]).scale(3),
                      {"type": "principled", "base_color": {"type": "rgb", "value": [0.7, 0.7, 0.7]},
                       "roughness": 0.5}),
-        "sky": {"type": "constant", "radiance": {"type": "rgb", "value": 0.6}},
+        "sky": sky_dict,
         "lamp": {"type": "sphere", "center": [1, 2.5, -0.5], "radius": 0.5,
                  "emitter": {"type": "area", "radiance": {"type": "rgb", "value": 6.0}}},
     }
 
 
-def test_the_mixed_bounce_sampling_is_unbiased_on_metal_and_cut_outs():
+@pytest.mark.parametrize("sky", ["constant", "envmap"])
+def test_the_mixed_bounce_sampling_is_unbiased_on_metal_and_cut_outs(sky):
     """No diffuse lobe for the cosine directions to find, a cut-out's pass-through (a null component
     drawn only by the BSDF's share of bounces), and a back face that reflects: all still converge to
-    Mitsuba's picture."""
+    Mitsuba's picture, under a uniform sky (bounces only) and under a textured one (shadow rays too)."""
     from usdcrowd.render.final import variant
 
     mi = variant.activate(variant.choose_variant(None))
@@ -93,7 +101,7 @@ def test_the_mixed_bounce_sampling_is_unbiased_on_metal_and_cut_outs():
     integrator.register()
     frames = {}
     for name, seeds in ((integrator.NAME, range(1, 7)), ("path", range(7, 13))):   # seeds apart: independent
-        scene = mi.load_dict(_cutout_and_metal_scene(mi, name))
+        scene = mi.load_dict(_cutout_and_metal_scene(mi, name, sky))
         frames[name] = np.stack([np.array(mi.render(scene, spp=SPP, seed=seed), dtype=np.float64)
                                  for seed in seeds])
     ours, theirs = frames[integrator.NAME], frames["path"]

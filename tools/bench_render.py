@@ -356,8 +356,8 @@ def print_quality(q: dict) -> None:
                   + (f"  [target: >= 3x: {'met' if seconds / sec >= 3 else 'not met'}]" if label == "denoised" else ""))
         else:
             err, sec, spp, name = min((err, sec, spp, name) for (name, spp), ((_, err), sec) in q["ours"].items())
-            print(f"    usdcrowd does not reach Cycles' {label} 64-spp quality at the counts tried; its best, {name} at "
-                  f"{spp} spp: {err / target:.2f}x Cycles' error in {sec / seconds:.2f}x its time"
+            print(f"    usdcrowd does not reach Cycles' {label} 64-spp quality at the counts tried; its best, "
+                  f"{name} at {spp} spp: {err / target:.2f}x Cycles' error in {sec / seconds:.2f}x its time"
                   + ("  [target: the same quality in a third of Cycles' time: not met]" if label == "denoised" else ""))
 
 

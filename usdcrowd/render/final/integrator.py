@@ -24,7 +24,8 @@ same frame the noise fell from 0.00057 to 0.00034 in the same time (2.90 s
 against 2.88); shares of 0.5 and 0.9 gave 0.00038 and 0.00039. With only
 diffuse materials it is 0.00019: the rest is the specular lobe's own
 noise. Shadow rays towards lights behind a surface that only reflects are
-not traced (the same frame, 11 % sooner).
+not traced (the same frame, 11 % sooner, when the sky still had shadow
+rays: half its uniform samples fell behind the surface).
 
 A uniform sky (Mitsuba's ``constant``, a DomeLight without a texture) gets
 no shadow rays: Mitsuba samples it uniformly over the sphere, which the
@@ -51,8 +52,7 @@ _REGISTERED = []
 
 
 def integrator_dict(n_lights: int, max_depth: int) -> dict:
-    """The scene dict's integrator for a scene with ``n_lights`` emitters that get shadow rays (in the active
-    variant; a uniform sky does not count)."""
+    """The scene dict's integrator for ``n_lights`` lights with shadow rays (a uniform sky has none)."""
     import mitsuba as mi
 
     # The scalar fallback (no LLVM) keeps Mitsuba's own: the vectorised masks here are JIT ones.
@@ -111,7 +111,7 @@ def _make_class(mi):
             prev_bsdf_delta = mi.Bool(True)
             # A uniform sky gets no shadow rays (see the module's docstring); a scene has one sky at most.
             emitters = [e for e in scene.emitters() if e.class_name() != UNIFORM_SKY]
-            sky_has_shadow_rays = len(emitters) == len(scene.emitters())
+            uniform_sky = [e for e in scene.emitters() if e.class_name() == UNIFORM_SKY]
             while dr.hint(active, max_iterations=self.max_depth, label="crowd_path"):
                 si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.All, coherent=(depth == 0))
                 # A light reached by BSDF sampling (or seen by the camera): MIS against its shadow ray.
@@ -120,8 +120,8 @@ def _make_class(mi):
                 light_pdf = mi.Float(0.0)
                 if ~prev_bsdf_delta:
                     light_pdf = emitter.pdf_direction(prev_si, ds)
-                if dr.hint(not sky_has_shadow_rays, mode="scalar"):     # found by the bounces alone
-                    light_pdf = dr.select(mi.has_flag(emitter.flags(), mi.EmitterFlags.Infinite), 0.0, light_pdf)
+                if dr.hint(len(uniform_sky) > 0, mode="scalar"):     # found by the bounces alone
+                    light_pdf = dr.select(emitter == mi.EmitterPtr(uniform_sky[0]), 0.0, light_pdf)
                 weight = dr.select(prev_bsdf_delta, 1.0, _balance(prev_bsdf_pdf, light_pdf))
                 result += beta * weight * emitter.eval(si)
 
@@ -134,8 +134,8 @@ def _make_class(mi):
                     infinite = mi.has_flag(light.flags(), mi.EmitterFlags.Infinite)
                     shadow = si.spawn_ray(ds_l.d) if infinite else si.spawn_ray_to(ds_l.p)
                     wl = si.to_local(ds_l.d)
-                    # A BSDF that only reflects sees nothing behind its surface: no shadow ray there (the
-                    # sky's samples are uniform over the sphere, so half of them).
+                    # A BSDF that only reflects sees nothing behind its surface: no shadow ray there (a
+                    # textured dome's samples fall there too).
                     seen = lit & (ds_l.pdf > 0) & (transmits | (wl.z * si.wi.z > 0))
                     seen &= ~scene.ray_test(shadow, seen)
                     f, bsdf_pdf = bsdf.eval_pdf(ctx, si, wl, seen)

@@ -127,6 +127,7 @@ def _distant_disc(key: str, k: int, direction: np.ndarray, angle: float, irradia
 
 
 def _area_emitter(radiance) -> dict:
+    """Mitsuba's ``area`` emitter of (3,) linear RGB radiance."""
     return {"type": "area", "radiance": {"type": "rgb", "value": np.asarray(radiance, float).tolist()}}
 
 
@@ -136,9 +137,12 @@ def _black() -> dict:
 
 
 def _even_scale(m3: np.ndarray) -> float | None:
-    """The scale of a rotation times an even scale (what Mitsuba's sphere allows), else None."""
+    """The scale of a rotation times an even scale (what Mitsuba's sphere allows), else None.
+
+    1e-4 lets through rotations written with six digits (usda's 0.707107).
+    """
     sv = np.linalg.svd(np.asarray(m3, float), compute_uv=False)
-    return float(sv[0]) if sv[-1] > 0 and sv[0] - sv[-1] <= 1e-6 * sv[0] else None
+    return float(sv[0]) if sv[-1] > 0 and sv[0] - sv[-1] <= 1e-4 * sv[0] else None
 
 
 def emitters(lights: list[Light], up_axis: str = "Z") -> dict:
@@ -153,8 +157,10 @@ def emitters(lights: list[Light], up_axis: str = "Z") -> dict:
     Returns
     -------
     dict
-        Emitters for distant and dome lights; meshes with ``area`` emitters
-        for the others. Keys are ``light_<k>``.
+        Emitters for dome lights and for distant lights without an angle;
+        ``area`` emitters on a mesh (a distant light's disc, rect, disk and
+        cylinder lights) or on Mitsuba's analytic sphere (sphere lights).
+        Keys are ``light_<k>``.
     """
     import mitsuba as mi
 
