@@ -19,8 +19,8 @@ of beauty.
 Then noise against time on one frame (both renderers warm, each timed for the
 whole frame: usdcrowd's posing, BVH update, beauty and denoising; Cycles'
 scene sync, render and denoising): the relative MSE of usdcrowd's beauty
-(independent and multijitter samples, and multijitter denoised by OIDN, at 4
-to 64 spp) against its own 1,024-spp frame, and of Blender Cycles on the CPU
+(independent and multijitter samples at 4 to 64 spp, and multijitter denoised
+by OIDN at 4 to 96 spp) against its own 1,024-spp frame, and of Blender Cycles on the CPU
 (the bpy wheel in its own venv imports the same shot; 64 spp denoised, as
 Blender does by default, and raw) against Cycles' own 1,024-spp frame. Target:
 Cycles' 64-spp quality in at most a third of its time.

@@ -24,7 +24,7 @@ from ...view import CameraView
 from ..scene import ShotScene
 from .camera import sensor_dict
 from .integrator import integrator_dict
-from .lights import emitters, has_shape, light_id
+from .lights import emitters, has_shape, is_uniform_sky, light_id
 from .materials import agent_bsdf_dict, bsdf_dict, usd_uv_to_mitsuba
 from .meshes import flat_or_smooth, make_mesh
 from .variant import single_threaded_build
@@ -114,8 +114,7 @@ def build_scene(shot: ShotScene, cam: CameraView, width: int, height: int, spp: 
     import mitsuba as mi
 
     # A uniform sky (and the default one a stage without lights gets, below) takes no shadow rays.
-    integrator = integrator_dict(sum(not (light.kind == "dome" and not light.texture) for light in shot.lights),
-                                 max_depth)
+    integrator = integrator_dict(sum(not is_uniform_sky(light) for light in shot.lights), max_depth)
     scene: dict = {"type": "scene", "integrator": integrator,
                    SENSOR_KEY: sensor_dict(cam, width, height, spp, sampler=sampler)}
     id_paths: dict[int, str] = {}

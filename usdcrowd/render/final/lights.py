@@ -58,6 +58,11 @@ def has_shape(light: Light) -> bool:
     return light.kind not in ("distant", "dome")
 
 
+def is_uniform_sky(light: Light) -> bool:
+    """A DomeLight without a texture: Mitsuba's ``constant`` emitter, which the path tracer gives no shadow rays."""
+    return light.kind == "dome" and not light.texture
+
+
 def _area(light: Light) -> float:
     return {"sphere": 4 * np.pi * light.radius ** 2, "rect": light.width * light.height,
             "disk": np.pi * light.radius ** 2, "cylinder": 2 * np.pi * light.radius * light.length}.get(light.kind, 1.0)
@@ -177,7 +182,7 @@ def emitters(lights: list[Light], up_axis: str = "Z") -> dict:
                 out[key] = {"type": "directional", "direction": direction.tolist(),
                             "irradiance": {"type": "rgb", "value": value}}
         elif light.kind == "dome":
-            if light.texture:
+            if not is_uniform_sky(light):
                 bmp = np.array(mi.Bitmap(light.texture).convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.Float32,
                                                                 srgb_gamma=False))
                 local = _Y_UP_TO_Z_UP if light.pole_axis == "Z" else np.eye(4)
@@ -187,11 +192,11 @@ def emitters(lights: list[Light], up_axis: str = "Z") -> dict:
                             "to_world": mi.ScalarTransform4f(m.tolist())}
             else:
                 out[key] = {"type": "constant", "radiance": {"type": "rgb", "value": value}}
-        elif light.kind == "sphere" and _even_scale(light.to_world[:3, :3]) is not None:
+        elif light.kind == "sphere" and (scale := _even_scale(light.to_world[:3, :3])) is not None:
             # Analytic: shadow rays sample the cone the sphere subtends (a mesh's area samples waste
             # the far half; the museum's frame took 10 % longer, with 14 % more noise).
             out[key] = {"type": "sphere", "center": light.to_world[3, :3].tolist(),
-                        "radius": max(light.radius, 1e-3) * _even_scale(light.to_world[:3, :3]),
+                        "radius": max(light.radius, 1e-3) * scale,
                         "emitter": _area_emitter(value), "bsdf": _black(), GTID_ATTRIBUTE: id_texture(light_id(k))}
         else:
             v, f, n = _light_geometry(light)
