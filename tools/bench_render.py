@@ -19,11 +19,13 @@ of beauty.
 Then noise against time on one frame (both renderers warm, each timed for the
 whole frame: usdcrowd's posing, BVH update, beauty and denoising; Cycles'
 scene sync, render and denoising): the relative MSE of usdcrowd's beauty
-(independent and multijitter samples at 4 to 64 spp, and multijitter denoised
-by OIDN at 4 to 96 spp) against its own 1,024-spp frame, and of Blender Cycles on the CPU
-(the bpy wheel in its own venv imports the same shot; 64 spp denoised, as
-Blender does by default, and raw) against Cycles' own 1,024-spp frame. Target:
-Cycles' 64-spp quality in at most a third of its time.
+(independent and multijitter samples at 4 to 64 spp, multijitter denoised by
+OIDN at 4 to 96 spp, and at 32 and 64 spp with 16, 36 or 64 more samples on
+the pixels that see a person, then denoised) against its own 1,024-spp
+frame, and of Blender Cycles on the CPU (the bpy wheel in its own venv
+imports the same shot; 64 spp denoised, as Blender does by default, and raw)
+against Cycles' own 1,024-spp frame. Target: Cycles' 64-spp quality in at
+most a third of its time.
 
 Each reference is two halves rendered with seeds of their own (never the
 measured frames' seeds: Cycles' default seed is 0 for every render, and its
@@ -103,6 +105,7 @@ REFERENCE_SPP = 1024                 # each renderer's converged frame: two halv
 REFERENCE_SEEDS = (999, 1999)        # usdcrowd's halves (the measured frames use base seed 0)
 CYCLES_REFERENCE_SEEDS = (1, 2)      # Cycles' halves (the measured frames use Blender's default, 0)
 CYCLES_SPP = 64
+PEOPLE_SPP = (16, 36, 64)            # rows with this many more samples on the people's pixels
 
 CYCLES_SCRIPT = """
 import bpy, json, math, sys, time
@@ -269,12 +272,15 @@ def bench_quality(shot: str, camera: str = "/World/Cameras/Overview") -> dict:
     ref = (halves[0] + halves[1]) / 2
     ours = {}
     ladder = (4, 8, 16, 24, 32, 48, 64)
-    for name, sampler, denoise, counts in (("independent", "independent", False, ladder),
-                                           ("multijitter", "multijitter", False, ladder),
-                                           # past 64: where the denoised frame meets Cycles' denoised 64 spp
-                                           ("multijitter + OIDN", "multijitter", True, ladder + (80, 96))):
+    for name, sampler, denoise, people, counts in (
+            ("independent", "independent", False, 0, ladder),
+            ("multijitter", "multijitter", False, 0, ladder),
+            # past 64: where the denoised frame meets Cycles' denoised 64 spp
+            ("multijitter + OIDN", "multijitter", True, 0, ladder + (80, 96)),
+            # more samples where OIDN leaves the noise (render.final.pixel_samples)
+            *((f"mj + {n} people + OIDN", "multijitter", True, n, (32, 64)) for n in PEOPLE_SPP)):
         r = FrameRenderer(shot, camera, RESOLUTION, 4, MAX_DEPTH, ground_truth=False, sampler=sampler,
-                          denoise=denoise)
+                          denoise=denoise, people_spp=people)
         for spp in counts:
             r.spp = spp
             r.render(QUALITY_FRAME)         # a new sample count can mean a new kernel: compiled here, untimed
@@ -338,7 +344,7 @@ def print_quality(q: dict) -> None:
           f"(relative MSE against the same renderer's {REFERENCE_SPP}-spp frame, as measured / with the "
           f"reference's own noise taken out)")
     for (name, spp), ((measured, err), sec) in q["ours"].items():
-        print(f"    usdcrowd {name:<20} {spp:3d} spp  relMSE {measured:.5f} / {err:.5f}  {sec:.2f} s")
+        print(f"    usdcrowd {name:<24} {spp:3d} spp  relMSE {measured:.5f} / {err:.5f}  {sec:.2f} s")
     c = q["cycles"]
     if isinstance(c, str):
         print(f"    {c}")

@@ -19,6 +19,9 @@ def add_parser(sub):
     p.add_argument("--preset", default="groundtruth", help="preset in render/presets.toml: preview, groundtruth "
                                                             "(default), final")
     p.add_argument("--spp", type=int_at_least(1), help="beauty samples per pixel (overrides the preset)")
+    p.add_argument("--people-spp", type=int_at_least(0), metavar="N",
+                   help="N more samples on each pixel that sees a person, where the denoiser leaves noise "
+                        "(overrides the preset; 0: none)")
     p.add_argument("--max-depth", type=int_at_least(1), help="longest light path (overrides the preset)")
     p.add_argument("--no-ground-truth", dest="ground_truth", action="store_const", const=False, default=None,
                    help="beauty only: no ground-truth passes or annotations")
@@ -57,7 +60,7 @@ def run(args) -> int:
                                     max_depth=args.max_depth, ground_truth=args.ground_truth,
                                     exposure=args.exposure, working_space=args.working_space, seed=args.seed,
                                     sampler=args.sampler, denoise=args.denoise, shutter=args.shutter,
-                                    subframes=args.subframes)
+                                    subframes=args.subframes, people_spp=args.people_spp)
     if not 0.0 <= settings.shutter <= 1.0:
         raise UsdcrowdError(f"--motion-blur {settings.shutter:g}: the shutter is open between 0 and 1 frame")
     settings.variant = choose_variant(args.variant)

@@ -79,21 +79,17 @@ def render_task(shot: str, camera: str, settings_dict: dict, times: list, out_di
     """
     import usdcrowd  # noqa: F401
 
-    from ..render.sequence import RenderSettings, render_frame_to_disk
+    from ..render.sequence import RenderSettings, frame_renderer, render_frame_to_disk
 
     key = (shot, camera, json.dumps(settings_dict, sort_keys=True))
     if key not in _CACHE:
         from ..groundtruth.annotate import AgentMetadata
-        from ..render.final.frame import FrameRenderer
         from ..render.scene import ShotScene
 
         _CACHE.clear()                        # one scene per worker at a time: bounded memory
         settings = RenderSettings(**settings_dict)
         scene = ShotScene(shot)
-        renderer = FrameRenderer(scene, camera, settings.resolution, settings.spp, settings.max_depth,
-                                 settings.variant, settings.ground_truth, settings.seed, threads,
-                                 sampler=settings.sampler, denoise=settings.denoise,
-                                 shutter=settings.shutter, subframes=settings.subframes)
+        renderer = frame_renderer(scene, camera, settings, threads)
         _CACHE[key] = (renderer, AgentMetadata.from_shot(scene), settings)
     renderer, metadata, settings = _CACHE[key]
     return [render_frame_to_disk(renderer, metadata, float(t), out_dir, settings) for t in times]

@@ -62,6 +62,7 @@ class RenderSettings:
     denoise: bool = False
     shutter: float = 0.0
     subframes: int = 8
+    people_spp: int = 0
 
     def fingerprint(self) -> dict:
         """The settings that change output pixels (variant excluded: same picture, other noise)."""
@@ -295,19 +296,25 @@ def _worker_init(shot_path, camera, settings_dict, threads):
         _WORKER["error"] = exc
 
 
+def frame_renderer(shot, camera: str | None, settings: RenderSettings, threads: int | None = None):
+    """The :class:`~.final.frame.FrameRenderer` that renders ``settings``' frames of ``shot`` through ``camera``."""
+    from .final.frame import FrameRenderer
+
+    return FrameRenderer(shot, camera, settings.resolution, settings.spp, settings.max_depth, settings.variant,
+                         settings.ground_truth, settings.seed, threads, sampler=settings.sampler,
+                         denoise=settings.denoise, shutter=settings.shutter, subframes=settings.subframes,
+                         people_spp=settings.people_spp)
+
+
 def _build_worker(shot_path, camera, settings_dict, threads):
     import usdcrowd  # noqa: F401  (registers the schemas)
 
     from ..groundtruth.annotate import AgentMetadata
-    from .final.frame import FrameRenderer
     from .scene import ShotScene
 
     settings = RenderSettings(**settings_dict)
     shot = ShotScene(shot_path)
-    _WORKER["renderer"] = FrameRenderer(shot, camera, settings.resolution, settings.spp, settings.max_depth,
-                                        settings.variant, settings.ground_truth, settings.seed, threads,
-                                        sampler=settings.sampler, denoise=settings.denoise,
-                                        shutter=settings.shutter, subframes=settings.subframes)
+    _WORKER["renderer"] = frame_renderer(shot, camera, settings, threads)
     _WORKER["metadata"] = AgentMetadata.from_shot(shot) if settings.ground_truth else None
     _WORKER["settings"] = settings
 

@@ -1,7 +1,8 @@
 """One frame: update what moved, render the beauty, cast the ground-truth rays.
 
-Beauty is Mitsuba's path tracer through the sensor (random sub-pixel
-positions, Gaussian reconstruction filter, ``spp`` samples).
+Beauty is the scene's path tracer through the sensor (stratified sub-pixel
+positions, box reconstruction filter, ``spp`` samples), plus ``people_spp``
+more samples on the pixels that see a person (:mod:`.pixel_samples`).
 
 Ground truth is *not* filtered: one ray per pixel, through the pixel centre
 (a 1-sample box-filtered pass), cast with ``scene.ray_intersect``. At the
@@ -33,6 +34,7 @@ from ..scene import ShotScene
 from . import variant as _variant
 from .build import AGENTS_KEY, SENSOR_KEY, BuiltScene, agent_vertices, build_scene, posed_scenery
 from .camera import SAMPLERS, pixel_rays, sensor_to_world
+from .pixel_samples import merge_samples, sample_pixels
 
 SAMPLER = "multijitter"             # the least noise per second on the demo's frames (tools/bench.py render)
 GUIDE_AOVS = "albedo:albedo,nn:sh_normal"
@@ -42,6 +44,8 @@ from .meshes import GTID_ATTRIBUTE, decode_ids, float_buffer
 
 # Peeling stops after this many surfaces along a ray (a body is two).
 MAX_PEEL_LAYERS = 64
+# People's extra samples also go to pixels this close to one whose centre sees a person (partly covered).
+PEOPLE_MARGIN = 1
 
 
 @dataclass
@@ -122,6 +126,21 @@ def sample_passes(spp: int, sampler: str) -> list[int]:
     return parts
 
 
+def people_pixels(ids: np.ndarray, margin: int = PEOPLE_MARGIN) -> np.ndarray:
+    """(k,) int64 flat indices of the pixels that see a person, and of those within ``margin`` pixels.
+
+    ``ids`` is an (h, w) id pass at pixel centres; a person's edge pixel
+    whose centre misses the body is caught by the margin (4-neighbours,
+    ``margin`` times).
+    """
+    from scipy.ndimage import binary_dilation
+
+    people = (ids > 0) & (ids < SCENERY_ID_BASE)
+    if margin > 0 and people.any():
+        people = binary_dilation(people, iterations=int(margin))
+    return np.flatnonzero(people.ravel())
+
+
 def require_denoiser():
     """Intel Open Image Denoise's Python binding, or a one-line error saying how to install it."""
     from ...errors import UsdcrowdError
@@ -182,6 +201,10 @@ class FrameRenderer:
     subframes : int
         Times the shutter interval is sampled at (each with spp / subframes
         samples).
+    people_spp : int
+        More samples on each pixel that sees a person (and its neighbours),
+        where the denoiser cannot help (:mod:`.pixel_samples`); 0: none. On
+        JIT variants (the scalar fallback ignores it).
     denoise : bool
         Denoise the beauty with Intel Open Image Denoise, guided by albedo
         and shading normal averaged over up to GUIDE_SPP samples per pixel
@@ -192,7 +215,7 @@ class FrameRenderer:
     def __init__(self, shot, camera: str | None = None, resolution=(640, 360), spp: int = 64,
                  max_depth: int = 6, variant: str | None = None, ground_truth: bool = True, seed: int = 0,
                  threads: int | None = None, sampler: str = SAMPLER, denoise: bool = False,
-                 shutter: float = 0.0, subframes: int = 8):
+                 shutter: float = 0.0, subframes: int = 8, people_spp: int = 0):
         self.shot = shot if isinstance(shot, ShotScene) else ShotScene(os.fspath(shot))
         self.variant = _variant.choose_variant(variant)
         mi = _variant.activate(self.variant)
@@ -209,6 +232,9 @@ class FrameRenderer:
         if not 0.0 <= float(shutter) <= 1.0 or int(subframes) < 1:
             raise ValueError(f"shutter must be in [0, 1] frames and subframes >= 1, not {shutter}, {subframes}")
         self.shutter, self.subframes = float(shutter), int(subframes) if shutter > 0 else 1
+        if int(people_spp) < 0:
+            raise ValueError(f"people_spp must be >= 0, not {people_spp}")
+        self.people_spp = int(people_spp) if _variant.is_jit(self.variant) else 0
         if self.denoise:
             require_denoiser()
         t0 = float(self.shot.time_codes[0]) if len(self.shot.time_codes) else 0.0
@@ -259,7 +285,7 @@ class FrameRenderer:
             raw = self._motion_blurred(mi, float(t), seed)
             cam, poses, vertices = self._update(float(t))   # the ground truth and guides: at the frame's time
         else:
-            raw = self._film(mi, seed, self.spp)[..., :3]
+            raw = self._beauty(mi, seed, self.spp, self.people_spp, cam)
         s2 = _time.perf_counter()
         if self.denoise:
             guides = self._film(mi, seed + 104729, min(self.spp, GUIDE_SPP), self._guides)
@@ -286,12 +312,25 @@ class FrameRenderer:
         """
         n = self.subframes
         share = max(1, self.spp // n)
+        people = max(1, self.people_spp // n) if self.people_spp else 0
         total = None
         for i in range(n):
-            self._update(t + self.shutter * ((i + 0.5) / n - 0.5))
-            img = self._film(mi, seed + 15485863 * (i + 1), share)[..., :3].astype(np.float64)
+            cam, _, _ = self._update(t + self.shutter * ((i + 0.5) / n - 0.5))
+            img = self._beauty(mi, seed + 15485863 * (i + 1), share, people, cam).astype(np.float64)
             total = img if total is None else total + img
         return (total / n).astype(np.float32)
+
+    def _beauty(self, mi, seed: int, spp: int, people_spp: int, cam: CameraView) -> np.ndarray:
+        """(h, w, 3) float32 path-traced beauty of the scene as posed: ``spp`` samples a pixel, and
+        ``people_spp`` more where ``cam``'s pixel centres (and their margin) see a person."""
+        img = self._film(mi, seed, spp)[..., :3]
+        if people_spp <= 0:
+            return img
+        origin, direction, length, _, _ = pixel_rays(cam, self.width, self.height)
+        hit = self._cast(origin, direction, length, full=False)
+        pixels = people_pixels(hit["ids"].reshape(self.height, self.width))
+        extra, n = sample_pixels(self.built.scene, pixels, people_spp, seed + 32452843)
+        return merge_samples(img, spp, pixels, extra, n)
 
     def _film(self, mi, seed: int, spp: int, integrator=None) -> np.ndarray:
         """(h, w, c) float32 film of the scene's path tracer (or of ``integrator``), the same bytes run after run.
