@@ -260,7 +260,7 @@ class FrameRenderer:
         poses = self.shot.agents(t)
         vertices = self.shot.skinned_vertices(poses) if len(poses) else np.zeros((0, 0, 3), np.float32)
         if len(poses):
-            params[f"{AGENTS_KEY}.vertex_positions"] = float_buffer(agent_vertices(self.shot, poses))
+            params[f"{AGENTS_KEY}.vertex_positions"] = float_buffer(agent_vertices(self.shot, poses, vertices))
         for a in self.built.animated:
             verts, _ = posed_scenery(a.item, t)
             params[f"{a.key}.vertex_positions"] = float_buffer(verts)
