@@ -20,7 +20,7 @@ Then noise against time on one frame (both renderers warm, each timed for the
 whole frame: usdcrowd's posing, BVH update, beauty and denoising; Cycles'
 scene sync, render and denoising): the relative MSE of usdcrowd's beauty
 (independent and multijitter samples at 4 to 64 spp, multijitter denoised by
-OIDN at 4 to 96 spp, and at 32 and 64 spp with 16, 36 or 64 more samples on
+OIDN at 4 to 96 spp, and at 32 or 64 spp with 36 to 144 more samples on
 the pixels that see a person, then denoised) against its own 1,024-spp
 frame, and of Blender Cycles on the CPU (the bpy wheel in its own venv
 imports the same shot; 64 spp denoised, as Blender does by default, and raw)
@@ -105,7 +105,8 @@ REFERENCE_SPP = 1024                 # each renderer's converged frame: two halv
 REFERENCE_SEEDS = (999, 1999)        # usdcrowd's halves (the measured frames use base seed 0)
 CYCLES_REFERENCE_SEEDS = (1, 2)      # Cycles' halves (the measured frames use Blender's default, 0)
 CYCLES_SPP = 64
-PEOPLE_SPP = (16, 36, 64)            # rows with this many more samples on the people's pixels
+# Rows with this many more samples on the people's pixels, at these base counts.
+PEOPLE_ROWS = ((36, (32, 64)), (64, (32, 64)), (100, (32,)), (144, (32,)))
 
 CYCLES_SCRIPT = """
 import bpy, json, math, sys, time
@@ -270,7 +271,7 @@ def bench_quality(shot: str, camera: str = "/World/Cameras/Overview") -> dict:
     halves = tuple(FrameRenderer(shot, camera, RESOLUTION, REFERENCE_SPP // 2, MAX_DEPTH, ground_truth=False,
                                  seed=seed).render(QUALITY_FRAME).beauty for seed in REFERENCE_SEEDS)
     ref = (halves[0] + halves[1]) / 2
-    ours = {}
+    ours, denoised = {}, {}
     ladder = (4, 8, 16, 24, 32, 48, 64)
     for name, sampler, denoise, people, counts in (
             ("independent", "independent", False, 0, ladder),
@@ -278,7 +279,7 @@ def bench_quality(shot: str, camera: str = "/World/Cameras/Overview") -> dict:
             # past 64: where the denoised frame meets Cycles' denoised 64 spp
             ("multijitter + OIDN", "multijitter", True, 0, ladder + (80, 96)),
             # more samples where OIDN leaves the noise (render.final.pixel_samples)
-            *((f"mj + {n} people + OIDN", "multijitter", True, n, (32, 64)) for n in PEOPLE_SPP)):
+            *((f"mj + {n} people + OIDN", "multijitter", True, n, counts) for n, counts in PEOPLE_ROWS)):
         r = FrameRenderer(shot, camera, RESOLUTION, 4, MAX_DEPTH, ground_truth=False, sampler=sampler,
                           denoise=denoise, people_spp=people)
         for spp in counts:
@@ -288,8 +289,8 @@ def bench_quality(shot: str, camera: str = "/World/Cameras/Overview") -> dict:
             # A frame's whole cost, as Cycles' is timed: posing and BVH update, beauty, denoising.
             seconds = res.seconds["update"] + res.seconds["beauty"] + res.seconds["denoise"]
             ours[(name, spp)] = (error_against(res.beauty, halves), seconds)
-            if spp == CYCLES_SPP and denoise:
-                ours_frame = res.beauty
+            if denoise:
+                denoised[(name, spp)] = res.beauty
     out = {"ours": ours}
     try:
         sys.path.insert(0, str(ROOT / "tests"))
@@ -307,9 +308,13 @@ def bench_quality(shot: str, camera: str = "/World/Cameras/Overview") -> dict:
         c64raw, c64raw_s = cycles_frame(python, shot, cam, CYCLES_SPP, False, Path(tmp) / "c64raw.exr")
     out["cycles"] = {"denoised": (error_against(c64, chalves), c64_s),
                      "raw": (error_against(c64raw, chalves), c64raw_s)}
-    mine = ours[("multijitter + OIDN", CYCLES_SPP)]
+    # Shown beside Cycles: usdcrowd's quickest frame at least as close as Cycles' (else 64 spp + OIDN).
+    target = out["cycles"]["denoised"][0][1]
+    key = min((k for k in denoised if ours[k][0][1] <= target), key=lambda k: ours[k][1],
+              default=("multijitter + OIDN", CYCLES_SPP))
+    (_, mine), seconds = ours[key]
     out["figure"] = comparison_figure(
-        [(ours_frame, f"usdcrowd {CYCLES_SPP} spp + OIDN: relMSE {mine[0][1]:.5f}, {mine[1]:.2f} s"),
+        [(denoised[key], f"usdcrowd {key[0]}, {key[1]} spp: relMSE {mine:.5f}, {seconds:.2f} s"),
          (c64, f"Cycles {CYCLES_SPP} spp denoised: relMSE {out['cycles']['denoised'][0][1]:.5f}, {c64_s:.2f} s"),
          (ref, f"usdcrowd {REFERENCE_SPP} spp (its reference)"),
          ((chalves[0] + chalves[1]) / 2, f"Cycles {REFERENCE_SPP} spp (its reference)")], FIGURE)

@@ -4,15 +4,17 @@ OIDN takes the people's noise for detail: at 640x360 a person is 5 to 10
 pixels wide, and every few pixels the albedo guide changes (skin, top,
 trousers), so the network keeps what it sees there. On the benchmark's
 museum frame (64 spp) it lowered the people's share of the error only
-from 0.000093 to 0.000085, and the rest of the frame's from 0.000172 to
-0.000053: the people, 4 % of the pixels, held two thirds of the
+from 0.000134 to 0.000114, and the rest of the frame's from 0.000155 to
+0.000037: the people, 4 % of the pixels, held three quarters of the
 denoised error. More samples everywhere pay for the floor, which OIDN
 cleans anyway; these are spent where the denoiser cannot help.
 
 A people sample costs about 7 times an average one (their 1,450 triangles
-each, in a crowd, against a floor of two); still, on that frame 36 more
-samples on the people's pixels (+0.40 s) lowered the denoised error from
-0.000142 to 0.000108, where 32 more everywhere (+1 s) gave 0.00011.
+each, in a crowd, against a floor of two); still, on that frame 64 spp
+and 36 more on the people (2.91 s) come as close as 96 spp everywhere
+(3.38 s), and 32 + 144 as close in 2.83 s (0.00011 each). They must
+be stratified: 64 more independent samples on the people, at the same
+cost, left 0.000121 where one multijitter sequence a pixel left 0.000095.
 
 The samples are drawn as Mitsuba's own film draws them (the sensor's
 sampler, each pixel's samples one stratified sequence; sub-pixel
