@@ -271,7 +271,7 @@ def bench_quality(shot: str, camera: str = "/World/Cameras/Overview") -> dict:
     halves = tuple(FrameRenderer(shot, camera, RESOLUTION, REFERENCE_SPP // 2, MAX_DEPTH, ground_truth=False,
                                  seed=seed).render(QUALITY_FRAME).beauty for seed in REFERENCE_SEEDS)
     ref = (halves[0] + halves[1]) / 2
-    ours, denoised = {}, {}
+    ours, denoised, raws = {}, {}, {}
     ladder = (4, 8, 16, 24, 32, 48, 64)
     for name, sampler, denoise, people, counts in (
             ("independent", "independent", False, 0, ladder),
@@ -291,7 +291,15 @@ def bench_quality(shot: str, camera: str = "/World/Cameras/Overview") -> dict:
             ours[(name, spp)] = (error_against(res.beauty, halves), seconds)
             if denoise:
                 denoised[(name, spp)] = res.beauty
+                raws[(name, spp)] = res.raw
     out = {"ours": ours}
+    plain, people = ("multijitter + OIDN", 32), (f"mj + {PEOPLE_ROWS[1][0]} people + OIDN", 32)
+    # Only the people's pixels differ between these two raw frames: the crop goes where most of them are.
+    out["people_figure"] = people_crop_figure(
+        np.any(raws[plain] != raws[people], axis=-1),
+        [(raws[plain], f"{plain[1]} spp raw"), (denoised[plain], f"{plain[1]} spp + OIDN"),
+         (denoised[people], f"{people[1]} + {PEOPLE_ROWS[1][0]} on people + OIDN"),
+         ((halves[0] + halves[1]) / 2, f"{REFERENCE_SPP} spp")], PEOPLE_FIGURE)
     try:
         sys.path.insert(0, str(ROOT / "tests"))
         from tool_venvs import tool_python
@@ -322,6 +330,36 @@ def bench_quality(shot: str, camera: str = "/World/Cameras/Overview") -> dict:
 
 
 FIGURE = ROOT / "build" / "bench" / "render_vs_cycles.png"
+PEOPLE_FIGURE = ROOT / "build" / "bench" / "people_samples.png"
+
+
+def people_crop_figure(people: np.ndarray, panels: list[tuple[np.ndarray, str]], path: Path,
+                       size: tuple[int, int] = (160, 90), zoom: int = 3) -> str:
+    """(h, w, 3) linear frames, two a row, cropped to the ``size`` window holding most ``people`` pixels.
+
+    ``people`` is an (h, w) bool mask; each crop is enlarged ``zoom`` times (nearest) under its label.
+    """
+    from PIL import Image, ImageDraw
+
+    from usdcrowd.render.colour import to_display
+
+    cw, ch = size
+    counts = np.pad(people.astype(np.int64), ((1, 0), (1, 0))).cumsum(0).cumsum(1)
+    window = counts[ch:, cw:] - counts[:-ch, cw:] - counts[ch:, :-cw] + counts[:-ch, :-cw]
+    y0, x0 = np.unravel_index(np.argmax(window), window.shape)
+    tiles = []
+    for img, label in panels:
+        tile = Image.fromarray(to_display(img[y0:y0 + ch, x0:x0 + cw])).resize((cw * zoom, ch * zoom),
+                                                                             Image.NEAREST)
+        ImageDraw.Draw(tile).text((8, 6), label, fill=(255, 255, 255), stroke_width=2, stroke_fill=(0, 0, 0))
+        tiles.append(tile)
+    cols = 2
+    sheet = Image.new("RGB", (cw * zoom * cols, ch * zoom * -(-len(tiles) // cols)))
+    for k, tile in enumerate(tiles):
+        sheet.paste(tile, ((k % cols) * cw * zoom, (k // cols) * ch * zoom))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    sheet.save(path)
+    return str(path)
 
 
 def comparison_figure(panels: list[tuple[np.ndarray, str]], path: Path) -> str:
@@ -350,6 +388,7 @@ def print_quality(q: dict) -> None:
           f"reference's own noise taken out)")
     for (name, spp), ((measured, err), sec) in q["ours"].items():
         print(f"    usdcrowd {name:<24} {spp:3d} spp  relMSE {measured:.5f} / {err:.5f}  {sec:.2f} s")
+    print(f"    the people, raw / denoised / with the people's samples / converged: {q['people_figure']}")
     c = q["cycles"]
     if isinstance(c, str):
         print(f"    {c}")

@@ -70,7 +70,8 @@ def run(args) -> int:
                         progress=args.progress, mp4=args.mp4)
     rate = f", {r.seconds_per_frame:.2f} s/frame" if r.seconds_per_frame else ""
     print(f"rendered {len(r.rendered)} frame(s), {len(r.skipped)} already done{rate} "
-          f"({settings.resolution[0]}x{settings.resolution[1]}, {settings.spp} spp, camera {r.camera})")
+          f"({settings.resolution[0]}x{settings.resolution[1]}, {settings.spp} spp"
+          f"{f' + {settings.people_spp} on the people' if settings.people_spp else ''}, camera {r.camera})")
     for kind, path in r.outputs.items():
         print(f"  {kind:<14}{path}")
     return 0
