@@ -238,6 +238,7 @@ def test_one_sequence_is_remade_alone_identically(tiny_dataset, tmp_path):
     ("[light]\nsun_elevation = [50, 10]\n", "light.sun_elevation"),
     ("[cameras]\ntoric = [\"spin\"]\n", "cameras.toric"),
     ("[render]\nresolution = [0, 10]\n", "render.resolution"),
+    ("[render]\npeople_spp = -1\n", "render.people_spp"),
     ("[dataset]\nframez = 3\n", "dataset.framez"),
     ("[dataset\n", "not valid TOML"),
 ])
@@ -248,6 +249,17 @@ def test_a_bad_spec_is_a_one_line_error_naming_the_key(tmp_path, capsys, text, k
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and str(spec) in err and key in err, err
     assert not (tmp_path / "out" / "manifest.json").exists()
+
+
+def test_the_spec_sets_the_peoples_samples_or_leaves_the_presets(tmp_path):
+    from usdcrowd.dataset.run import _settings
+    from usdcrowd.dataset.spec import load_spec
+    from usdcrowd.render.sequence import load_presets
+
+    spec = write_spec(tmp_path)
+    assert _settings(load_spec(spec)).people_spp == load_presets()["preview"]["people_spp"]
+    spec.write_text(spec.read_text().replace("spp = 2", "spp = 2\npeople_spp = 9"))
+    assert _settings(load_spec(spec)).people_spp == 9
 
 
 def test_ray_with_two_workers_makes_the_same_dataset_and_opens_no_cluster_it_was_not_given(tiny_dataset, tmp_path,

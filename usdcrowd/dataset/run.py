@@ -192,7 +192,8 @@ def _settings(spec: DatasetSpec):
     from ..render.final import variant as _variant
     from ..render.sequence import settings_from_preset
 
-    settings = settings_from_preset(spec.preset, resolution=tuple(spec.resolution), spp=spec.spp)
+    settings = settings_from_preset(spec.preset, resolution=tuple(spec.resolution), spp=spec.spp,
+                                    people_spp=spec.people_spp)
     # A dataset is its ground truth: on whatever the preset says (the preview preset has none).
     settings.ground_truth = True
     settings.aovs = settings.aovs or ("depth", "id")

@@ -45,6 +45,7 @@ An example, with every key (``docs/dataset_example.toml`` holds a runnable one):
     preset = "groundtruth"
     resolution = [640, 360]
     spp = 16
+    people_spp = 32        # more samples on the people's pixels (default: the preset's)
 """
 
 from __future__ import annotations
@@ -99,6 +100,7 @@ class DatasetSpec:
     preset: str = "groundtruth"
     resolution: list = field(default_factory=lambda: [640, 360])
     spp: int | None = None
+    people_spp: int | None = None
 
     def canonical(self) -> dict:
         """The spec's values (not its path): what the dataset is made from."""
@@ -125,7 +127,7 @@ _KEYS = {
     "appearance": {"palettes": "names"},
     "cameras": {"steering": "range_i", "static": "int", "focal_length": "range_f", "height": "range_f",
                 "distance": "range_f", "toric": "names", "toric_shots": "names", "overview": "bool"},
-    "render": {"preset": "str", "resolution": "size", "spp": "int"},
+    "render": {"preset": "str", "resolution": "size", "spp": "int", "people_spp": "int"},
 }
 
 
@@ -267,6 +269,8 @@ def _check_meaning(spec: DatasetSpec, path: str) -> None:
         fail("render.preset", f"unknown preset {spec.preset!r} (presets: {', '.join(load_presets())})")
     if spec.spp is not None and not 1 <= spec.spp <= 65536:
         fail("render.spp", f"expected 1 to 65536 samples per pixel, got {spec.spp}")
+    if spec.people_spp is not None and not 0 <= spec.people_spp <= 65536:
+        fail("render.people_spp", f"expected 0 to 65536 more samples per person's pixel, got {spec.people_spp}")
 
 
 # --------------------------------------------------------------------- plans
@@ -332,7 +336,8 @@ def draw_plan(spec: DatasetSpec, index: int, split: str) -> dict:
         "toric": ({"behavior": pick(spec.toric), "shot": pick(spec.toric_shots)} if spec.toric else None),
         "overview": bool(spec.overview),
         "frames": int(spec.frames), "stride": int(spec.stride),
-        "render": {"preset": spec.preset, "resolution": list(spec.resolution), "spp": spec.spp},
+        "render": {"preset": spec.preset, "resolution": list(spec.resolution), "spp": spec.spp,
+                   "people_spp": spec.people_spp},
     }
     plan["digest"] = hashlib.sha256(json.dumps(plan, sort_keys=True).encode()).hexdigest()
     return plan
