@@ -52,11 +52,21 @@ def test_padded_pixel_counts_hold_the_pixels_and_take_few_sizes():
     assert len(np.unique(padded)) < 80           # each size compiles a kernel once
 
 
-def test_samples_at_chosen_pixels_converge_as_the_films(walking_museum, museum_reference):
+@pytest.fixture(params=["one launch", "in chunks"])
+def lane_limit(request, monkeypatch):
+    """Pixels traced in one kernel launch, or in chunks of 100 pixels (as a 1080p close-up would be)."""
+    import usdcrowd.render.final.pixel_samples as pixel_samples
+
+    if request.param == "in chunks":
+        monkeypatch.setattr(pixel_samples, "MAX_LANES", 100 * 256)
+    return request.param
+
+
+def test_samples_at_chosen_pixels_converge_as_the_films(walking_museum, museum_reference, lane_limit):
     """The same estimate as Mitsuba's film: as close to the converged frame as the film's own samples.
 
-    A pixel's samples falling in another pixel, the aperture or pixel position drawn from the wrong
-    dimension, or a wrong average would each leave a bias that 256 samples do not hide.
+    A pixel's samples falling in another pixel or a wrong average would leave a bias that 256 samples
+    do not hide (a missing aperture sample: the thin-lens test below).
     """
     reference, _ = museum_reference
     r = FrameRenderer(walking_museum, None, (W, H), spp=256, max_depth=4, ground_truth=False, seed=3)
@@ -70,6 +80,26 @@ def test_samples_at_chosen_pixels_converge_as_the_films(walking_museum, museum_r
     # The same bytes run after run (each pixel summed in one order).
     again, _ = sample_pixels(r.built.scene, np.arange(W * H), 256, seed=4)
     np.testing.assert_array_equal(again.reshape(H, W, 3), ours)
+
+
+def test_through_a_thin_lens_they_blur_as_the_films(tmp_path):
+    """The aperture is drawn where Mitsuba's film draws it: a defocused edge spreads as much."""
+    from conftest import HEADER
+    from test_render_final import BOX_STAGE, DOF_CAMERA, _edge_width
+
+    stage = BOX_STAGE.replace('''        float focalLength = 0.24
+        float horizontalAperture = 0.36
+        float verticalAperture = 0.27
+        float2 clippingRange = (0.1, 100)
+''', DOF_CAMERA.format(f_stop=1.0, focus=3.0))
+    path = tmp_path / "dof.usda"
+    path.write_text(HEADER.format(up="Z", mpu=1, end=1) + stage)
+    w, h = 128, 96
+    r = FrameRenderer(path, "/World/Cam", (w, h), spp=256, max_depth=2, ground_truth=False)
+    film = r.render(1).beauty
+    ours, _ = sample_pixels(r.built.scene, np.arange(w * h), 256, seed=5)
+    blur_film, blur_ours = _edge_width(film), _edge_width(ours.reshape(h, w, 3))
+    assert blur_film > 2 and blur_ours == pytest.approx(blur_film, rel=0.1), (blur_ours, blur_film)
 
 
 def test_a_sampler_that_rounds_the_count_says_how_many_it_took(walking_museum):
@@ -124,9 +154,21 @@ def test_people_samples_follow_the_crowd_through_an_open_shutter(walking_museum,
     reference, ids = museum_reference
     people = np.zeros(H * W, bool)
     people[people_pixels(ids)] = True
+    from usdcrowd.render.final.camera import pixel_rays
+
     kw = dict(spp=8, max_depth=4, ground_truth=False, seed=2, shutter=0.5, subframes=2)
     plain = FrameRenderer(walking_museum, None, (W, H), **kw).render(FRAME).beauty
-    more = FrameRenderer(walking_museum, None, (W, H), people_spp=32, **kw).render(FRAME).beauty
+    renderer = FrameRenderer(walking_museum, None, (W, H), people_spp=32, **kw)
+    more = renderer.render(FRAME).beauty
+    # The people's pixels at each sub-frame's time (a quarter frame either side): only those change.
+    seen = np.zeros(H * W, bool)
+    for t in (FRAME - 0.125, FRAME + 0.125):
+        cam, _, _ = renderer._update(t)
+        origin, direction, length, _, _ = pixel_rays(cam, W, H)
+        seen[people_pixels(renderer._cast(origin, direction, length, full=False)["ids"].reshape(H, W))] = True
     changed = np.any(more != plain, axis=-1).ravel()
-    assert changed[people].mean() > 0.9 and changed[~people].mean() < 0.2
+    assert changed[seen].mean() > 0.95 and not changed[~seen].any()
     assert np.isfinite(more).all()
+    # Unbiased: the people's level is the converged frame's (at the frame's time; they move a little).
+    np.testing.assert_allclose(more.reshape(-1, 3)[people].mean(0), reference.reshape(-1, 3)[people].mean(0),
+                               rtol=0.03)

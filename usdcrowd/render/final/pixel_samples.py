@@ -29,13 +29,17 @@ from __future__ import annotations
 
 import numpy as np
 
-# Pixel counts are padded up to the next 2^(k/4): at most 19 % more lanes, few distinct kernels.
+# Pixel counts are padded up to the next rung ceil(2^(j/4)): under a fifth more lanes past a few hundred
+# pixels, few distinct kernels.
 _LADDER_STEP = 2.0 ** 0.25
+# At most this many lanes (pixels x samples) in one kernel launch: the film's own largest pass at 1920x1080
+# and 64 spp. More pixels go in chunks of the same size (the same kernel; fixed bounds, so the same bytes).
+MAX_LANES = 1920 * 1080 * 64
 
 
 def padded_count(k: int) -> int:
-    """The smallest rung of the ladder ``ceil(2^(j/4))`` that holds ``k`` pixels (``k`` >= 1)."""
-    j = int(np.ceil(4 * np.log2(max(int(k), 1)) - 1e-9))
+    """The smallest rung of the ladder ``ceil(2^(j/4))``, j >= 0, that holds ``k`` pixels (``k`` >= 1)."""
+    j = max(int(np.floor(4 * np.log2(max(int(k), 1)))) - 1, 0)
     while int(np.ceil(_LADDER_STEP ** j)) < k:
         j += 1
     return int(np.ceil(_LADDER_STEP ** j))
@@ -60,23 +64,43 @@ def sample_pixels(scene, pixels: np.ndarray, spp: int, seed: int) -> tuple[np.nd
     -------
     radiance : (k, 3) float32
         Linear RGB, each pixel's samples averaged (box filter).
-    spp : int
+    taken : int
         The samples each pixel got.
+
+    Only on JIT RGB variants (``llvm_ad_rgb``, ``cuda_ad_rgb``), with an
+    uncropped film.
     """
+    import mitsuba as mi
+
+    variant = mi.variant()
+    if variant.startswith("scalar") or not variant.endswith("_rgb"):
+        raise ValueError(f"samples at chosen pixels need a JIT RGB variant, not {variant}")
+    pixels = np.asarray(pixels, dtype=np.int64).ravel()
+    sensor = scene.sensors()[0]
+    film = sensor.film()
+    if any(int(v) for v in film.crop_offset()):
+        raise ValueError("samples at chosen pixels need an uncropped film")
+    width, height = (int(v) for v in film.crop_size())
+    if len(pixels) and (pixels.min() < 0 or pixels.max() >= width * height):
+        raise ValueError(f"pixel indices must lie in [0, {width * height}), not [{pixels.min()}, {pixels.max()}]")
+    probe = sensor.sampler().clone()
+    probe.set_sample_count(int(spp))
+    n = int(probe.sample_count())                   # as the sampler rounds it
+    chunk = max(1, MAX_LANES // n)
+    parts = [_sample_chunk(scene, pixels[i:i + chunk], n, int(seed) + 7919 * (i // chunk), width, height)
+             for i in range(0, len(pixels), chunk)]
+    return (np.concatenate(parts) if parts else np.zeros((0, 3), np.float32)), n
+
+
+def _sample_chunk(scene, pixels: np.ndarray, n: int, seed: int, width: int, height: int) -> np.ndarray:
+    """(k, 3) float32 mean of ``n`` samples (a count the sampler takes as it is) at each of ``pixels``."""
     import drjit as dr
     import mitsuba as mi
 
-    pixels = np.asarray(pixels, dtype=np.int64).ravel()
     k = len(pixels)
-    if k == 0:
-        return np.zeros((0, 3), np.float32), int(spp)
     sensor = scene.sensors()[0]
-    width, height = (int(v) for v in sensor.film().crop_size())
-    if pixels.min() < 0 or pixels.max() >= width * height:
-        raise ValueError(f"pixel indices must lie in [0, {width * height}), not [{pixels.min()}, {pixels.max()}]")
     sampler = sensor.sampler().clone()
-    sampler.set_sample_count(int(spp))
-    n = int(sampler.sample_count())                 # as the sampler rounded it
+    sampler.set_sample_count(n)
     k_pad = padded_count(k)
     lanes = k_pad * n
     sampler.set_samples_per_wavefront(n)            # each pixel's n lanes: one stratified sequence
@@ -94,7 +118,7 @@ def sample_pixels(scene, pixels: np.ndarray, spp: int, seed: int) -> tuple[np.nd
     radiance, _, _ = scene.integrator().sample(scene, sampler, ray)
     # Summed here in one order (the JIT's atomic adds would not be): the same bytes run after run.
     lane_rgb = np.array(mi.Color3f(radiance) * weight, dtype=np.float32).reshape(3, k_pad, n)[:, :k]
-    return (lane_rgb.sum(axis=2, dtype=np.float64) / n).T.astype(np.float32), n
+    return (lane_rgb.sum(axis=2, dtype=np.float64) / n).T.astype(np.float32)
 
 
 def merge_samples(beauty: np.ndarray, spp: int, pixels: np.ndarray, extra: np.ndarray, extra_spp: int) -> np.ndarray:
