@@ -84,16 +84,9 @@ def test_samples_at_chosen_pixels_converge_as_the_films(walking_museum, museum_r
 
 def test_through_a_thin_lens_they_blur_as_the_films(tmp_path):
     """The aperture is drawn where Mitsuba's film draws it: a defocused edge spreads as much."""
-    from conftest import HEADER
-    from test_render_final import BOX_STAGE, DOF_CAMERA, _edge_width
+    from test_render_final import _edge_width, dof_box_stage
 
-    stage = BOX_STAGE.replace('''        float focalLength = 0.24
-        float horizontalAperture = 0.36
-        float verticalAperture = 0.27
-        float2 clippingRange = (0.1, 100)
-''', DOF_CAMERA.format(f_stop=1.0, focus=3.0))
-    path = tmp_path / "dof.usda"
-    path.write_text(HEADER.format(up="Z", mpu=1, end=1) + stage)
+    path = dof_box_stage(tmp_path, f_stop=1.0, focus=3.0)
     w, h = 128, 96
     r = FrameRenderer(path, "/World/Cam", (w, h), spp=256, max_depth=2, ground_truth=False)
     film = r.render(1).beauty

@@ -535,9 +535,8 @@ DOF_CAMERA = '''
 '''
 
 
-@pytest.mark.parametrize("f_stop, focus", [(0.0, 3.0), (1.0, 9.0), (1.0, 3.0), (2.0, 5.0)])
-def test_depth_of_field_blurs_as_a_thin_lens_of_the_cameras_fstop(tmp_path, f_stop, focus):
-    """The box's edge (9 m away) spreads as a thin lens predicts: a disc of diameter A f |d - s| / (d (s - f))."""
+def dof_box_stage(folder, f_stop: float, focus: float):
+    """The box stage seen through a 100 mm lens at ``f_stop``, focused at ``focus`` metres (its path)."""
     from conftest import HEADER
 
     stage = BOX_STAGE.replace('''        float focalLength = 0.24
@@ -545,8 +544,15 @@ def test_depth_of_field_blurs_as_a_thin_lens_of_the_cameras_fstop(tmp_path, f_st
         float verticalAperture = 0.27
         float2 clippingRange = (0.1, 100)
 ''', DOF_CAMERA.format(f_stop=f_stop, focus=focus))
-    path = tmp_path / "dof.usda"
+    path = folder / "dof.usda"
     path.write_text(HEADER.format(up="Z", mpu=1, end=1) + stage)
+    return path
+
+
+@pytest.mark.parametrize("f_stop, focus", [(0.0, 3.0), (1.0, 9.0), (1.0, 3.0), (2.0, 5.0)])
+def test_depth_of_field_blurs_as_a_thin_lens_of_the_cameras_fstop(tmp_path, f_stop, focus):
+    """The box's edge (9 m away) spreads as a thin lens predicts: a disc of diameter A f |d - s| / (d (s - f))."""
+    path = dof_box_stage(tmp_path, f_stop, focus)
     w, h = 256, 192
     r = FrameRenderer(path, "/World/Cam", (w, h), spp=256, max_depth=2).render(1)
     f, d = 0.1, 9.0                                                # metres: 100 mm lens, the box's face
