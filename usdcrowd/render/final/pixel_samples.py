@@ -13,8 +13,9 @@ A people sample costs about 7 times an average one (their 1,450 triangles
 each, in a crowd, against a floor of two); still, on that frame 64 spp
 and 36 more on the people (2.83 s) come as close as 96 spp everywhere
 (3.56 s; 0.00011 each), and 32 + 64 (the groundtruth preset, 2.17 s)
-closer than 64 spp everywhere (2.59 s). They must be stratified: 64 more independent samples on the people, at the same
-cost, left 0.000121 where one multijitter sequence a pixel left 0.000095.
+closer than 64 spp everywhere (2.59 s). They must be stratified: 64
+more independent samples on the people, at the same cost, left
+0.000121 where one multijitter sequence a pixel left 0.000095.
 
 The samples are drawn as Mitsuba's own film draws them (the sensor's
 sampler, each pixel's samples one stratified sequence; sub-pixel
