@@ -335,31 +335,14 @@ PEOPLE_FIGURE = ROOT / "build" / "bench" / "people_samples.png"
 
 def people_crop_figure(people: np.ndarray, panels: list[tuple[np.ndarray, str]], path: Path,
                        size: tuple[int, int] = (160, 90), zoom: int = 3) -> str:
-    """(h, w, 3) linear frames, two a row, cropped to the ``size`` window holding most ``people`` pixels.
-
-    ``people`` is an (h, w) bool mask; each crop is enlarged ``zoom`` times (nearest) under its label.
-    """
-    from PIL import Image, ImageDraw
-
-    from usdcrowd.render.colour import to_display
-
+    """:func:`comparison_figure` of four (h, w, 3) linear frames cropped to the ``size`` window holding
+    most ``people`` pixels ((h, w) bool), each enlarged ``zoom`` times (nearest)."""
     cw, ch = size
     counts = np.pad(people.astype(np.int64), ((1, 0), (1, 0))).cumsum(0).cumsum(1)
     window = counts[ch:, cw:] - counts[:-ch, cw:] - counts[ch:, :-cw] + counts[:-ch, :-cw]
     y0, x0 = np.unravel_index(np.argmax(window), window.shape)
-    tiles = []
-    for img, label in panels:
-        tile = Image.fromarray(to_display(img[y0:y0 + ch, x0:x0 + cw])).resize((cw * zoom, ch * zoom),
-                                                                             Image.NEAREST)
-        ImageDraw.Draw(tile).text((8, 6), label, fill=(255, 255, 255), stroke_width=2, stroke_fill=(0, 0, 0))
-        tiles.append(tile)
-    cols = 2
-    sheet = Image.new("RGB", (cw * zoom * cols, ch * zoom * -(-len(tiles) // cols)))
-    for k, tile in enumerate(tiles):
-        sheet.paste(tile, ((k % cols) * cw * zoom, (k // cols) * ch * zoom))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    sheet.save(path)
-    return str(path)
+    crops = [(img[y0:y0 + ch, x0:x0 + cw].repeat(zoom, 0).repeat(zoom, 1), label) for img, label in panels]
+    return comparison_figure(crops, path)
 
 
 def comparison_figure(panels: list[tuple[np.ndarray, str]], path: Path) -> str:
