@@ -145,6 +145,19 @@ def test_people_samples_reach_the_manifest_from_the_command_line(walking_museum,
     assert exit_.value.code == 2 and "--people-spp" in capsys.readouterr().err
 
 
+def test_the_scalar_fallback_records_no_people_samples(walking_museum, tmp_path):
+    """The scalar variant takes no people's samples: its manifest says 0, the JIT one what was asked."""
+    from usdcrowd.render.sequence import render_sequence, resolve_variant, settings_from_preset
+
+    assert resolve_variant(settings_from_preset("groundtruth", people_spp=9, variant="llvm_ad_rgb")).people_spp == 9
+    settings = settings_from_preset("groundtruth", resolution=(8, 6), spp=1, people_spp=9, ground_truth=False,
+                                    denoise=False, variant="scalar_rgb")
+    render_sequence(walking_museum, tmp_path / "r", frames=[FRAME], settings=settings, executor="inline",
+                    progress=False, sequence_files=False)
+    header = json.loads((tmp_path / "r" / "manifest.json").read_text())["header"]
+    assert header["settings"]["people_spp"] == 0
+
+
 def test_people_samples_follow_the_crowd_through_an_open_shutter(walking_museum, museum_reference):
     """With motion blur each sub-frame adds its share where the people are at that time."""
     reference, ids = museum_reference

@@ -53,8 +53,8 @@ def add_parser(sub):
 
 def run(args) -> int:
     from ..errors import UsdcrowdError
-    from ..render.final.variant import choose_variant, describe
-    from ..render.sequence import render_sequence, settings_from_preset
+    from ..render.final.variant import describe
+    from ..render.sequence import render_sequence, resolve_variant, settings_from_preset
 
     settings = settings_from_preset(args.preset, resolution=args.resolution, spp=args.spp,
                                     max_depth=args.max_depth, ground_truth=args.ground_truth,
@@ -63,7 +63,8 @@ def run(args) -> int:
                                     subframes=args.subframes, people_spp=args.people_spp)
     if not 0.0 <= settings.shutter <= 1.0:
         raise UsdcrowdError(f"--motion-blur {settings.shutter:g}: the shutter is open between 0 and 1 frame")
-    settings.variant = choose_variant(args.variant)
+    settings.variant = args.variant
+    resolve_variant(settings)
     print(describe(settings.variant))
     r = render_sequence(args.shot, args.output, camera=args.camera, frames=args.frames, settings=settings,
                         executor=args.executor, workers=args.workers, address=args.address,

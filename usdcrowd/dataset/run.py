@@ -189,16 +189,14 @@ def _executor(kind: str, workers: int, address: str | None):
 
 # ------------------------------------------------------------------- driver
 def _settings(spec: DatasetSpec):
-    from ..render.final import variant as _variant
-    from ..render.sequence import settings_from_preset
+    from ..render.sequence import resolve_variant, settings_from_preset
 
     settings = settings_from_preset(spec.preset, resolution=tuple(spec.resolution), spp=spec.spp,
                                     people_spp=spec.people_spp)
     # A dataset is its ground truth: on whatever the preset says (the preview preset has none).
     settings.ground_truth = True
     settings.aovs = settings.aovs or ("depth", "id")
-    settings.variant = _variant.choose_variant(settings.variant)
-    return settings
+    return resolve_variant(settings)
 
 
 def _check_existing(out: Path, spec: DatasetSpec, force: bool) -> None:

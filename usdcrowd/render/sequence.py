@@ -111,6 +111,21 @@ def settings_from_preset(name: str = "groundtruth", **overrides) -> RenderSettin
     return RenderSettings(**{k: v for k, v in values.items() if k in known})
 
 
+def resolve_variant(settings: RenderSettings) -> RenderSettings:
+    """Set ``settings.variant`` to the Mitsuba variant that will render, and drop what it cannot do.
+
+    The scalar fallback takes no people's samples (they are JIT launches), so
+    its ``people_spp`` is 0: the manifest records the samples the frames got.
+    Returns ``settings`` (changed in place).
+    """
+    from .final import variant as _variant
+
+    settings.variant = _variant.choose_variant(settings.variant)
+    if not _variant.is_jit(settings.variant):
+        settings.people_spp = 0
+    return settings
+
+
 # --------------------------------------------------------------- frame files
 def frame_tag(t: float) -> str:
     """File tag of a time code: ``0001`` for whole frames, ``0001.500`` for sub-frames."""
@@ -454,7 +469,6 @@ def render_sequence(shot_path, out_dir, camera: str | None = None, frames=None,
     """
     from tqdm import tqdm
 
-    from .final import variant as _variant
     from .scene import ShotScene
 
     settings = settings or settings_from_preset("groundtruth")
@@ -471,7 +485,7 @@ def render_sequence(shot_path, out_dir, camera: str | None = None, frames=None,
     shot.lights, shot.scenery
     if executor not in ("local", "inline", "ray"):
         raise UsdcrowdError(f"unknown executor {executor!r} (local, inline, ray)")
-    settings.variant = _variant.choose_variant(settings.variant)
+    resolve_variant(settings)
     output_dir(out)
     header = {"shot": shot_path, "camera": cam_path, "settings": settings.fingerprint()}
     manifest = Manifest(out, header)
