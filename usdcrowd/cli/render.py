@@ -64,8 +64,11 @@ def run(args) -> int:
     if not 0.0 <= settings.shutter <= 1.0:
         raise UsdcrowdError(f"--motion-blur {settings.shutter:g}: the shutter is open between 0 and 1 frame")
     settings.variant = args.variant
+    asked = settings.people_spp
     resolve_variant(settings)
     print(describe(settings.variant))
+    if settings.people_spp != asked:
+        print(f"the {settings.variant} variant takes no people's samples: rendering without the {asked} asked for")
     r = render_sequence(args.shot, args.output, camera=args.camera, frames=args.frames, settings=settings,
                         executor=args.executor, workers=args.workers, address=args.address,
                         progress=args.progress, mp4=args.mp4)

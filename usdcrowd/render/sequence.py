@@ -32,7 +32,7 @@ import json
 import os
 import time as _time
 import tomllib
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -121,7 +121,7 @@ def resolve_variant(settings: RenderSettings) -> RenderSettings:
     from .final import variant as _variant
 
     settings.variant = _variant.choose_variant(settings.variant)
-    if not _variant.is_jit(settings.variant):
+    if not _variant.is_jit(settings.variant) and settings.people_spp > 0:
         settings.people_spp = 0
     return settings
 
@@ -471,7 +471,7 @@ def render_sequence(shot_path, out_dir, camera: str | None = None, frames=None,
 
     from .scene import ShotScene
 
-    settings = settings or settings_from_preset("groundtruth")
+    settings = replace(settings) if settings else settings_from_preset("groundtruth")    # the caller's, unchanged
     out = Path(out_dir)
     shot_path = os.fspath(Path(shot_path).resolve())
     shot = ShotScene(shot_path)
