@@ -42,6 +42,12 @@ GUIDE_SPP = 16                      # more guide samples cost time and did not h
 SQUARE_SAMPLERS = ("stratified", "multijitter")
 from .meshes import GTID_ATTRIBUTE, decode_ids, float_buffer
 
+# Seeds of a frame's sample sets, as offsets from the frame's seed (primes, so the sets never share a seed):
+GUIDE_SEED = 104729                 # the denoiser's guides
+PEOPLE_SEED = 32452843              # the people's samples (render.final.pixel_samples)
+SUBFRAME_SEED = 15485863            # times the sub-frame's number (1, 2, ...) under an open shutter
+PASS_SEED = 7919                    # times the pass's number, for a sample count taken in passes
+
 # Peeling stops after this many surfaces along a ray (a body is two).
 MAX_PEEL_LAYERS = 64
 # People's extra samples also go to pixels this close to one whose centre sees a person (partly covered).
@@ -293,7 +299,7 @@ class FrameRenderer:
             raw = self._beauty(mi, seed, self.spp, self.people_spp, cam, None if gt is None else gt.ids)
         s2 = _time.perf_counter()
         if self.denoise:
-            guides = self._film(mi, seed + 104729, min(self.spp, GUIDE_SPP), self._guides)
+            guides = self._film(mi, seed + GUIDE_SEED, min(self.spp, GUIDE_SPP), self._guides)
             # Guides from a pinhole at the frame's time are clean; through a lens or a shutter they are not.
             clean = not self._thin_lens and self.subframes == 1
             beauty = denoise(raw, guides[..., 0:3], guides[..., 3:6], clean_aux=clean)
@@ -322,7 +328,7 @@ class FrameRenderer:
         total = None
         for i in range(n):
             cam, _, _ = self._update(t + self.shutter * ((i + 0.5) / n - 0.5))
-            img = self._beauty(mi, seed + 15485863 * (i + 1), share, people, cam).astype(np.float64)
+            img = self._beauty(mi, seed + SUBFRAME_SEED * (i + 1), share, people, cam).astype(np.float64)
             total = img if total is None else total + img
         return (total / n).astype(np.float32)
 
@@ -340,7 +346,7 @@ class FrameRenderer:
             origin, direction, length, _, _ = pixel_rays(cam, self.width, self.height)
             ids = self._cast(origin, direction, length, full=False)["ids"].reshape(self.height, self.width)
         pixels = people_pixels(ids)
-        extra, n = sample_pixels(self.built.scene, pixels, people_spp, seed + 32452843)
+        extra, n = sample_pixels(self.built.scene, pixels, people_spp, seed + PEOPLE_SEED)
         return merge_samples(img, spp, pixels, extra, n)
 
     def _film(self, mi, seed: int, spp: int, integrator=None) -> np.ndarray:
@@ -359,7 +365,7 @@ class FrameRenderer:
             return np.array(mi.render(self.built.scene, spp=spp, seed=seed, **kw), dtype=np.float32)
         total = None
         for k, n in enumerate(parts):
-            img = np.array(mi.render(self.built.scene, spp=n, seed=seed + 7919 * k, **kw), dtype=np.float64) * n
+            img = np.array(mi.render(self.built.scene, spp=n, seed=seed + PASS_SEED * k, **kw), dtype=np.float64) * n
             total = img if total is None else total + img
         return (total / spp).astype(np.float32)
 

@@ -36,6 +36,8 @@ _LADDER_STEP = 2.0 ** 0.25
 # At most this many lanes (pixels x samples) in one kernel launch: the film's own largest pass at 1920x1080
 # and 64 spp. More pixels go in chunks of the same size (the same kernel; fixed bounds, so the same bytes).
 MAX_LANES = 1920 * 1080 * 64
+# Each further chunk's seed: this times its number past the first (a prime, as frame.py's seed offsets).
+CHUNK_SEED = 7919
 
 
 def padded_count(k: int) -> int:
@@ -88,7 +90,7 @@ def sample_pixels(scene, pixels: np.ndarray, spp: int, seed: int) -> tuple[np.nd
     probe.set_sample_count(int(spp))
     n = int(probe.sample_count())                   # as the sampler rounds it
     chunk = max(1, MAX_LANES // n)
-    parts = [_sample_chunk(scene, pixels[i:i + chunk], n, int(seed) + 7919 * (i // chunk), width, height)
+    parts = [_sample_chunk(scene, pixels[i:i + chunk], n, int(seed) + CHUNK_SEED * (i // chunk), width, height)
              for i in range(0, len(pixels), chunk)]
     return (np.concatenate(parts) if parts else np.zeros((0, 3), np.float32)), n
 
