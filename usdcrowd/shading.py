@@ -17,6 +17,11 @@ SCENERY_ID_BASE = 1 << 24
 LIGHT_ID_BASE = 1 << 25
 
 
+def is_agent_id(ids):
+    """True where an id (or an array of them) is an agent's: in [1, SCENERY_ID_BASE); 0 is the background."""
+    return (ids > 0) & (ids < SCENERY_ID_BASE)
+
+
 @dataclass
 class Material:
     """What UsdPreviewSurface (or displayColor) says about a surface, linear RGB."""

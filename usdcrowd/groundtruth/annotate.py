@@ -30,7 +30,7 @@ import numpy as np
 
 from ..cameras.features import frame_intent
 from ..model import EVENT_KINDS, EventTable
-from ..shading import SCENERY_ID_BASE
+from ..shading import is_agent_id
 from ..view import camera_record
 from . import rle
 
@@ -144,7 +144,7 @@ def annotate_frame(result, metadata: AgentMetadata | None = None, keypoint_names
 
     # Visible pixels of every agent in one pass over the id image: sort agent pixels by id.
     flat = gt.ids.ravel()
-    agent_px = np.flatnonzero((flat > 0) & (flat < SCENERY_ID_BASE))
+    agent_px = np.flatnonzero(is_agent_id(flat))
     order = np.argsort(flat[agent_px], kind="stable")
     agent_px = agent_px[order]
     px_ids = flat[agent_px]

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...poses import AgentPoses
-from ...shading import SCENERY_ID_BASE
+from ...shading import SCENERY_ID_BASE, is_agent_id
 from ...view import CameraView
 from ..scene import ShotScene
 from . import variant as _variant
@@ -141,7 +141,7 @@ def people_pixels(ids: np.ndarray, margin: int = PEOPLE_MARGIN) -> np.ndarray:
     """
     from scipy.ndimage import binary_dilation
 
-    people = (ids > 0) & (ids < SCENERY_ID_BASE)
+    people = is_agent_id(ids)
     if margin > 0 and people.any():
         people = binary_dilation(people, iterations=int(margin))
     return np.flatnonzero(people.ravel())
@@ -425,7 +425,7 @@ class FrameRenderer:
                 hit = self._cast(o, d, remaining, full=False)
             keep = hit["valid"]
             ids = hit["ids"]
-            agent = keep & (ids > 0) & (ids < SCENERY_ID_BASE)
+            agent = keep & is_agent_id(ids)
             found_pixels.append(pixels[agent])
             found_ids.append(ids[agent])
             t = hit["t"][keep]
