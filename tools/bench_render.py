@@ -284,6 +284,11 @@ def cycles_frame(python: str, shot: str, camera: str, spp: int, denoise: bool, o
     return _read_rgb(out if out.suffix == ".exr" else out.with_suffix(".exr")), seconds
 
 
+def frame_seconds(result) -> float:
+    """A frame's whole cost, as Cycles' is timed: posing and BVH update, beauty, denoising (no ground truth)."""
+    return result.seconds["update"] + result.seconds["beauty"] + result.seconds["denoise"]
+
+
 def bench_quality(shot: str, camera: str = "/World/Cameras/Overview") -> dict:
     """Relative MSE against each renderer's own converged frame, and the time it took (one frame).
 
@@ -309,8 +314,7 @@ def bench_quality(shot: str, camera: str = "/World/Cameras/Overview") -> dict:
             r.spp = spp
             r.render(QUALITY_FRAME)         # a new sample count can mean a new kernel: compiled here, untimed
             res = r.render(QUALITY_FRAME)
-            # A frame's whole cost, as Cycles' is timed: posing and BVH update, beauty, denoising.
-            seconds = res.seconds["update"] + res.seconds["beauty"] + res.seconds["denoise"]
+            seconds = frame_seconds(res)
             ours[(name, spp)] = (error_against(res.beauty, halves), seconds)
             settings[(name, spp)] = {"sampler": sampler, "denoise": denoise, "people_spp": people}
             if denoise:
@@ -389,7 +393,7 @@ def in_turns(shot: str, camera: str, key: tuple[str, int], settings: dict, halve
     for k in range(ROUNDS):
         r.seed = k                                               # the references' seeds are 999 and 1999
         res = r.render(QUALITY_FRAME)
-        rows["ours"].append(res.seconds["update"] + res.seconds["beauty"] + res.seconds["denoise"])
+        rows["ours"].append(frame_seconds(res))
         rows["ours_error"].append(error_against(res.beauty, halves)[1])
         img, seconds = cycles_frame(python, shot, cam, CYCLES_SPP, True, tmp / f"round{k}.exr",
                                     seed=CYCLES_ROUND_SEEDS[k], unbiased=unbiased)
