@@ -63,3 +63,17 @@ def walking_museum(tmp_path_factory):
     out = tmp_path_factory.mktemp("walking_museum")
     return author_shot(res.data_dir("stages") / "museum.usda", out, lambda sc: [straight_walk(sc.agents, sc.time)],
                        frames=(1, 12), progress=False).shot
+
+
+def cli_museum_shot(folder: Path, agents: int, last_frame: int) -> tuple[Path, Path]:
+    """A museum scenario and its shot made by the command line, so usdcrowd owns their files.
+
+    Returns (scenario path, shot folder).
+    """
+    from usdcrowd.cli import main
+
+    scenario = folder / "museum.usda"
+    assert main(["new", "museum", "-o", str(scenario), "--agents", str(agents)]) == 0
+    assert main(["simulate", str(scenario), "-o", str(folder / "shot"), "--frames", f"1:{last_frame}",
+                 "--no-progress"]) == 0
+    return scenario, folder / "shot"

@@ -23,7 +23,10 @@ def atomic_path(final: str | os.PathLike):
     """
     import errno
 
+    from . import guard
+
     final = Path(final)
+    guard.check_write(final)
     for folder in (final.parent, *final.parent.parents):
         if folder.exists():
             if not folder.is_dir():          # "x.usda" under /dev/null, or under a file
@@ -34,6 +37,7 @@ def atomic_path(final: str | os.PathLike):
     try:
         yield tmp
         os.replace(tmp, final)
+        guard.wrote(final)
     except OSError as exc:
         if exc.filename in (None, os.fspath(tmp)):      # name the file the user asked for, not ours
             raise OSError(exc.errno, exc.strerror, os.fspath(final)) from None
@@ -67,11 +71,14 @@ def clean_partials(folder: str | os.PathLike, depth: int = 2) -> int:
     return removed
 
 
-def output_dir(path: str | os.PathLike) -> Path:
+def output_dir(path: str | os.PathLike, what: str | None = None) -> Path:
     """The folder ``path``, created if needed; a one-line error if it cannot be an output folder.
 
-    What an interrupted run left there half-written (temporary ``.partial``
-    files) is removed.
+    Inside a command's :func:`usdcrowd.guard.session` the folder is claimed
+    first: locked against a second run, and refused when it holds what
+    usdcrowd did not write (unless ``--force``) or another kind of output
+    (``what``: "shot", "render"...). Then what an interrupted
+    run left there half-written (temporary ``.partial`` files) is removed.
 
     Raises
     ------
@@ -79,17 +86,20 @@ def output_dir(path: str | os.PathLike) -> Path:
         ``path`` exists and is not a folder (a file, /dev/null), cannot be
         created, or cannot be written to.
     """
+    from . import guard
     from .errors import UsdcrowdError
 
     out = Path(path)
     if out.exists() and not out.is_dir():
         raise UsdcrowdError("exists and is not a folder: give a folder for the outputs", file=os.fspath(out))
+    guard.check_not_input(out, "output folder")
     try:
-        out.mkdir(parents=True, exist_ok=True)
+        guard.make_dir(out)
     except OSError as exc:
         raise UsdcrowdError(f"cannot create the output folder: {exc.strerror}", file=os.fspath(out)) from None
     if not os.access(out, os.W_OK | os.X_OK):
         raise UsdcrowdError("cannot write to the output folder: permission denied", file=os.fspath(out))
+    guard.claim(out, what)      # locked for this run before anything in it is touched
     clean_partials(out)
     return out
 

@@ -181,7 +181,7 @@ def evaluate_shot(shot_path: str | os.PathLike, out_dir: str | os.PathLike, coun
     from .plots import coverage_plot
 
     sc = load_shot(shot_path, progress=progress, limits=limits)
-    out = output_dir(out_dir)
+    out = output_dir(out_dir, "metrics")
     active = active_mask(sc.events, sc.scenario.time.codes, len(sc.scenario.agents))
     results = {}
     for n in counts:

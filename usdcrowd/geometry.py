@@ -64,6 +64,16 @@ def _check_topology(prim, points: np.ndarray, counts: np.ndarray, indices: np.nd
         fail(f"index {bad} is outside the {len(points)} points", "faceVertexIndices")
 
 
+def _dimension(prim, name: str) -> float:
+    """An implicit gprim's size, radius, height, width or length: a finite number >= 0."""
+    from .errors import StageError
+
+    value = prim.GetAttribute(name).Get()
+    if value is None or not np.isfinite(value) or value < 0:
+        raise StageError.at(prim, name, f"must be a finite number >= 0, got {value}")
+    return float(value)
+
+
 def mesh_of(prim) -> MeshData | None:
     """Triangles of a gprim in its local space (stage units; scaled later by the world matrix)."""
     import trimesh
@@ -86,15 +96,15 @@ def mesh_of(prim) -> MeshData | None:
             uv = np.array(st.Get(), dtype=np.float32)
         return MeshData(np.array(points, dtype=np.float32), faces, None, uv)
     if prim.IsA(UsdGeom.Cube):
-        size = UsdGeom.Cube(prim).GetSizeAttr().Get()
+        size = _dimension(prim, "size")
         t = trimesh.creation.box(extents=(size, size, size))
     elif prim.IsA(UsdGeom.Sphere):
-        t = trimesh.creation.icosphere(subdivisions=3, radius=UsdGeom.Sphere(prim).GetRadiusAttr().Get())
+        t = trimesh.creation.icosphere(subdivisions=3, radius=_dimension(prim, "radius"))
     elif prim.IsA(UsdGeom.Cylinder) or prim.IsA(UsdGeom.Cone) or prim.IsA(UsdGeom.Capsule):
         schema_cls = (UsdGeom.Cylinder if prim.IsA(UsdGeom.Cylinder) else
                       UsdGeom.Cone if prim.IsA(UsdGeom.Cone) else UsdGeom.Capsule)
         g = schema_cls(prim)
-        r, h = g.GetRadiusAttr().Get(), g.GetHeightAttr().Get()
+        r, h = _dimension(prim, "radius"), _dimension(prim, "height")
         if schema_cls is UsdGeom.Cylinder:
             t = trimesh.creation.cylinder(radius=r, height=h, sections=32)
         elif schema_cls is UsdGeom.Cone:
@@ -108,8 +118,7 @@ def mesh_of(prim) -> MeshData | None:
         elif axis == "Y":
             t.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, (1, 0, 0)))
     elif prim.IsA(UsdGeom.Plane):
-        p = UsdGeom.Plane(prim)
-        w, l = p.GetWidthAttr().Get(), p.GetLengthAttr().Get()
+        w, l = _dimension(prim, "width"), _dimension(prim, "length")
         verts = np.array([[-w / 2, -l / 2, 0], [w / 2, -l / 2, 0], [w / 2, l / 2, 0], [-w / 2, l / 2, 0]], np.float32)
         return MeshData(verts, np.array([[0, 1, 2], [0, 2, 3]], np.int32))
     else:

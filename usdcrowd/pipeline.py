@@ -105,16 +105,19 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     from .plots import trajectory_map
     from .scenario import load_scenario, open_stage, stage_frame
     from .scenario.events import read_events
-    from .usd import CROWD, CrowdLayerWriter, write_shot
+    from . import guard
+    from .usd import CAMERAS, CROWD, SHOT, CrowdLayerWriter, write_shot
     from .usd.cameras import write_camera_tracks
     from .usd.crowd_layer import write_group_properties
     from .usd.events import author_events
+    from .validation import refuse_errors
 
     scenario_path = os.fspath(scenario_path)
     out_dir = Path(out_dir)
     stage = open_stage(scenario_path)
     limits = limits or DEFAULT
     scenario = load_scenario(scenario_path, seed=seed, stage=stage, limits=limits)
+    refuse_errors(stage, scenario_path)          # and whatever else `usdcrowd validate` reports as an error
     if frames is not None:
         scenario.time = model.TimeRange(float(frames[0]), float(frames[1]), scenario.time.fps)
         if scenario.time.n_frames > limits.max_frames:
@@ -127,7 +130,9 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     default_prim = stage.GetDefaultPrim().GetName() if stage.GetDefaultPrim() else ""
     authored = {p for p in scenario.agents.path if stage.GetPrimAtPath(p)}
     has_lights = any(p.HasAPI(UsdLux.LightAPI) for p in stage.Traverse())
-    output_dir(out_dir)
+    output_dir(out_dir, "shot")
+    for name in (SHOT, CROWD, CAMERAS, "trajectories.png", "crowd.clips"):
+        guard.check_write(out_dir / name)           # before the work, not when the shot is finally written
     scenario_ref = os.path.relpath(os.path.abspath(scenario_path), out_dir.resolve())
 
     # Positions for the cameras wait on disk, not in memory (they grow with the shot).

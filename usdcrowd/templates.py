@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from . import schema
+from . import guard
 from .atomic import atomic_path
 from .errors import UsdcrowdError
 from .resources import data_dir
@@ -135,9 +136,11 @@ def new_scenario(template: str, out: str | os.PathLike, agents: int | None = Non
         if not layer.Export(str(tmp)):
             raise UsdcrowdError("could not be written", file=str(out))
         for source_file, dest in assets:
-            dest.parent.mkdir(parents=True, exist_ok=True)
             if source_file.resolve() != dest.resolve():
+                guard.check_write(dest)
+                guard.make_dir(dest.parent)
                 shutil.copyfile(source_file, dest)
+                guard.wrote(dest)
     return {"path": str(out), "agents": total, "seed": crowd.get("seed"), "assets": [str(d) for _, d in assets]}
 
 

@@ -46,10 +46,14 @@ def usd_problems(stage, source: str) -> list[Problem]:
     """Findings of pxr.UsdValidation's registered validators."""
     from pxr import UsdValidation
 
+    from .scenario.stageio import _captured_stderr
+
     reg = UsdValidation.ValidationRegistry()
     validators = [v for v in reg.GetOrLoadAllValidators() if str(v.GetMetadata().name) not in _SKIPPED_VALIDATORS]
     out = []
-    for err in UsdValidation.ValidationContext(validators).Validate(stage):
+    with _captured_stderr():        # the C++ warnings a validator prints as it goes: it reports them itself
+        errors = UsdValidation.ValidationContext(validators).Validate(stage)
+    for err in errors:
         if err.HasNoError():
             continue
         sev = {UsdValidation.ValidationErrorType.Error: "error",
@@ -94,15 +98,12 @@ def _animation_problems(anims) -> list[tuple[object, str, str]]:
 
 
 def _non_finite(prim) -> list[tuple[str, str]]:
-    """Transform ops and light values that are NaN or infinite (default value and authored samples)."""
-    from pxr import UsdGeom, UsdLux
+    """Transform ops that are NaN or infinite (default value and authored samples)."""
+    from pxr import UsdGeom
 
     attrs = []
     if prim.IsA(UsdGeom.Xformable):
         attrs += [op.GetAttr() for op in UsdGeom.Xformable(prim).GetOrderedXformOps()]
-    if prim.HasAPI(UsdLux.LightAPI):
-        api = UsdLux.LightAPI(prim)
-        attrs += [api.GetIntensityAttr(), api.GetExposureAttr(), api.GetColorAttr()]
     out = []
     for attr in attrs:
         if not attr or not attr.HasAuthoredValue():
@@ -144,6 +145,7 @@ def schema_problems(stage, source: str) -> list[Problem]:
     """Crowd-schema rules: allowed tokens, documented ranges, relationships, assets, ids."""
     from pxr import UsdGeom
 
+    from .scenario.lights import light_problems
     from .scenario.ranges import range_problem
 
     out: list[Problem] = []
@@ -161,7 +163,7 @@ def schema_problems(stage, source: str) -> list[Problem]:
                 add(prim, attr_name, msg)
         if prim.IsA(UsdSkel.Animation):
             anims.append(prim)
-        for attr_name, msg in _non_finite(prim):
+        for attr_name, msg in _non_finite(prim) + light_problems(prim) + _variant_problems(prim):
             add(prim, attr_name, msg)
         tname = prim.GetTypeName()
         if tname == "DistantLight":
@@ -240,6 +242,20 @@ def schema_problems(stage, source: str) -> list[Problem]:
     return out
 
 
+def _variant_problems(prim) -> list[tuple[str, str]]:
+    """Variant selections that name no variant of their set: USD composes nothing from the set, silently."""
+    if not prim.HasVariantSets():
+        return []
+    sets = prim.GetVariantSets()
+    out = []
+    for name, selection in sets.GetAllVariantSelections().items():
+        variants = sets.GetVariantSet(name).GetVariantNames() if sets.HasVariantSet(name) else []
+        if selection and selection not in variants:
+            out.append((f"variants:{name}", f"selects {selection!r}, which variant set {name!r} does not have "
+                                            f"({', '.join(repr(v) for v in variants) or 'no variants'})"))
+    return out
+
+
 def _dim_sun_problem(prim) -> str | None:
     """An unnormalised DistantLight that gives under 1 % of its intensity as illuminance: an older usdcrowd
     stage, or one meant for a renderer that ignores inputs:normalize (UsdLux: its intensity is the disc's
@@ -306,17 +322,30 @@ def clip_problems(stage) -> list[Problem]:
     return out
 
 
-def scenario_problem(stage, source: str, limits=None) -> list[Problem]:
-    """The first structural problem the scenario reader finds (empty group, missing image...)."""
-    from .scenario import load_scenario
+def scenario_problems(stage, source: str, limits=None) -> list[Problem]:
+    """The problems the scenario reader finds (empty groups, missing images, bad units...), all of them."""
+    from .scenario.read import scenario_errors
 
     if not any(p.GetTypeName() == schema.GROUP or schema.is_agent(p) for p in stage.Traverse()):
         return []
-    try:
-        load_scenario(source, stage=stage, **({"limits": limits} if limits else {}))
-    except UsdcrowdError as exc:
-        return [Problem(exc.file or source, exc.prim or "", exc.attribute or "", exc.message, "usdcrowd")]
-    return []
+    found = scenario_errors(source, stage=stage, **({"limits": limits} if limits else {}))
+    return [Problem(e.file or source, e.prim or "", e.attribute or "", e.message, "usdcrowd") for e in found]
+
+
+def stage_problems(stage, source: str) -> list[Problem]:
+    """What validate finds besides the scenario reader: USD's validators, value clips, units, schema rules."""
+    return usd_problems(stage, source) + clip_problems(stage) + frame_problems(stage) + schema_problems(stage, source)
+
+
+def refuse_errors(stage, source: str) -> None:
+    """Raise the first error :func:`stage_problems` finds, so a command (``simulate``) refuses what
+    ``validate`` reports as an error; the scenario reader raises its own."""
+    from .errors import ScenarioError
+
+    # usdcrowd's own words first: they name the prim and the attribute.
+    for p in sorted(stage_problems(stage, source), key=lambda p: (p.source != "usdcrowd", p.prim, p.attribute)):
+        if p.severity == "error":
+            raise ScenarioError(p.message, file=p.file, prim=p.prim or None, attribute=p.attribute or None)
 
 
 def validate(path: str | os.PathLike, stage=None, limits=None) -> list[Problem]:
@@ -325,7 +354,7 @@ def validate(path: str | os.PathLike, stage=None, limits=None) -> list[Problem]:
 
     source = os.fspath(path)
     stage = stage or open_stage(source)
-    found = usd_problems(stage, source) + clip_problems(stage) + frame_problems(stage) + schema_problems(stage, source)
+    found = stage_problems(stage, source)
     seen = {(p.prim, p.attribute, p.message) for p in found}
-    found += [p for p in scenario_problem(stage, source, limits) if (p.prim, p.attribute, p.message) not in seen]
+    found += [p for p in scenario_problems(stage, source, limits) if (p.prim, p.attribute, p.message) not in seen]
     return sorted(found, key=lambda p: (p.severity != "error", p.prim, p.attribute))

@@ -9,10 +9,12 @@ from __future__ import annotations
 
 import argparse
 import errno
+import os
 import sys
 
 from .. import __version__
 from ..errors import UsdcrowdError
+from ..interrupts import Terminated, terminate_as_exception
 from . import (cameras, dataset, demo, features, frame, inspect_cmd, metrics, new, preview, render, simulate,
                validate)
 
@@ -41,15 +43,41 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _named(args, names) -> list:
+    """The paths the options ``names`` hold (an option may hold several)."""
+    found = []
+    for name in names:
+        value = getattr(args, name, None)
+        if value is not None:
+            found += list(value) if isinstance(value, (list, tuple)) else [value]
+    return found
+
+
+def _run_guarded(args) -> int:
+    """The command inside a guard session: its inputs are never written, its outputs only where it may."""
+    from .. import guard
+
+    with terminate_as_exception(), guard.session(_named(args, getattr(args, "inputs", ())),
+                                                 force=getattr(args, "force", False)):
+        for path in _named(args, getattr(args, "outputs", ())):
+            guard.check_not_input(path)         # before any work, not when the output is finally written
+        return int(args.run(args) or 0)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit code."""
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        return int(args.run(args) or 0)
+        return _run_guarded(args)
     except UsdcrowdError as exc:
         print(f"usdcrowd {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_USER_ERROR
+    except BrokenPipeError:
+        # The reader stopped reading (`inspect ... | head`): nothing left to say, and Python's own
+        # flush at exit must not fail on the closed pipe either.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except OSError as exc:
         # The machine, not the code: a full disk, a read-only or vanished folder.
         if exc.errno not in _ENVIRONMENT_ERRNOS:
@@ -58,8 +86,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"usdcrowd {args.command}: error: {where}{(exc.strerror or str(exc)).lower()}", file=sys.stderr)
         return EXIT_USER_ERROR
     except KeyboardInterrupt:
-        print(f"usdcrowd {args.command}: interrupted", file=sys.stderr)
+        print(f"usdcrowd {args.command}: interrupted (finished outputs kept; run it again to resume)", file=sys.stderr)
         return 130
+    except Terminated:
+        print(f"usdcrowd {args.command}: terminated (finished outputs kept; run it again to resume)", file=sys.stderr)
+        return 143
 
 
 if __name__ == "__main__":

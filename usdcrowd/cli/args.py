@@ -126,5 +126,12 @@ def limits_of(args):
     return Limits(args.max_agents, args.max_frames, args.max_image_pixels)
 
 
+def add_force(parser: argparse.ArgumentParser, also: str = "") -> None:
+    """--force: write into an output folder that holds files usdcrowd did not write (never replacing them)."""
+    parser.add_argument("--force", action="store_true",
+                        help="write into an output folder that holds files usdcrowd did not write (they are never "
+                             f"replaced or removed), or replace a named output file usdcrowd did not write{also}")
+
+
 def add_progress(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", dest="progress", action="store_false", help="hide progress bars")

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .args import add_limits, add_progress, add_seed, int_at_least, limits_of
+from .args import add_force, add_limits, add_progress, add_seed, int_at_least, limits_of
 
 
 def add_parser(sub):
@@ -17,12 +17,19 @@ def add_parser(sub):
                    help="also N static cameras at strategic positions around the crowd")
     add_seed(p)
     add_limits(p)
+    add_force(p, " (cameras.usda changed since usdcrowd wrote it)")
     add_progress(p)
-    p.set_defaults(run=run)
+    p.set_defaults(run=run, inputs=("shot",))
 
 
 def run(args) -> int:
+    from pathlib import Path
+
+    from .. import guard
     from ..filming import refilm_shot
+    from ..usd.cameras import CAMERAS
+
+    guard.edit_in_place(Path(args.shot).parent / CAMERAS)
 
     path, tracks, sc = refilm_shot(args.shot, count=args.count, static=args.static, seed=args.seed,
                                    progress=args.progress, limits=limits_of(args))

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .args import add_executor, add_progress, int_list
+from .args import add_executor, add_force, add_progress, int_list
 
 
 def add_parser(sub):
@@ -17,12 +17,11 @@ def add_parser(sub):
     add_executor(p, "processes, or concurrent tasks on a Ray instance started here (default 1)",
                  "a running Ray cluster's address (with --executor ray); the dataset folder must then be on "
                  "a file system every node mounts at the same path")
-    p.add_argument("--force", action="store_true",
-                   help="accept a changed spec: sequences whose plan changed are made again, the rest kept")
+    add_force(p, "; and accept a changed spec: sequences whose plan changed are made again, the rest kept")
     p.add_argument("--sequences", metavar="LIST", type=int_list(0, "sequence numbers like 3 or 0,5,7"),
                    help="make only these sequences, e.g. 3 or 0,5,7 (to re-make one alone)")
     add_progress(p)
-    p.set_defaults(run=run)
+    p.set_defaults(run=run, inputs=("spec",), outputs=("output",))
 
 
 def run(args) -> int:

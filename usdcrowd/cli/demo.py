@@ -5,7 +5,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from .args import add_progress, add_seed
+from .args import add_force, add_progress, add_seed
 
 
 def add_parser(sub):
@@ -18,8 +18,9 @@ def add_parser(sub):
     p.add_argument("--agents", type=int, default=None, help="number of agents (default: the template's)")
     p.add_argument("--cameras", type=int, default=3, help="steering camera agents to run (default 3)")
     add_seed(p)
+    add_force(p)
     add_progress(p)
-    p.set_defaults(run=run)
+    p.set_defaults(run=run, outputs=("output",))
 
 
 def run(args) -> int:
@@ -30,7 +31,7 @@ def run(args) -> int:
 
     from ..atomic import output_dir
 
-    out = output_dir(args.output)
+    out = output_dir(args.output, "demo")
     t0 = time.perf_counter()
     info = new_scenario(args.template, out / "scenario.usda", args.agents, args.seed)
     print(f"[1] scenario  {info['path']} ({info['agents']} agents, template {args.template})")

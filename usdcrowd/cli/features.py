@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .args import add_camera, add_frames, add_resolution
+from .args import add_camera, add_force, add_frames, add_resolution
 
 
 def add_parser(sub):
@@ -17,7 +17,8 @@ def add_parser(sub):
     add_camera(p)
     add_frames(p)
     add_resolution(p)
-    p.set_defaults(run=run)
+    add_force(p)
+    p.set_defaults(run=run, inputs=("shot",), outputs=("output",))
 
 
 def run(args) -> int:
@@ -31,7 +32,7 @@ def run(args) -> int:
 
     width, height = args.resolution or (1920, 1080)
     features, about = shot_features(args.shot, args.camera, args.a, args.b, args.frames, width, height)
-    out = output_dir(args.output)
+    out = output_dir(args.output, "features")
     written = write_features(features, Path(out) / "features.csv", Path(out) / "features.json", **about)
     framed = int(np.isfinite(features.theta).sum())
     print(f"wrote {written[0]} and {written[1]}: {len(features.times)} frames ({framed} with both heads in front "

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .args import add_progress, add_resolution
+from .args import add_force, add_progress, add_resolution
 
 
 def add_parser(sub):
@@ -45,13 +45,17 @@ def add_parser(sub):
                    help="lens on a 36 mm horizontal aperture (default 50)")
     p.add_argument("--name", help="camera prim name (default: behavior and characters, e.g. Orbit_A_B)")
     add_resolution(p)
+    add_force(p, " (cameras.usda changed since usdcrowd wrote it)")
     add_progress(p)
-    p.set_defaults(run=run)
+    p.set_defaults(run=run, inputs=("shot", "like"))
 
 
 def run(args) -> int:
+    from pathlib import Path
+
     import numpy as np
 
+    from .. import guard
     from ..cameras.behaviors import Behavior
     from ..errors import UsdcrowdError
     from ..toric_filming import PairSpan, frame_shot
@@ -74,6 +78,9 @@ def run(args) -> int:
         except ValueError:
             raise UsdcrowdError(f"--switch {frame} {a} {b}: {frame!r} is not a frame number") from None
     width, height = args.resolution or (1920, 1080)
+    from ..usd.cameras import CAMERAS
+
+    guard.edit_in_place(Path(args.shot).parent / CAMERAS)
     if args.like:
         from ..toric_filming import frame_like, read_reference
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .args import add_limits, add_progress, add_seed, int_list, limits_of
+from .args import add_force, add_limits, add_progress, add_seed, int_list, limits_of
 
 
 def add_parser(sub):
@@ -16,8 +16,9 @@ def add_parser(sub):
     p.add_argument("--counts", type=int_list(1, "camera counts like 4,8"), default=(4, 8), metavar="N,M", help="camera counts (default 4,8)")
     add_seed(p)
     add_limits(p)
+    add_force(p)
     add_progress(p)
-    p.set_defaults(run=run)
+    p.set_defaults(run=run, inputs=("shot",), outputs=("output",))
 
 
 def run(args) -> int:

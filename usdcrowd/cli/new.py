@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .args import add_limits, add_seed, limits_of
+from .args import add_force, add_limits, add_seed, limits_of
 
 
 def add_parser(sub):
@@ -17,7 +17,8 @@ def add_parser(sub):
                                                    "template's: referenced with the transform it needs")
     add_seed(p)
     add_limits(p)
-    p.set_defaults(run=run)
+    add_force(p)
+    p.set_defaults(run=run, inputs=("scenery",), outputs=("output",))
 
 
 def run(args) -> int:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .args import add_camera, add_frames, add_progress, add_resolution, int_at_least
+from .args import add_camera, add_force, add_frames, add_progress, add_resolution, int_at_least
 
 OVERLAYS = ("frusta", "trajectories", "layers", "events", "ids")
 
@@ -28,8 +28,9 @@ def add_parser(sub):
                    help="with a frames folder, also write ids (uint32) and depth (metres) per frame as .npz")
     p.add_argument("--sheet", metavar="PNG", help="contact sheet path (default: next to the output)")
     p.add_argument("--exposure", type=float, default=1.0, help="multiplies linear radiance (default 1)")
+    add_force(p)
     add_progress(p)
-    p.set_defaults(run=run)
+    p.set_defaults(run=run, inputs=("stage",), outputs=("output", "sheet"))
 
 
 def parse_overlays(spec: str) -> tuple[str, ...]:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .args import add_camera, add_executor, add_frames, add_progress, add_resolution, int_at_least
+from .args import add_camera, add_executor, add_force, add_frames, add_progress, add_resolution, int_at_least
 
 
 def add_parser(sub):
@@ -47,8 +47,9 @@ def add_parser(sub):
                               "beauty as raw.R, raw.G, raw.B)")
     denoise.add_argument("--no-denoise", dest="denoise", action="store_const", const=False,
                          help="keep the path-traced beauty as it is (every preset denoises)")
+    add_force(p)
     add_progress(p)
-    p.set_defaults(run=run)
+    p.set_defaults(run=run, inputs=("shot",), outputs=("output",))
 
 
 def run(args) -> int:

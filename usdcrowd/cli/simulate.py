@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .args import add_frames, add_limits, add_progress, add_seed, limits_of
+from .args import add_force, add_frames, add_limits, add_progress, add_seed, limits_of
 
 
 def add_parser(sub):
@@ -17,8 +17,9 @@ def add_parser(sub):
     add_seed(p)
     add_frames(p)
     add_limits(p)
+    add_force(p)
     add_progress(p)
-    p.set_defaults(run=run)
+    p.set_defaults(run=run, inputs=("stage",), outputs=("output",))
 
 
 def run(args) -> int:

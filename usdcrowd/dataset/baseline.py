@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import guard
 from ..atomic import atomic_path
 from .layout import BENCHMARK, mot_dir
 
@@ -81,7 +82,7 @@ def iou_tracker(detections: np.ndarray, sigma_iou: float = 0.3, t_min: int = 2) 
 def write_tracker(path, tracked: np.ndarray) -> str:
     """A MOTChallenge tracker file."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    guard.make_dir(path.parent)
     with atomic_path(path) as tmp, open(tmp, "w") as f:
         for fr, tid, x, y, w, h in tracked:
             f.write(f"{int(fr)},{int(tid)},{x:.2f},{y:.2f},{w:.2f},{h:.2f},1,-1,-1,-1\n")

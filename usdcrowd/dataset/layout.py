@@ -23,6 +23,7 @@ import os
 import shutil
 from pathlib import Path
 
+from .. import guard
 from ..atomic import atomic_path
 
 BENCHMARK = "USDCROWD"
@@ -38,8 +39,9 @@ def video_name(sequence: str, camera_path: str) -> str:
 
 def link(src: str | os.PathLike, dst: Path) -> None:
     """``dst`` as a hard link to ``src`` (a copy across file systems), replacing what was there."""
-    dst.parent.mkdir(parents=True, exist_ok=True)
+    guard.make_dir(dst.parent)
     if dst.exists() or dst.is_symlink():
+        guard.check_remove(dst)
         dst.unlink()
     try:
         os.link(src, dst)
@@ -64,7 +66,7 @@ def write_seqmaps(root: Path, videos_by_split: dict[str, list[str]]) -> dict[str
     out = {}
     for split, names in videos_by_split.items():
         path = Path(root) / "mot" / "seqmaps" / f"{BENCHMARK}-{split}.txt"
-        path.parent.mkdir(parents=True, exist_ok=True)
+        guard.make_dir(path.parent)
         with atomic_path(path) as tmp:
             tmp.write_text("name\n" + "".join(f"{n}\n" for n in names))
         out[split] = os.fspath(path)

@@ -22,6 +22,7 @@ for their plan and renders only the frames not recorded whole.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -31,7 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import atomic_path, output_dir
+from .. import guard
+from ..atomic import atomic_path, clean_partials, output_dir
 from ..errors import UsdcrowdError
 from . import layout
 from .spec import DatasetSpec, assign_splits, draw_plan, load_spec
@@ -114,7 +116,7 @@ class _Inline:
     def wait(self, pending):
         return [(f, f.value) for f in pending], []
 
-    def close(self):
+    def close(self, now: bool = False):
         pass
 
 
@@ -124,7 +126,10 @@ class _Local:
         from concurrent.futures import ProcessPoolExecutor
 
         self.threads = max(1, (os.cpu_count() or 1) // workers)
-        self.pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
+        from ..interrupts import worker_ignores_interrupts
+
+        self.pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
+                                        initializer=worker_ignores_interrupts)
 
     def submit(self, fn, *args):
         return self.pool.submit(fn, *args)
@@ -135,8 +140,19 @@ class _Local:
         done, rest = wait(pending, return_when=FIRST_COMPLETED)
         return [(f, f.result()) for f in done], list(rest)
 
-    def close(self):
-        self.pool.shutdown(cancel_futures=True)
+    def close(self, now: bool = False):
+        from ..interrupts import stop_pool
+
+        if self.pool is None:
+            return
+        if now:
+            import gc
+
+            stop_pool(self.pool)
+            self.pool = None
+            gc.collect()            # the pool's queues' semaphores are released now, not warned about at exit
+        else:
+            self.pool.shutdown(cancel_futures=True)
 
 
 class _Ray:
@@ -160,11 +176,14 @@ class _Ray:
         # On a cluster Ray runs a task per CPU of each node: one render thread each, no oversubscription.
         self.threads = 1 if address else max(1, (os.cpu_count() or 1) // max(workers, 1))
         self.remote = {}
+        self.submitted = []
 
     def submit(self, fn, *args):
         if fn not in self.remote:
             self.remote[fn] = self.ray.remote(num_cpus=1)(fn)
-        return self.remote[fn].remote(*args)
+        ref = self.remote[fn].remote(*args)
+        self.submitted.append(ref)
+        return ref
 
     def wait(self, pending):
         from ..render.sequence import _ray_result
@@ -172,9 +191,13 @@ class _Ray:
         (ref,), rest = self.ray.wait(list(pending), num_returns=1)
         return [(ref, _ray_result(self.ray, ref))], list(rest)
 
-    def close(self):
+    def close(self, now: bool = False):
         if self.started:
             self.ray.shutdown()
+        elif now:                   # a cluster's workers: cancel this run's tasks, running or queued
+            for ref in self.submitted:
+                with contextlib.suppress(Exception):
+                    self.ray.cancel(ref, force=True)
 
 
 def _executor(kind: str, workers: int, address: str | None):
@@ -251,7 +274,7 @@ def make_dataset(spec_path, out_dir, executor: str = "local", workers: int = 1, 
     if bad:
         raise UsdcrowdError(f"no sequence {bad[0]}: the spec has {spec.sequences} (0 to {spec.sequences - 1})")
     settings = _settings(spec)
-    out = output_dir(out_dir)
+    out = output_dir(out_dir, "dataset")
     _check_existing(out, spec, force)
     splits = assign_splits(spec)
     all_plans = {i: draw_plan(spec, i, splits[i]) for i in range(spec.sequences)}
@@ -300,7 +323,7 @@ def make_dataset(spec_path, out_dir, executor: str = "local", workers: int = 1, 
                     bar.total += (len(seq.cameras) - guess[i]) * len(seq.frames)
                     for camera, _kind in seq.cameras:
                         cam_out = camera_dir(out, seq.name, camera)
-                        cam_out.mkdir(parents=True, exist_ok=True)
+                        guard.make_dir(cam_out)
                         manifest = Manifest(cam_out, _render_header(seq, camera, plans[i], settings))
                         todo = [t for t in seq.frames if not verify_frame(cam_out, t, manifest, settings)]
                         bar.update(len(seq.frames) - len(todo))
@@ -326,6 +349,10 @@ def make_dataset(spec_path, out_dir, executor: str = "local", workers: int = 1, 
                         write_video(out, prepared[i], camera)
                         written.add((prepared[i].name, camera))
                 status()
+    except BaseException:
+        ex.close(now=True)          # Ctrl-C, kill or an error: stop the workers, drop the frames in flight
+        clean_partials(out)
+        raise
     finally:
         for state in cams.values():
             state["manifest"].flush()
@@ -386,6 +413,7 @@ def _drop_stale(out: Path, keep: set[str]) -> None:
     if root.is_dir():
         for d in root.iterdir():
             if d.is_dir() and d.name not in keep:
+                guard.check_remove(d)
                 shutil.rmtree(d)
 
 
@@ -415,6 +443,7 @@ def clear_merged(out: Path) -> None:
     """The merged files are rebuilt from the frames on every run: nothing stale survives a changed spec."""
     for folder in (out / "mot", out / "coco"):
         if folder.exists():
+            guard.check_remove(folder)
             shutil.rmtree(folder)
 
 

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import guard
 from ..atomic import atomic_path
 from ..errors import UsdcrowdError
 
@@ -204,7 +205,7 @@ def prepare_sequence(plan: dict, spec, seq_dir: str | os.PathLike) -> PreparedSe
     done = read_prepared(seq_dir, plan)
     if done is not None:
         return done
-    seq_dir.mkdir(parents=True, exist_ok=True)
+    guard.make_dir(seq_dir)
     (seq_dir / PLAN).unlink(missing_ok=True)
     scenario = write_scenario(plan, spec, seq_dir)
     last = 1 + (plan["frames"] - 1) * plan["stride"]

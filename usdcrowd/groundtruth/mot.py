@@ -22,6 +22,7 @@ import os
 import shutil
 from pathlib import Path
 
+from .. import guard
 from ..atomic import atomic_path
 
 PEDESTRIAN, DISTRACTOR = 1, 8
@@ -52,7 +53,7 @@ def write_mot(records, out_dir, name: str = "usdcrowd", fps: float = 24.0,
     """
     out = Path(out_dir)
     gt = out / "gt" / "gt.txt"
-    gt.parent.mkdir(parents=True, exist_ok=True)
+    guard.make_dir(gt.parent)
     times = []
     # Frame by frame: records may be read from disk one at a time (frame_json.Records).
     with atomic_path(gt) as tmp, open(tmp, "w") as f:
@@ -74,7 +75,7 @@ def write_mot(records, out_dir, name: str = "usdcrowd", fps: float = 24.0,
         tmp.write_text("frame,time_code\n" + "".join(f"{i},{t:g}\n" for i, t in enumerate(times, 1)))
     if images:
         img_dir = out / "img1"
-        img_dir.mkdir(exist_ok=True)
+        guard.make_dir(img_dir)
         for i, src in enumerate(images, start=1):
             if src is None or not os.path.exists(src):
                 continue

@@ -485,12 +485,11 @@ def _light_of(prim, to_world: np.ndarray, mpu: float, up_axis: str = "Z") -> Lig
     from pxr import UsdLux
 
     from ..errors import StageError
+    from ..scenario.lights import light_problems
 
+    for attribute, problem in light_problems(prim)[:1]:        # what `usdcrowd validate` reports
+        raise StageError.at(prim, attribute, problem)
     api = UsdLux.LightAPI(prim)
-    for attr in (api.GetIntensityAttr(), api.GetExposureAttr(), api.GetColorAttr()):
-        value = attr.Get()
-        if value is not None and not np.isfinite(np.asarray(value, dtype=np.float64)).all():
-            raise StageError.at(prim, attr.GetName(), f"not a finite value: {value}")
     rgb = np.array(api.GetColorAttr().Get(), dtype=np.float64)
     if api.GetEnableColorTemperatureAttr().Get():
         rgb = rgb * color_temperature_rgb(api.GetColorTemperatureAttr().Get())

@@ -27,6 +27,7 @@ folder on a shared file system).
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
@@ -37,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import atomic_path, output_dir
+from ..atomic import atomic_path, clean_partials, output_dir
 from ..errors import UsdcrowdError
 
 MANIFEST = "manifest.json"
@@ -311,6 +312,14 @@ def _worker_init(shot_path, camera, settings_dict, threads):
         _WORKER["error"] = exc
 
 
+def _pool_worker_init(shot_path, camera, settings_dict, threads):
+    """A pool worker's start: interrupts are the parent's to handle (it stops the pool), then the scene."""
+    from ..interrupts import worker_ignores_interrupts
+
+    worker_ignores_interrupts()
+    _worker_init(shot_path, camera, settings_dict, threads)
+
+
 def frame_renderer(shot, camera: str | None, settings: RenderSettings, threads: int | None = None):
     """The :class:`~.final.frame.FrameRenderer` that renders ``settings``' frames of ``shot`` through ``camera``."""
     from .final.frame import FrameRenderer
@@ -351,14 +360,21 @@ def _run_local(shot_path, camera, settings, todo, out_dir, on_done, workers):
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
     threads = max(1, (os.cpu_count() or 1) // workers)
+    from ..interrupts import stop_pool
+
     ctx = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(workers, mp_context=ctx, initializer=_worker_init,
-                             initargs=(shot_path, camera, asdict(settings), threads)) as pool:
+    pool = ProcessPoolExecutor(workers, mp_context=ctx, initializer=_pool_worker_init,
+                               initargs=(shot_path, camera, asdict(settings), threads))
+    try:
         pending = {pool.submit(_worker_render, float(t), os.fspath(out_dir)) for t in todo}
         while pending:
             done, pending = wait(pending, return_when=FIRST_COMPLETED)
             for fut in done:
                 on_done(fut.result())
+    except BaseException:
+        stop_pool(pool)             # Ctrl-C, kill or an error: the frames left are not rendered
+        raise
+    pool.shutdown()
 
 
 def _run_ray(shot_path, camera, settings, todo, out_dir, on_done, workers, address):
@@ -367,6 +383,7 @@ def _run_ray(shot_path, camera, settings, todo, out_dir, on_done, workers, addre
     except ImportError:
         raise UsdcrowdError("--executor ray needs Ray: pip install 'usdcrowd[distributed]'") from None
     started = False
+    actors = []
     if not ray.is_initialized():
         import logging
 
@@ -382,7 +399,7 @@ def _run_ray(shot_path, camera, settings, todo, out_dir, on_done, workers, addre
     try:
         actor_cls = ray.remote(num_cpus=1)(_RayRenderer)
         threads = max(1, (os.cpu_count() or 1) // workers) if not address else None
-        actors = [actor_cls.remote(shot_path, camera, asdict(settings), threads) for _ in range(workers)]
+        actors += [actor_cls.remote(shot_path, camera, asdict(settings), threads) for _ in range(workers)]
         queue = [float(t) for t in todo]
         in_flight = {}
         for a in actors:
@@ -396,7 +413,11 @@ def _run_ray(shot_path, camera, settings, todo, out_dir, on_done, workers, addre
                 in_flight[actor.render.remote(queue.pop(0), os.fspath(out_dir))] = actor
     finally:
         if started:
-            ray.shutdown()
+            ray.shutdown()          # this run's Ray instance: its actors go with it
+        else:
+            for a in actors:        # a cluster's: stop this run's actors, mid-frame or not
+                with contextlib.suppress(Exception):
+                    ray.kill(a)
 
 
 def _ray_result(ray, ref):
@@ -486,7 +507,7 @@ def render_sequence(shot_path, out_dir, camera: str | None = None, frames=None,
     if executor not in ("local", "inline", "ray"):
         raise UsdcrowdError(f"unknown executor {executor!r} (local, inline, ray)")
     resolve_variant(settings)
-    output_dir(out)
+    output_dir(out, "render")
     header = {"shot": shot_path, "camera": cam_path, "settings": settings.fingerprint()}
     manifest = Manifest(out, header)
     done = [float(t) for t in times if verify_frame(out, t, manifest, settings)]
@@ -513,6 +534,9 @@ def render_sequence(shot_path, out_dir, camera: str | None = None, frames=None,
                 _run_local(shot_path, cam_path, settings, todo, out, on_done, workers)
             else:
                 _run_ray(shot_path, cam_path, settings, todo, out, on_done, max(workers, 1), address)
+    except BaseException:
+        clean_partials(out)         # the frames in flight, abandoned (this run holds the folder)
+        raise
     finally:
         manifest.flush()
         bar.close()

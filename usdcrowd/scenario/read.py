@@ -3,24 +3,27 @@
 Groups, agents (authored and cloned), behavior layers (images sampled),
 interest points and scenery obstacles are read, checked and converted into
 canonical units (Z up, metres). Every problem is a one-line
-:class:`~usdcrowd.errors.ScenarioError` naming the file, prim and attribute.
+:class:`~usdcrowd.errors.ScenarioError` naming the file, prim and attribute:
+:func:`load_scenario` raises the first, :func:`scenario_errors` (what
+``usdcrowd validate`` reports) collects them all.
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 
 import numpy as np
 
 from .. import model, schema
-from ..errors import ScenarioError
+from ..errors import ScenarioError, UsdcrowdError
 from ..limits import DEFAULT as DEFAULT_LIMITS
 from ..limits import Limits
-from .attributes import INHERITED, AgentSpec, GroupSpec, inherited_values, resolve_group_members
+from .attributes import FALLBACKS, INHERITED, AgentSpec, GroupSpec, inherited_values, resolve_group_members
 from .events import read_camera_agents, read_events
-from .ranges import range_problem
-from .stageio import StageFrame, open_stage, stage_frame, time_range
+from .ranges import MAX_AGENT_ID, MAX_SEED, extent_problem, range_problem
+from .stageio import DEFAULT_TIME, StageFrame, open_stage, stage_frame, time_range
 
 # Scenery lower than this is ground or markings, not an obstacle (metres).
 OBSTACLE_MIN_HEIGHT = 0.05
@@ -34,17 +37,46 @@ _LENGTHS = ("spawnRadius",)
 
 
 class _Reader:
-    def __init__(self, stage, source: str):
+    """Reads one stage. With ``problems`` (a list), :meth:`checking` records each prim's first problem there
+    and goes on with the next prim; without, the first problem is raised."""
+
+    def __init__(self, stage, source: str, limits: Limits = DEFAULT_LIMITS, problems: list | None = None):
         self.stage = stage
         self.source = source
-        self.frame: StageFrame = stage_frame(stage)
+        self.frame = StageFrame()
         from pxr import Usd, UsdGeom
 
         self.xcache = UsdGeom.XformCache(Usd.TimeCode.Default())
-        self.limits = DEFAULT_LIMITS
+        self.limits = limits
+        self.problems = problems
 
     def fail(self, msg, prim=None, attr=None):
         raise ScenarioError(msg, file=self.source, prim=str(prim.GetPath()) if prim else None, attribute=attr)
+
+    @contextlib.contextmanager
+    def checking(self):
+        """The block reads one thing (a prim, a group's members): a problem in it is raised, or recorded
+        (the rest of the block skipped) when problems are collected."""
+        try:
+            yield
+        except UsdcrowdError as exc:
+            if self.problems is None:
+                raise
+            self.problems.append(exc)
+
+    def each(self, prims, read) -> list:
+        """``read(prim)`` of every prim, without those whose problem was recorded."""
+        out = []
+        for prim in prims:
+            with self.checking():
+                out.append(read(prim))
+        return out
+
+    def check_extent(self, prim, attr: str, values, what: str = "position"):
+        """Canonical positions or lengths (metres) must be finite and within the scene's extent."""
+        problem = extent_problem(values, what)
+        if problem:
+            self.fail(problem, prim, attr)
 
     # ----------------------------------------------------------- attributes
     def authored(self, prim, names) -> dict:
@@ -62,11 +94,13 @@ class _Reader:
                 value = tuple(float(v) for v in value)
             elif not isinstance(value, (int, float)):
                 value = str(value)          # tokens
+            self.check(prim, name, value)      # as authored: the words `usdcrowd validate` uses
             if name in _POINTS:
                 value = tuple(self.frame.points_to_canonical(np.array(value)))
             elif name in _LENGTHS:
                 value = float(self.frame.length_to_canonical(value))
-            self.check(prim, name, value)
+            if name in _POINTS or name in _LENGTHS:
+                self.check_extent(prim, f"crowd:{name}", value, "position" if name in _POINTS else "length")
             out[name] = value
         return out
 
@@ -98,6 +132,7 @@ class _Reader:
         if not times:
             return None
         pts = self.frame.points_to_canonical(np.array([tuple(attr.Get(t)) for t in times], dtype=np.float64))
+        self.check_extent(prim, "crowd:goal", pts)
         times = np.asarray(times, dtype=np.float64)
         current = pts[max(int(np.searchsorted(times, start, side="right")) - 1, 0)]
         return times, pts, tuple(current)
@@ -118,9 +153,16 @@ class _Reader:
 
     # --------------------------------------------------------------- scenery
     def world_matrix(self, prim) -> np.ndarray:
-        """(4, 4) local-to-world in canonical units (row vectors)."""
-        m = np.array(self.xcache.GetLocalToWorldTransform(prim), dtype=np.float64)
-        return m @ self.frame.to_canonical
+        """(4, 4) local-to-world in canonical units (row vectors), finite and within the scene's extent."""
+        m = np.array(self.xcache.GetLocalToWorldTransform(prim), dtype=np.float64) @ self.frame.to_canonical
+        if not np.isfinite(m).all():
+            from pxr import Usd
+
+            from .events import _bad_op
+
+            self.fail("not a finite value", prim, _bad_op(prim, Usd.TimeCode.Default()))
+        self.check_extent(prim, _translate_op(prim), m[3, :3])
+        return m
 
     def position_heading(self, prim):
         """Canonical translation and yaw of a prim whose transform is authored."""
@@ -133,18 +175,47 @@ class _Reader:
         return tuple(m[3, :3]), math.atan2(m[0, 1], m[0, 0])
 
 
+def _translate_op(prim) -> str:
+    """The attribute to name for where a prim is: its first translate op, else its op order."""
+    from pxr import UsdGeom
+
+    xf = UsdGeom.Xformable(prim)
+    ops = [op.GetName() for op in (xf.GetOrderedXformOps() if xf else []) if "translate" in op.GetName()]
+    return ops[0] if ops else "xformOpOrder"
+
+
+def usdcrowd_data(stage) -> dict:
+    """The ``usdcrowd`` dictionary of a stage's root layer customLayerData ({} when absent)."""
+    layer = stage.GetRootLayer()
+    data = (layer.customLayerData or {}).get("usdcrowd", {})
+    if not isinstance(data, dict):
+        raise ScenarioError(f"must be a dictionary (seed, palette...), got {type(data).__name__} {data!r:.40}",
+                            file=layer.identifier, attribute="customLayerData:usdcrowd")
+    return data
+
+
+def checked_seed(seed, file: str | None = None, attribute: str = "--seed") -> int:
+    """``seed`` if it is an integer from 0 to :data:`MAX_SEED` (what numpy's generators take)."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed <= MAX_SEED:
+        raise ScenarioError(f"a seed is an integer from 0 to {MAX_SEED:,}, got {seed!r:.40}", file=file,
+                            attribute=attribute)
+    return int(seed)
+
+
 def stored_seed(stage) -> int | None:
     """The seed a stage records in its root layer's customLayerData, if any."""
-    data = stage.GetRootLayer().customLayerData.get("usdcrowd", {})
-    return int(data["seed"]) if "seed" in data else None
+    data = usdcrowd_data(stage)
+    if "seed" not in data:
+        return None
+    return checked_seed(data["seed"], stage.GetRootLayer().identifier, "customLayerData:usdcrowd:seed")
 
 
 def stored_palette(stage) -> str:
     """The palette (``character.appearance.PALETTES``) a stage asks for in customLayerData, else "everyday"."""
     from ..character.appearance import PALETTES
 
-    name = stage.GetRootLayer().customLayerData.get("usdcrowd", {}).get("palette", "everyday")
-    if name not in PALETTES:
+    name = usdcrowd_data(stage).get("palette", "everyday")
+    if not isinstance(name, str) or name not in PALETTES:
         raise ScenarioError(f"unknown palette {name!r} (palettes: {', '.join(PALETTES)})",
                             file=stage.GetRootLayer().identifier, attribute="customLayerData:usdcrowd:palette")
     return name
@@ -168,21 +239,44 @@ def load_scenario(path: str | os.PathLike, seed: int | None = None, stage=None,
     Raises
     ------
     StageError, ScenarioError
-        With one-line messages naming file, prim and attribute.
+        The first problem, in one line naming file, prim and attribute.
     """
+    source = os.fspath(path)
+    return _read(_Reader(stage or open_stage(source), source, limits), seed)
+
+
+def scenario_errors(path: str | os.PathLike, stage=None, limits: Limits = DEFAULT_LIMITS) -> list[UsdcrowdError]:
+    """Every problem :func:`load_scenario` would raise the first of (the first of each prim), in stage order."""
+    source = os.fspath(path)
+    r = _Reader(stage or open_stage(source), source, limits, problems=[])
+    with r.checking():
+        _read(r, None)
+    out, seen = [], set()
+    for exc in r.problems:
+        key = exc.prim or (exc.attribute, exc.message)
+        if key not in seen:
+            seen.add(key)
+            out.append(exc)
+    return out
+
+
+def _read(r: _Reader, seed: int | None) -> model.Scenario | None:
+    """The scenario (None when problems were collected instead of raised)."""
     from pxr import Usd
 
-    source = os.fspath(path)
-    stage = stage or open_stage(source)
-    r = _Reader(stage, source)
-    r.limits = limits
-    time = time_range(stage)
-    n_frames = time.n_frames
-    if n_frames > limits.max_frames:
-        raise ScenarioError(f"{n_frames:,} frames: more than the {limits.max_frames:,} accepted "
-                            f"(raise it with --max-frames)", file=source, attribute="endTimeCode")
-    if seed is None:
-        seed = stored_seed(stage) or 0
+    stage, source, limits = r.stage, r.source, r.limits
+    with r.checking():
+        r.frame = stage_frame(stage)
+    time = DEFAULT_TIME
+    with r.checking():
+        time = time_range(stage)
+        if time.n_frames > limits.max_frames:
+            raise ScenarioError(f"{time.n_frames:,} frames: more than the {limits.max_frames:,} accepted "
+                                f"(raise it with --max-frames)", file=source, attribute="endTimeCode")
+    run_seed = 0
+    with r.checking():
+        run_seed = (stored_seed(stage) or 0) if seed is None else checked_seed(seed)
+    seed = run_seed
 
     groups: list[GroupSpec] = []
     group_row: dict[str, int] = {}
@@ -197,25 +291,19 @@ def load_scenario(path: str | os.PathLike, seed: int | None = None, stage=None,
             it.PruneChildren()
             continue
         tname = prim.GetTypeName()
-        path = str(prim.GetPath())
         if tname == schema.GROUP:
-            parent = _nearest_group(prim, group_row)
-            clones = int(r.get(prim, "clones"))
-            subclones = int(r.get(prim, "subclones"))
-            total_clones = sum(g.clones for g in groups) + clones
-            if total_clones > limits.max_agents:        # before anything is allocated for them
-                r.fail(f"{total_clones:,} clones: more than the {limits.max_agents:,} agents accepted "
-                       f"(raise it with --max-agents)", prim, "crowd:clones")
-            group_row[path] = len(groups)
-            authored = r.authored(prim, INHERITED)
-            schedule = r.goal_waypoints(prim, time.start)
-            if schedule is not None:
-                authored["goal"] = schedule[2]
-            groups.append(GroupSpec(path, parent, authored, clones, subclones))
-            waypoints.append(schedule[:2] if schedule is not None else None)
+            # Known (as an empty group) even when its values cannot be read, so its agents still find it.
+            group_row[str(prim.GetPath())] = len(groups)
+            groups.append(GroupSpec(str(prim.GetPath()), _nearest_group(prim, group_row)))
+            waypoints.append(None)
+            with r.checking():
+                _read_group(r, prim, groups, waypoints, time.start)
         elif schema.is_agent(prim):
-            agents.append(_agent_spec(r, prim, group_row))
             it.PruneChildren()        # an agent's skeleton and body are not scenery
+            with r.checking():
+                group = _agent_group(r, prim, group_row)
+                agents.append(AgentSpec(str(prim.GetPath()), group))     # until its values are read
+                agents[-1] = _agent_spec(r, prim, group)
         elif tname == schema.BEHAVIOR_LAYER:
             layers.append(prim)
         elif tname == schema.INTEREST_POINT:
@@ -235,13 +323,36 @@ def load_scenario(path: str | os.PathLike, seed: int | None = None, stage=None,
                 waypoints[gi] = waypoints[g.parent]
         group_table.waypoints = waypoints
     obstacles, ground = _obstacles(r, scenery)
-    fields = [_behavior_field(r, p) for p in layers]
+    fields = r.each(layers, lambda p: _behavior_field(r, p))
     interest = _interest(r, points)
+    cameras = events = None
+    with r.checking():
+        events = read_events(stage, {p: i for i, p in enumerate(table.path)}, time, agent_ids=table.agent_id)
+        events = model.EventTable([e for e in events if e.authored])
+    with r.checking():
+        cameras = read_camera_agents(stage)
+    if r.problems:
+        return None
     bounds = _bounds(ground, obstacles, table, interest, fields)
-    events = read_events(stage, {p: i for i, p in enumerate(table.path)}, time, agent_ids=table.agent_id)
-    events = model.EventTable([e for e in events if e.authored])
     return model.Scenario(source, time, int(seed), group_table, table, fields, interest, obstacles, bounds,
-                          cameras=read_camera_agents(stage), events=events)
+                          cameras=cameras, events=events)
+
+
+def _read_group(r: _Reader, prim, groups: list[GroupSpec], waypoints: list, start: float) -> None:
+    """A group's clone counts, authored values and goal waypoints, into its (last) row."""
+    g = groups[-1]
+    clones = int(r.get(prim, "clones"))
+    subclones = int(r.get(prim, "subclones"))
+    total_clones = sum(h.clones for h in groups) + clones
+    if total_clones > r.limits.max_agents:        # before anything is allocated for them
+        r.fail(f"{total_clones:,} clones: more than the {r.limits.max_agents:,} agents accepted "
+               f"(raise it with --max-agents)", prim, "crowd:clones")
+    authored = r.authored(prim, INHERITED)
+    schedule = r.goal_waypoints(prim, start)
+    if schedule is not None:
+        authored["goal"] = schedule[2]
+    g.authored, g.clones, g.subclones = authored, clones, subclones
+    waypoints[-1] = schedule[:2] if schedule is not None else None
 
 
 def clone_path(group_path: str, k: int) -> str:
@@ -271,8 +382,8 @@ def _nearest_group(prim, group_row) -> int:
     return -1
 
 
-def _agent_spec(r: _Reader, prim, group_row) -> AgentSpec:
-    path = str(prim.GetPath())
+def _agent_group(r: _Reader, prim, group_row) -> int:
+    """The row of an agent's group: its crowd:group target, else its nearest enclosing group."""
     rel = prim.GetRelationship("crowd:group")
     targets = rel.GetTargets() if rel else []
     if targets:
@@ -288,6 +399,11 @@ def _agent_spec(r: _Reader, prim, group_row) -> AgentSpec:
         g = _nearest_group(prim, group_row)
         if g < 0:
             r.fail("agent is in no CrowdGroup: put it under one or author crowd:group", prim, "crowd:group")
+    return g
+
+
+def _agent_spec(r: _Reader, prim, g: int) -> AgentSpec:
+    path = str(prim.GetPath())
     names = [n for n in INHERITED if n not in ("visitProfile", "visitBudget", "speedRange", "heightRange",
                                                "spawnCenter", "spawnRadius", "goal")]
     authored = r.authored(prim, names + ["speed", "height", "startPosition"])
@@ -300,7 +416,9 @@ def _agent_spec(r: _Reader, prim, group_row) -> AgentSpec:
 
 def _resolve(r: _Reader, seed, groups, agents):
     values = inherited_values(groups)
-    palette = stored_palette(r.stage)
+    palette = "everyday"
+    with r.checking():
+        palette = stored_palette(r.stage)
     by_group: dict[int, list[AgentSpec]] = {i: [] for i in range(len(groups))}
     for a in agents:
         by_group[a.group].append(a)
@@ -314,10 +432,17 @@ def _resolve(r: _Reader, seed, groups, agents):
         members = by_group[gi] + clones
         has_subgroups = any(h.parent == gi for h in groups)
         if not members and not has_subgroups:
-            prim = r.stage.GetPrimAtPath(g.path)
-            r.fail("empty group: no agents, no subgroups and crowd:clones = 0", prim, "crowd:clones")
+            with r.checking():
+                r.fail("empty group: no agents, no subgroups and crowd:clones = 0", r.stage.GetPrimAtPath(g.path),
+                       "crowd:clones")
         if not members:
             continue
+        with r.checking():
+            # Authored starts are checked where they are read; what is left is the disc clones spawn in.
+            centre = np.asarray(values[gi].get("spawnCenter", FALLBACKS["spawnCenter"]), dtype=np.float64)
+            radius = float(values[gi].get("spawnRadius", FALLBACKS["spawnRadius"]))
+            r.check_extent(r.stage.GetPrimAtPath(g.path), "crowd:spawnRadius",
+                           [centre[:2] - radius, centre[:2] + radius], "the spawn disc")
         for k, arr in resolve_group_members(seed, g, values[gi], members, palette).items():
             cols.setdefault(k, []).append(arr)
         rows.extend(members)
@@ -329,16 +454,28 @@ def _resolve(r: _Reader, seed, groups, agents):
     # Track ids: authored ones kept (unique, >= 1), the rest numbered after them.
     ids = np.array([a.agent_id for a in rows], dtype=np.int64)
     authored_ids = ids[ids != -1]
-    if np.any(authored_ids < 1):
-        bad = rows[int(np.flatnonzero((ids != -1) & (ids < 1))[0])]
-        r.fail(f"agent ids must be >= 1, got {ids[path_row[bad.path]]}", r.stage.GetPrimAtPath(bad.path), "crowd:agentId")
+    with r.checking():
+        if np.any(authored_ids < 1):
+            bad = rows[int(np.flatnonzero((ids != -1) & (ids < 1))[0])]
+            r.fail(f"agent ids must be >= 1, got {ids[path_row[bad.path]]}", r.stage.GetPrimAtPath(bad.path),
+                   "crowd:agentId")
     uniq, counts = np.unique(authored_ids, return_counts=True)
-    if np.any(counts > 1):
-        dup = int(uniq[counts > 1][0])
-        bad = rows[int(np.flatnonzero(ids == dup)[1])]
-        r.fail(f"agent id {dup} is used twice", r.stage.GetPrimAtPath(bad.path), "crowd:agentId")
+    with r.checking():
+        if np.any(counts > 1):
+            dup = int(uniq[counts > 1][0])
+            bad = rows[int(np.flatnonzero(ids == dup)[1])]
+            r.fail(f"agent id {dup} is used twice", r.stage.GetPrimAtPath(bad.path), "crowd:agentId")
     free = ids == -1
     ids[free] = (authored_ids.max() if authored_ids.size else 0) + 1 + np.arange(int(free.sum()))
+    if ids.size and ids.max() > MAX_AGENT_ID:
+        # Named where the numbering starts: the largest authored id, else (none authored) the first group.
+        top = rows[int(np.argmax(np.where(free, -1, ids)))]
+        prim = r.stage.GetPrimAtPath(top.path)
+        with r.checking():
+            r.fail(f"the {int(free.sum()):,} agents numbered after {int(ids[~free].max(initial=0)):,} (clones "
+                   f"included) would reach {int(ids.max()):,}, past the largest agent id {MAX_AGENT_ID:,}",
+                   prim or r.stage.GetPrimAtPath(groups[top.group].path), "crowd:agentId" if prim else "crowd:clones")
+        ids[free] = 0           # (only collecting problems from here on)
 
     role = np.array([model.ROLES.index(a.role) for a in rows], dtype=np.int8)
     group = np.array([a.group for a in rows], dtype=np.int32)
@@ -348,11 +485,15 @@ def _resolve(r: _Reader, seed, groups, agents):
     leader = np.full(n, -1, dtype=np.int32)
     for i, a in enumerate(rows):
         if a.leader_path is not None:
-            if a.leader_path not in path_row:
-                r.fail(f"target {a.leader_path} is not an agent", r.stage.GetPrimAtPath(a.path), "crowd:leader")
-            leader[i] = path_row[a.leader_path]
+            with r.checking():
+                if a.leader_path not in path_row:
+                    r.fail(f"target {a.leader_path} is not a CrowdAgentAPI agent", r.stage.GetPrimAtPath(a.path),
+                           "crowd:leader")
+                leader[i] = path_row[a.leader_path]
         elif g_leader[a.group] != i:
             leader[i] = g_leader[a.group]
+    with r.checking():
+        _check_leader_cycles(r, rows, leader)
 
     table = model.AgentTable(
         path=[a.path for a in rows], agent_id=ids.astype(np.int32), group=group, leader=leader, role=role,
@@ -365,6 +506,29 @@ def _resolve(r: _Reader, seed, groups, agents):
     group_table = model.GroupTable([g.path for g in groups], np.array([g.parent for g in groups], dtype=np.int32),
                                    goals, budgets, g_leader)
     return table, group_table
+
+
+def _check_leader_cycles(r: _Reader, rows: list[AgentSpec], leader: np.ndarray) -> None:
+    """Leaders must lead somewhere: no agent follows itself, and no leaders follow each other in a circle."""
+    state = np.zeros(len(leader), dtype=np.int8)        # 0 not seen, 1 on the chain being followed, 2 done
+    for first in range(len(leader)):
+        chain, i = [], first
+        while i >= 0 and state[i] == 0:
+            state[i] = 1
+            chain.append(i)
+            i = int(leader[i])
+        if i >= 0 and state[i] == 1:
+            circle = chain[chain.index(i):]
+            # A circle needs an authored crowd:leader (a group's leader follows no one unless told to).
+            who = next(j for j in circle if rows[j].leader_path is not None)
+            prim = r.stage.GetPrimAtPath(rows[who].path)
+            if len(circle) == 1:
+                r.fail("the agent follows itself", prim, "crowd:leader")
+            k = circle.index(who)
+            names = [rows[j].path for j in circle[k:] + circle[:k + 1]]
+            r.fail(f"leaders follow each other in a circle ({' -> '.join(names)}): one of them must lead",
+                   prim, "crowd:leader")
+        state[chain] = 2
 
 
 def _scenery_role(prim) -> str:
@@ -389,21 +553,23 @@ def _obstacles(r: _Reader, prims):
     from ..geometry import mesh_of
 
     paths, polys, heights, ground = [], [], [], []
-    for prim in prims:
+
+    def read(prim):
         role = _scenery_role(prim)
         if role == "ignore":
-            continue
+            return
         mesh = mesh_of(prim)
         if mesh is None or len(mesh.vertices) == 0:
-            continue
+            return
         m = r.world_matrix(prim)
         pts = mesh.vertices.astype(np.float64) @ m[:3, :3] + m[3, :3]
+        r.check_extent(prim, _size_attribute(prim), pts, "the geometry")
         bottom, top = pts[:, 2].min(), pts[:, 2].max()
         if role == "ground" or (role == "auto" and top - bottom < OBSTACLE_MIN_HEIGHT):
             ground.append(pts[:, :2])
-            continue
+            return
         if role == "auto" and bottom > OBSTACLE_MAX_BOTTOM:
-            continue
+            return
         xy = pts[:, :2]
         try:
             poly = xy[ConvexHull(xy).vertices]
@@ -412,7 +578,19 @@ def _obstacles(r: _Reader, prims):
         paths.append(str(prim.GetPath()))
         polys.append(np.ascontiguousarray(poly))
         heights.append(top)
+
+    r.each(prims, read)
     return model.Obstacles(paths, polys, np.array(heights, dtype=np.float64)), ground
+
+
+def _size_attribute(prim) -> str:
+    """The attribute that sizes a gprim (its points, size, radius...; its scale when it has one)."""
+    from pxr import UsdGeom
+
+    xf = UsdGeom.Xformable(prim)
+    scales = [op.GetName() for op in (xf.GetOrderedXformOps() if xf else []) if "scale" in op.GetName()]
+    own = [n for n in ("points", "size", "radius", "height", "width", "length") if prim.HasAttribute(n)]
+    return scales[0] if scales else own[0] if own else "extent"
 
 
 def _behavior_field(r: _Reader, prim) -> model.BehaviorField:
@@ -420,6 +598,8 @@ def _behavior_field(r: _Reader, prim) -> model.BehaviorField:
     generator = str(r.get(prim, "generator"))
     lo = np.array(r.get(prim, "extentMin"), dtype=np.float64) * r.frame.meters_per_unit
     hi = np.array(r.get(prim, "extentMax"), dtype=np.float64) * r.frame.meters_per_unit
+    r.check_extent(prim, "crowd:extentMin", lo)
+    r.check_extent(prim, "crowd:extentMax", hi)
     if np.any(hi <= lo):
         r.fail(f"extent max {tuple(hi)} must exceed extent min {tuple(lo)}", prim, "crowd:extentMax")
     vrange = np.array(r.get(prim, "valueRange"), dtype=np.float64)
@@ -429,8 +609,11 @@ def _behavior_field(r: _Reader, prim) -> model.BehaviorField:
         values = _read_image(r, prim, vrange, hi - lo)
     origin = r.frame.points_to_canonical(np.array(r.get(prim, "origin"), dtype=np.float64))
     radius = float(r.frame.length_to_canonical(r.get(prim, "radius")))
+    r.check_extent(prim, "crowd:origin", origin)
+    r.check_extent(prim, "crowd:radius", radius, "length")
     if meaning == "height" and values is not None:
         values = values * r.frame.meters_per_unit
+        r.check_extent(prim, "crowd:valueRange", values, "terrain height")
     return model.BehaviorField(str(prim.GetPath()), model.LAYER_MEANINGS.index(meaning),
                                model.LAYER_GENERATORS.index(generator), values, lo, hi, influence,
                                origin, radius, float(r.get(prim, "startTime")))
@@ -474,22 +657,40 @@ def _read_image(r: _Reader, prim, vrange, extent: np.ndarray) -> np.ndarray:
         r.fail(f"image @{asset.path}@ cannot be read ({exc.__class__.__name__})", prim, "crowd:image")
     if arr.ndim == 3:
         arr = arr[..., 0]
+    bad = ~np.isfinite(arr) if arr.dtype.kind == "f" else None
+    if bad is not None and bad.any():
+        y, x = np.argwhere(bad)[0]
+        r.fail(f"image @{asset.path}@ has a texel that is not a finite number: {arr[y, x]} at x {x}, y {y} "
+               f"(of {arr.shape[1]} x {arr.shape[0]} read)", prim, "crowd:image")
     # Normalise by what the file stores, not by numpy's dtype: Pillow opens
     # 16-bit PNGs as "I;16" or, in some versions, as 32-bit "I".
     full = 65535.0 if mode.startswith("I") else 1.0 if mode == "F" else 255.0
     arr = arr.astype(np.float32) / full
-    return (vrange[0] + (vrange[1] - vrange[0]) * arr).astype(np.float32)
+    with np.errstate(over="ignore", invalid="ignore"):
+        values = (vrange[0] + (vrange[1] - vrange[0]) * arr).astype(np.float32)
+    if not np.isfinite(values).all():
+        r.fail(f"the values of image @{asset.path}@ times this range are not finite numbers (texels up to "
+               f"{float(np.abs(arr).max()):g})", prim, "crowd:valueRange")
+    return values
+
+
+_INTEREST_VALUES = ("interest", "radius", "visibility", "priorKnowledge", "decayRate", "viewDuration")
+
+
+def _interest_point(r: _Reader, prim) -> tuple:
+    """(path, position, values of _INTEREST_VALUES) of an interest point, canonical metres."""
+    values = [float(r.get(prim, n)) for n in _INTEREST_VALUES]
+    values[1] *= r.frame.meters_per_unit
+    r.check_extent(prim, "crowd:radius", values[1], "length")
+    return str(prim.GetPath()), r.world_matrix(prim)[3, :3], values
 
 
 def _interest(r: _Reader, prims) -> model.InterestTable:
-    if not prims:
+    read = r.each(prims, lambda p: _interest_point(r, p))
+    if not read:
         return model.InterestTable.empty()
-    names = ("interest", "radius", "visibility", "priorKnowledge", "decayRate", "viewDuration")
-    vals = {n: np.array([float(r.get(p, n)) for p in prims]) for n in names}
-    vals["radius"] = vals["radius"] * r.frame.meters_per_unit
-    pos = np.array([r.world_matrix(p)[3, :3] for p in prims])
-    return model.InterestTable([str(p.GetPath()) for p in prims], pos, vals["interest"], vals["radius"],
-                               vals["visibility"], vals["priorKnowledge"], vals["decayRate"], vals["viewDuration"])
+    vals = np.array([v for _, _, v in read], dtype=np.float64).T
+    return model.InterestTable([p for p, _, _ in read], np.array([x for _, x, _ in read]), *vals)
 
 
 def _bounds(ground, obstacles: model.Obstacles, agents: model.AgentTable, interest, fields) -> np.ndarray:

@@ -60,27 +60,58 @@ class StageFrame:
         return np.asarray(d, dtype=np.float64) * self.meters_per_unit
 
 
+# metersPerUnit accepted: a micrometre to a kilometre per unit (USD's own
+# constants span centimetres to kilometres).
+METERS_PER_UNIT_RANGE = (1e-6, 1e3)
+# timeCodesPerSecond accepted: a frame a second (time codes in seconds) to
+# high-speed footage.
+FPS_RANGE = (1.0, 1000.0)
+
+
 def stage_frame(stage) -> StageFrame:
-    """Read upAxis and metersPerUnit of an open stage."""
+    """Read upAxis and metersPerUnit of an open stage.
+
+    Raises
+    ------
+    StageError
+        An up axis other than Y or Z (the only ones USD defines), or a
+        metersPerUnit that is not a number in :data:`METERS_PER_UNIT_RANGE`.
+    """
     from pxr import UsdGeom
 
-    return StageFrame(str(UsdGeom.GetStageUpAxis(stage)), float(UsdGeom.GetStageMetersPerUnit(stage)))
+    up, mpu = str(UsdGeom.GetStageUpAxis(stage)), float(UsdGeom.GetStageMetersPerUnit(stage))
+    source = stage.GetRootLayer().identifier
+    if up not in ("Y", "Z"):
+        raise StageError(f"{up!r} is not an up axis: USD's are \"Y\" and \"Z\"", file=source, attribute="upAxis")
+    low, high = METERS_PER_UNIT_RANGE
+    if not low <= mpu <= high:          # NaN fails too
+        raise StageError(f"{mpu:g} is not a unit: metersPerUnit must be {low:g} (a micrometre) to {high:g} "
+                         f"(a kilometre)", file=source, attribute="metersPerUnit")
+    return StageFrame(up, mpu)
 
 
 def time_range(stage) -> model.TimeRange:
-    """The stage's frames and rate (:data:`DEFAULT_TIME` when it authors no time range)."""
+    """The stage's frames and rate (:data:`DEFAULT_TIME` when it authors no time range).
+
+    Raises
+    ------
+    StageError
+        Time codes that are not finite or end before they start, or a
+        timeCodesPerSecond outside :data:`FPS_RANGE` (0 included: USD would read it as 24).
+    """
+    fps = float(stage.GetTimeCodesPerSecond())
+    source = stage.GetRootLayer().identifier
+    if not FPS_RANGE[0] <= fps <= FPS_RANGE[1]:        # NaN fails too
+        raise StageError(f"timeCodesPerSecond must be {FPS_RANGE[0]:g} to {FPS_RANGE[1]:g}, got {fps:g}",
+                         file=source, attribute="timeCodesPerSecond")
     if not stage.HasAuthoredTimeCodeRange():
         return DEFAULT_TIME
-    fps = stage.GetTimeCodesPerSecond() or DEFAULT_TIME.fps
     start, end = float(stage.GetStartTimeCode()), float(stage.GetEndTimeCode())
-    source = stage.GetRootLayer().identifier
     if not (np.isfinite(start) and np.isfinite(end)) or end < start:
         raise StageError(f"endTimeCode {end:g} is before startTimeCode {start:g}" if end < start else
                          f"time codes must be finite, got {start:g} to {end:g}", file=source,
                          attribute="endTimeCode")
-    if not (np.isfinite(fps) and fps > 0):
-        raise StageError(f"timeCodesPerSecond must be > 0, got {fps:g}", file=source, attribute="timeCodesPerSecond")
-    return model.TimeRange(start, end, float(fps))
+    return model.TimeRange(start, end, fps)
 
 
 def open_stage(path: str | os.PathLike):

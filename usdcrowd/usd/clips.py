@@ -122,13 +122,17 @@ def clips_folder(final_layer: str) -> str:
 
 def publish(clip_plan: ClipPlan | None, final_layer: str) -> None:
     """Put this run's clips in place of the previous run's (removed when the shot has none now)."""
+    from .. import guard
+
     final = clips_folder(final_layer)
+    guard.check_write(final)
     old = None
     if os.path.isdir(final):
         old = os.path.join(os.path.dirname(final), f".{os.path.basename(final)}.old.partial-{uuid.uuid4().hex[:8]}")
         os.replace(final, old)
     if clip_plan is not None:
         os.replace(clip_plan.folder, final)
+        guard.wrote(final)
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)
 

@@ -448,6 +448,9 @@ def _part_worker(conn, layer_paths, scenario, frame, row_sets, authored, default
     When the coordinator is gone (interrupted, failed), the worker ends
     quietly: the coordinator reports what happened, once.
     """
+    from ..interrupts import worker_ignores_interrupts
+
+    worker_ignores_interrupts()             # Ctrl-C is the coordinator's to handle: it stops this process
     try:
         _part_work(conn, layer_paths, scenario, frame, row_sets, authored, default_prim, clip_plan)
     except _LOST:
@@ -505,7 +508,9 @@ def _start_ignoring_sigint(proc) -> None:
     import signal
 
     try:
-        old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        # SIGTERM too: raised here mid-start it would cut the worker's start-up data short
+        # (a truncated-pickle traceback); the worker unblocks it first thing.
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
     except (AttributeError, ValueError, OSError):     # no POSIX signal masks here
         proc.start()
         return

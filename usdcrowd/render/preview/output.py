@@ -158,7 +158,7 @@ def write_sequence(renderer, times: np.ndarray, camera: str | None, *, video=Non
     on_sheet = set(float(t) for t in sheet_frames(times))
     thumbs, labels, paths = [], [], {}
     if frames_dir is not None:
-        Path(frames_dir).mkdir(parents=True, exist_ok=True)
+        output_dir(frames_dir, "preview")
         paths["frames"] = str(frames_dir)
     writer = Mp4Writer(video, renderer.scene.fps) if video is not None else None
     ok = False
@@ -209,7 +209,7 @@ def render_shot(shot_path, out_dir, *, camera=None, resolution=(640, 360), frame
     from .renderer import PreviewRenderer
 
     out = Path(out_dir)
-    output_dir(out)
+    output_dir(out, "preview")
     r = PreviewRenderer(shot_path, *resolution)
     try:
         times = np.asarray(frames) if frames is not None else r.scene.time_codes[:max_frames]

@@ -1,0 +1,135 @@
+"""Ctrl-C and kill, as a terminal, `timeout` or a farm's scheduler send them: prompt, whole outputs, no orphans.
+
+Each test runs a real command in its own process group and walks its
+process tree (psutil) before and after the signal.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+psutil = pytest.importorskip("psutil")
+
+from conftest import cli_museum_shot  # noqa: E402
+
+from usdcrowd.cli import main  # noqa: E402
+
+pytestmark = pytest.mark.slow
+USDCROWD = [sys.executable, "-m", "usdcrowd"]
+# The issue's bound is 2 s; a loaded 2-core machine gets some slack on top to notice the exit.
+PROMPT_S = 4.0
+
+
+def start(argv) -> tuple[subprocess.Popen, list]:
+    """The command in a new process group (as a terminal's foreground job)."""
+    proc = subprocess.Popen(USDCROWD + argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    return proc
+
+
+def wait_for(condition, timeout: float, proc: subprocess.Popen) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert proc.poll() is None, f"ended early: {proc.communicate()}"
+        assert time.monotonic() < deadline, "timed out waiting for the command to get going"
+        time.sleep(0.05)
+
+
+def family(proc: subprocess.Popen) -> list:
+    try:
+        return [psutil.Process(proc.pid)] + psutil.Process(proc.pid).children(recursive=True)
+    except psutil.NoSuchProcess:
+        return []
+
+
+def stop(proc: subprocess.Popen, sig: int, group: bool) -> tuple[int, str, float, list]:
+    """Send ``sig`` (to the process group, as Ctrl-C does, or to the command alone, as kill does); returns
+    (exit code, stderr, seconds to exit, processes of the tree still alive a moment after)."""
+    tree = family(proc)
+    assert len(tree) >= 1
+    t0 = time.monotonic()
+    if group:
+        os.killpg(proc.pid, sig)
+    else:
+        proc.send_signal(sig)
+    _, err = proc.communicate(timeout=60)
+    took = time.monotonic() - t0
+    time.sleep(0.5)
+    alive = [p for p in tree if p.is_running() and p.status() != psutil.STATUS_ZOMBIE]
+    for p in alive:
+        p.kill()
+    return proc.returncode, err, took, alive
+
+
+def partials(folder: Path) -> list[str]:
+    return [os.fspath(p) for p in folder.rglob("*") if ".partial-" in p.name]
+
+
+@pytest.fixture(scope="module")
+def small_shot(tmp_path_factory):
+    _, shot = cli_museum_shot(tmp_path_factory.mktemp("interrupted"), agents=8, last_frame=48)
+    return shot / "shot.usda"
+
+
+def _render_argv(shot, out):
+    return ["render", str(shot), "-o", str(out), "--preset", "preview", "--resolution", "96x54", "--spp", "4",
+            "--frames", "1:48", "--no-progress"]
+
+
+@pytest.mark.parametrize("sig, group, code", [(signal.SIGINT, True, 130), (signal.SIGTERM, False, 143)])
+def test_render_stops_its_workers_at_once_and_resumes(small_shot, tmp_path, sig, group, code):
+    pytest.importorskip("mitsuba")
+    out = tmp_path / "render"
+    proc = start(_render_argv(small_shot, out))
+    wait_for(lambda: len(list((out / "exr").glob("*.exr"))) >= 2 if (out / "exr").is_dir() else False, 180, proc)
+    assert len(family(proc)) >= 2, "the render runs its frames in a worker process"
+    returncode, err, took, alive = stop(proc, sig, group)
+    assert returncode == code, err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+    assert took < PROMPT_S, f"took {took:.1f} s to stop"
+    assert not alive, f"orphans: {alive}"
+    assert not partials(out)
+    done = sorted(out.glob("exr/*.exr"))
+    assert 2 <= len(done) < 48
+    # Every finished frame is whole: the run again renders only the rest.
+    again = subprocess.run(USDCROWD + _render_argv(small_shot, out), capture_output=True, text=True, timeout=600)
+    assert again.returncode == 0, again.stderr
+    assert f"{48 - len(done)} frame(s), {len(done)} already done" in again.stdout, again.stdout
+
+
+def test_a_killed_simulate_leaves_nothing_half_written(tmp_path):
+    scenario = tmp_path / "crowded.usda"
+    assert main(["new", "museum", "-o", str(scenario), "--agents", "2000"]) == 0
+    out = tmp_path / "shot"
+    argv = ["simulate", str(scenario), "-o", str(out), "--no-progress", "--frames", "1:600"]
+    proc = start(argv)
+    wait_for(lambda: len(family(proc)) >= 2, 120, proc)         # its part writers are up
+    time.sleep(1.0)
+    returncode, err, took, alive = stop(proc, signal.SIGTERM, group=False)     # as `timeout` sends it
+    assert returncode == 143 and len(err.strip().splitlines()) == 1, err
+    assert took < PROMPT_S and not alive
+    assert not partials(out)
+    assert not (out / "shot.usda").exists() and not (out / "cameras.usda").exists()
+
+
+def test_dataset_stops_at_once_on_ctrl_c(tmp_path):
+    pytest.importorskip("mitsuba")
+    from test_dataset import write_spec
+
+    spec = write_spec(tmp_path)
+    out = tmp_path / "ds"
+    proc = start(["dataset", str(spec), "-o", str(out), "--workers", "2", "--no-progress"])
+    wait_for(lambda: bool(list(out.glob("sequences/*/*/exr/*.exr"))) or bool(list(out.glob("sequences/*/shot"))),
+             300, proc)
+    returncode, err, took, alive = stop(proc, signal.SIGINT, group=True)
+    assert returncode == 130, err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+    assert took < PROMPT_S and not alive
+    assert not partials(out)

@@ -1,0 +1,420 @@
+"""What usdcrowd may write: never a user's input, never a file it did not make, one run per folder.
+
+A command run from the command line opens a :func:`session` naming its
+inputs. Within it:
+
+- nothing is written onto an input file (or onto a layer an input USD
+  stage uses);
+- an output folder is *claimed*: an advisory lock (``.usdcrowd/lock``,
+  ``flock``, released by the OS on any exit, even a kill) keeps a second
+  run out at once, and a folder holding entries usdcrowd did not write is
+  refused unless the session has ``force``;
+- each top-level entry usdcrowd writes in an output folder is recorded in
+  ``.usdcrowd/written`` (one JSON line per write: a folder's name, or a
+  file's name, size and mtime). A file whose size or mtime no longer match
+  was changed by someone else and is theirs now; a folder usdcrowd made is
+  usdcrowd's with everything in it. Only usdcrowd's entries are ever
+  replaced or removed, ``force`` or not.
+
+Outside a session (the library API, tests) nothing is checked or recorded.
+Worker processes (a local pool, Ray on this machine) find the session in
+the environment variable ``USDCROWD_SESSION``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .errors import UsdcrowdError
+
+STATE_DIR = ".usdcrowd"
+RECORD = "written"
+LOCK = "lock"
+ENV = "USDCROWD_SESSION"
+# Layers followed from one input stage when listing what it uses (sublayers, references, payloads, clips).
+MAX_INPUT_LAYERS = 2000
+
+
+@dataclass
+class Session:
+    """The inputs of one command run, the output folders it claimed, and whether ``--force`` was given."""
+
+    inputs: dict = field(default_factory=dict)       # (st_dev, st_ino) -> the path the user knows it by
+    roots: list = field(default_factory=list)        # claimed output folders, absolute
+    force: bool = False
+    locks: dict = field(default_factory=dict)        # root -> open lock file (this process's)
+    in_place: set = field(default_factory=set)       # layers of an input this run may replace (edit_in_place)
+    made_state: set = field(default_factory=set)     # folders whose state folder this run created
+    _records: dict = field(default_factory=dict)     # root -> (bytes read, {name: entry})
+
+    # -------------------------------------------------------------- inputs
+    def input_named(self, path) -> str | None:
+        """The input ``path`` is (as the user named it), or None."""
+        try:
+            st = os.stat(path)
+        except OSError:
+            return None
+        return self.inputs.get((st.st_dev, st.st_ino))
+
+    # -------------------------------------------------------------- records
+    def root_of(self, path: Path) -> Path | None:
+        """The innermost claimed output folder holding ``path``."""
+        best = None
+        for root in self.roots:
+            if path != root and root in path.parents and (best is None or best in root.parents):
+                best = root
+        return best
+
+    def entries(self, root: Path) -> dict:
+        """``{name: entry}`` of what usdcrowd wrote at the top of ``root`` (the record, read incrementally)."""
+        done, table = self._records.get(root, (0, {}))
+        try:
+            with open(root / STATE_DIR / RECORD, "rb") as fh:
+                fh.seek(done)
+                tail = fh.read()
+        except OSError:
+            return table
+        end = tail.rfind(b"\n") + 1                 # a line another process is still appending waits
+        for line in tail[:end].splitlines():
+            with contextlib.suppress(ValueError, TypeError):
+                entry = json.loads(line)
+                table[entry["name"]] = entry
+        self._records[root] = (done + end, table)
+        return table
+
+    def owns(self, root: Path, name: str) -> bool:
+        """Whether the entry ``name`` at the top of ``root`` is usdcrowd's (written by it, and unchanged since)."""
+        entry = self.entries(root).get(name)
+        if entry is None:
+            return False
+        try:
+            st = os.lstat(root / name)
+        except FileNotFoundError:
+            return True
+        if entry["kind"] == "dir":
+            return os.path.isdir(root / name) and not os.path.islink(root / name)
+        return entry["kind"] == "file" and st.st_size == entry["size"] and st.st_mtime_ns == entry["mtime_ns"]
+
+    def record(self, root: Path, name: str) -> None:
+        """Note that usdcrowd wrote (or made) the entry ``name`` at the top of ``root``."""
+        path = root / name
+        try:
+            st = os.lstat(path)
+        except OSError:
+            return
+        if os.path.isdir(path):
+            self._append(root, {"kind": "dir", "name": name})
+        else:
+            self._append(root, {"kind": "file", "name": name, "size": st.st_size, "mtime_ns": st.st_mtime_ns})
+
+    def record_folder(self, root: Path, what: str) -> None:
+        """Note what kind of output folder ``root`` is (its entry ``"."``)."""
+        self._append(root, {"kind": "folder", "name": ".", "what": what})
+
+    def _append(self, root: Path, entry: dict) -> None:
+        name = entry["name"]
+        (root / STATE_DIR).mkdir(exist_ok=True)
+        line = (json.dumps(entry) + "\n").encode()
+        fd = os.open(root / STATE_DIR / RECORD, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        try:
+            os.write(fd, line)      # one short O_APPEND write: whole, even beside other processes
+        finally:
+            os.close(fd)
+        self.entries(root)[name] = entry
+
+
+_SESSION: Session | None = None
+
+
+def current() -> Session | None:
+    """The session of this command run (also in its worker processes), or None in library use."""
+    global _SESSION
+    if _SESSION is None and os.environ.get(ENV):
+        data = json.loads(os.environ[ENV])
+        _SESSION = Session(force=data["force"], roots=[Path(r) for r in data["roots"]])
+        for path in data["inputs"]:
+            _add_input(_SESSION, path, path)
+    return _SESSION
+
+
+def _publish(s: Session) -> None:
+    """Hand the session to worker processes started from now on."""
+    names = sorted(set(s.inputs.values()))
+    os.environ[ENV] = json.dumps({"force": s.force, "roots": [os.fspath(r) for r in s.roots],
+                                  "inputs": [os.path.abspath(p) for p in names]})
+
+
+def _add_input(s: Session, path, shown) -> bool:
+    try:
+        st = os.stat(path)
+    except OSError:
+        return False
+    s.inputs.setdefault((st.st_dev, st.st_ino), os.fspath(shown))
+    return True
+
+
+def _layers_used(path: str) -> list[str]:
+    """The files a USD stage is made of, besides itself: its layers' sublayers, references, payloads."""
+    import stat
+
+    from pxr import Sdf
+
+    found, todo = [], [os.path.abspath(path)]
+    seen = set(todo)
+    while todo and len(seen) < MAX_INPUT_LAYERS:
+        current_path = todo.pop()
+        try:
+            if not stat.S_ISREG(os.stat(current_path).st_mode):
+                continue                    # a FIFO would block; the reader refuses it with its own error
+            layer = Sdf.Layer.FindOrOpen(current_path)
+        except Exception:                   # unreadable: the command's own reader reports it
+            layer = None
+        if layer is None:
+            continue
+        for asset in layer.GetCompositionAssetDependencies():
+            dep = os.path.normpath(os.path.join(os.path.dirname(current_path), asset))
+            if dep not in seen and os.path.isfile(dep):
+                seen.add(dep)
+                found.append(dep)
+                todo.append(dep)
+        del layer
+    return found
+
+
+@contextlib.contextmanager
+def session(inputs=(), force: bool = False):
+    """Guard every write of the command run inside: see the module's docstring.
+
+    Parameters
+    ----------
+    inputs : iterable of str
+        The files the command reads, as the user named them. USD stages
+        among them bring the layers they use.
+    force : bool
+        Write into output folders that hold entries usdcrowd did not write
+        (those entries are still never replaced), and replace a single
+        output file the user named even if usdcrowd did not write it.
+    """
+    global _SESSION
+    previous, env = _SESSION, os.environ.get(ENV)
+    s = Session(force=force)
+    for path in inputs:
+        if path is None or not _add_input(s, path, path):
+            continue
+        if os.path.splitext(os.fspath(path))[1].lower() in (".usd", ".usda", ".usdc"):
+            for dep in _layers_used(os.fspath(path)):
+                _add_input(s, dep, dep)
+    _SESSION = s
+    _publish(s)
+    try:
+        yield s
+    finally:
+        for root, fh in s.locks.items():
+            _forget_if_empty(root, root in s.made_state)
+            fh.close()
+        _SESSION = previous
+        if env is None:
+            os.environ.pop(ENV, None)
+        else:
+            os.environ[ENV] = env
+
+
+def _forget_if_empty(root: Path, made: bool) -> None:
+    """A run that wrote nothing (refused, failed early) leaves its folder as it found it: no state folder."""
+    import shutil
+
+    with contextlib.suppress(OSError):
+        if (made and not (root / STATE_DIR / RECORD).exists()) or all(e.name == STATE_DIR for e in os.scandir(root)):
+            shutil.rmtree(root / STATE_DIR, ignore_errors=True)
+
+
+# ------------------------------------------------------------------ checks
+def check_not_input(path, what: str = "output") -> None:
+    """Refuse an output that would land on one of the session's inputs."""
+    s = current()
+    if s is None:
+        return
+    name = s.input_named(path)
+    if name is not None:
+        same = "" if os.path.abspath(name) == os.path.abspath(path) else f" (it is {name})"
+        raise UsdcrowdError(f"the {what} would overwrite an input of this command{same}: choose another "
+                            f"{'folder' if what == 'output folder' else 'name'}", file=os.fspath(path))
+
+
+def _top(s: Session, path: Path) -> tuple[Path, str]:
+    """The folder whose record decides about ``path``, and ``path``'s top-level name in it."""
+    root = s.root_of(path)
+    if root is None:
+        return path.parent, path.name
+    return root, path.relative_to(root).parts[0]
+
+
+def check_write(final) -> None:
+    """Refuse to write ``final`` when it is an input, or replaces an entry usdcrowd did not write.
+
+    Raises
+    ------
+    UsdcrowdError
+        One line naming the file.
+    """
+    s = current()
+    if s is None:
+        return
+    final = Path(os.path.abspath(final))
+    check_not_input(final)
+    if final in s.in_place:
+        return
+    root, name = _top(s, final)
+    entry = root / name
+    if _partial(name) or not os.path.lexists(entry) or s.owns(root, name):
+        return
+    if s.force and root not in s.roots and entry == final:
+        return                              # a single output file the user named, replaced on --force
+    if entry == final:
+        raise UsdcrowdError("exists and was not written by usdcrowd (or was changed since): usdcrowd replaces "
+                            "only its own files; move it away or choose another output"
+                            + ("" if root in s.roots else ", or give --force to replace it"), file=os.fspath(final))
+    raise UsdcrowdError(f"{name} in {root} was not made by usdcrowd: usdcrowd writes only in its own folders; "
+                        f"move it away or choose another output folder", file=os.fspath(final))
+
+
+def wrote(final) -> None:
+    """Record that ``final`` was written (call after the rename)."""
+    s = current()
+    if s is None:
+        return
+    final = Path(os.path.abspath(final))
+    root, name = _top(s, final)
+    if not _partial(name) and (root in s.roots or root / name == final):
+        s.record(root, name)
+
+
+def make_dir(path) -> Path:
+    """``path`` made (with its parents) as usdcrowd's own folder, or refused like :func:`check_write`."""
+    path = Path(path)
+    s = current()
+    if s is None:
+        path.mkdir(parents=True, exist_ok=True)
+        return path
+    full = Path(os.path.abspath(path))
+    root = s.root_of(full)
+    if root is None:                        # a new or claimed output folder itself: claim() checks it
+        path.mkdir(parents=True, exist_ok=True)
+        return path
+    name = full.relative_to(root).parts[0]
+    new = not os.path.lexists(root / name)
+    if not new:
+        check_write(full)
+    path.mkdir(parents=True, exist_ok=True)
+    if new:
+        s.record(root, name)
+    return path
+
+
+def edit_in_place(path) -> None:
+    """Let this run replace ``path``, a layer of its own input (the cameras.usda of the shot that
+    ``cameras`` or ``frame`` films): its folder is locked for the run, and ``path`` is refused
+    when usdcrowd wrote it and someone changed it since (unless ``force``). A shot's camera layer
+    with no record (made by the library API, or by an older usdcrowd) is the shot's to replace."""
+    s = current()
+    if s is None:
+        return
+    full = Path(os.path.abspath(path))
+    if full.parent not in s.locks:
+        _lock(s, full.parent)
+    if full.name in s.entries(full.parent) and not s.owns(full.parent, full.name) and not s.force:
+        raise UsdcrowdError("changed since usdcrowd wrote it: your edits would be lost; move them to shot.usda "
+                            "(the layer for edits) or give --force to replace it", file=os.fspath(full))
+    with contextlib.suppress(OSError):
+        st = os.stat(full)
+        s.inputs.pop((st.st_dev, st.st_ino), None)
+    s.in_place.add(full)
+
+
+def check_remove(path) -> None:
+    """Refuse to remove what usdcrowd did not write (inside a session)."""
+    check_write(path)
+
+
+# ------------------------------------------------------------------ output folders
+def claim(folder, what: str | None = None) -> Path:
+    """Make ``folder`` an output folder of this session: checked, locked for this run, recorded.
+
+    ``what`` names the kind of folder (``"shot"``, ``"render"``, ``"dataset"``...):
+    a folder made for one kind is refused for another (a dataset written
+    into a render's folder would replace its manifest).
+
+    Raises
+    ------
+    UsdcrowdError
+        It is an input, another run holds it, or it holds entries usdcrowd
+        did not write (without ``force``).
+    """
+    s = current()
+    folder = Path(folder)
+    if s is None:
+        return folder
+    full = Path(os.path.abspath(folder))
+    if full in s.locks:
+        return folder
+    check_not_input(full, "output folder")
+    _lock(s, full)
+    if full not in s.roots:
+        s.roots.append(full)
+        _publish(s)
+    foreign = [e.name for e in sorted(os.scandir(full), key=lambda e: e.name)
+               if e.name != STATE_DIR and not _partial(e.name) and not s.owns(full, e.name)]
+    changed = [n for n in foreign if n in s.entries(full)]
+    if changed and not s.force:
+        raise UsdcrowdError(f"{', '.join(changed[:3])}{' and more' if len(changed) > 3 else ''} changed since usdcrowd "
+                            "wrote it: edits are never replaced; move it away or choose another output folder",
+                            file=os.fspath(folder))
+    if foreign and not s.force:
+        shown = ", ".join(n + ("/" if os.path.isdir(full / n) else "") for n in foreign[:3])
+        more = f" and {len(foreign) - 3} more" if len(foreign) > 3 else ""
+        raise UsdcrowdError(f"the output folder holds what usdcrowd did not write ({shown}{more}): give an empty "
+                            "or new folder, or --force to write beside them (they are never replaced)",
+                            file=os.fspath(folder))
+    if what is not None:
+        made = s.entries(full).get(".", {}).get("what")
+        if made is not None and made != what:
+            raise UsdcrowdError(f"this folder holds a {made}'s outputs, not a {what}'s: choose another folder",
+                                file=os.fspath(folder))
+        if made is None:
+            s.record_folder(full, what)
+    return folder
+
+
+def _partial(name: str) -> bool:
+    from .atomic import _PARTIAL
+
+    return bool(_PARTIAL.match(name))
+
+
+def _lock(s: Session, root: Path) -> None:
+    import fcntl
+
+    if not (root / STATE_DIR).exists():
+        s.made_state.add(root)
+    (root / STATE_DIR).mkdir(exist_ok=True)
+    fh = open(root / STATE_DIR / LOCK, "a+")
+    try:
+        fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError as exc:
+        fh.seek(0)
+        holder = fh.read().strip()
+        fh.close()
+        if exc.errno not in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
+            raise
+        raise UsdcrowdError(f"another usdcrowd run{f' (pid {holder})' if holder else ''} is writing in this folder: "
+                            "wait for it to finish or choose another folder", file=os.fspath(root)) from None
+    fh.seek(0)
+    fh.truncate()
+    fh.write(f"{os.getpid()}\n")
+    fh.flush()
+    s.locks[root] = fh

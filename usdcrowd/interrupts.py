@@ -1,0 +1,93 @@
+"""Ctrl-C and kill are answered at once: workers stopped, the frame in flight dropped, nothing orphaned.
+
+The command line turns SIGTERM (``kill``, ``timeout``, a farm's scheduler)
+into :class:`Terminated`, raised in the main thread like Ctrl-C's
+KeyboardInterrupt, so the same clean-up runs for both. Worker processes
+ignore SIGINT (a terminal sends it to the whole process group): the parent
+alone decides, and stops them with :func:`stop_pool`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+
+# How long a worker gets to exit after SIGTERM before it is killed.
+WORKER_GRACE_S = 1.0
+
+
+class Terminated(BaseException):
+    """SIGTERM arrived: stop as for Ctrl-C (a BaseException, so no ``except Exception`` swallows it)."""
+
+
+def _raise_terminated(signum, frame):
+    raise Terminated(signum)
+
+
+@contextlib.contextmanager
+def terminate_as_exception():
+    """Within: SIGTERM raises :class:`Terminated` in the main thread (the previous handler is restored)."""
+    try:
+        previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    except ValueError:                      # not the main thread: leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+@contextlib.contextmanager
+def children_deaf_to_ctrl_c():
+    """Processes started within are born with SIGINT blocked (the mask survives fork and exec), so a
+    Ctrl-C that arrives while they start up cannot kill them with a traceback; in this process a SIGINT
+    that arrives meanwhile waits and is delivered on leaving."""
+    try:
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    except (AttributeError, ValueError):
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def worker_ignores_interrupts() -> None:
+    """Run first in each worker process: Ctrl-C reaches the parent, which stops the workers itself."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGTERM})   # blocked by the parent while it started us
+    # tqdm's default lock is a multiprocessing semaphore: a worker stopped mid-task would leave it
+    # registered, and the resource tracker would warn at the parent's exit. A worker's bars are its own.
+    import threading
+
+    from tqdm import tqdm
+
+    tqdm.set_lock(threading.RLock())
+
+
+def stop_processes(processes) -> None:
+    """SIGTERM each live process, then SIGKILL what is left after :data:`WORKER_GRACE_S`; reap them all."""
+    processes = [p for p in processes if p is not None]
+    for p in processes:
+        with contextlib.suppress(Exception):
+            if p.is_alive():
+                p.terminate()
+    for p in processes:
+        with contextlib.suppress(Exception):
+            p.join(WORKER_GRACE_S)
+            if p.is_alive():
+                p.kill()
+                p.join(WORKER_GRACE_S)
+
+
+def stop_pool(pool) -> None:
+    """Stop a ProcessPoolExecutor now: queued tasks cancelled, running ones abandoned, workers ended."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    stop_processes(processes)
+    # The pool's manager thread sees its workers gone and releases the queues' semaphores (else the
+    # resource tracker warns about them at exit); with no worker left this returns at once.
+    pool.shutdown(wait=True)
