@@ -232,3 +232,13 @@ def test_inspect_into_a_pipe_closed_early_exits_quietly(museum_shot):
     proc.stdout.close()
     err = proc.stderr.read()
     assert proc.wait(timeout=120) == 0 and err == "", err
+
+
+@pytest.mark.parametrize("name", ["out.gif", "frames.png"])
+def test_preview_refuses_an_output_it_cannot_write_as_named(museum_shot, tmp_path, capsys, name):
+    """`preview -o out.gif` made a folder of PNGs named out.gif."""
+    _, shot = museum_shot
+    capsys.readouterr()
+    assert main(["preview", str(shot / "shot.usda"), "-o", str(tmp_path / name), "--no-progress"]) == 2
+    one_line_error(capsys, name, "MP4", "folder of PNG frames")
+    assert not (tmp_path / name).exists()

@@ -75,6 +75,11 @@ def run(args) -> int:
 
     out = Path(args.output)
     to_video = out.suffix.lower() in (".mp4", ".m4v", ".mov")
+    if not to_video and out.suffix and not out.is_dir():
+        from ..errors import UsdcrowdError
+
+        raise UsdcrowdError(f"preview writes an MP4 (.mp4, .m4v, .mov) or a folder of PNG frames, not "
+                            f"{out.suffix!r}: name a video or a folder", file=args.output)
     sheet_path = Path(args.sheet) if args.sheet else (
         out.with_name(out.stem + "_sheet.png") if to_video else out / "contact_sheet.png")
     r = PreviewRenderer(scene, width, height, lod_settings=lod_settings, overlays=overlays, exposure=args.exposure)
