@@ -23,8 +23,8 @@ from usdcrowd.cli import main  # noqa: E402
 
 pytestmark = pytest.mark.slow
 USDCROWD = [sys.executable, "-m", "usdcrowd"]
-# The bound is 2 s; a loaded 2-core machine gets some slack on top to notice the exit.
-PROMPT_S = 4.0
+# The bound asked is 2 s; a loaded 2-core machine (the suite runs beside other jobs) gets slack on top.
+PROMPT_S = 6.0
 
 
 def start(argv) -> tuple[subprocess.Popen, list]:

@@ -14,6 +14,22 @@ _PARTIAL = re.compile(r"^\..+\.partial-[0-9a-f]{8}(\.[^/]*)?$")
 
 
 @contextlib.contextmanager
+def _signals_held():
+    """SIGINT and SIGTERM wait (delivered on leaving) while a few system calls must happen together."""
+    import signal
+
+    try:
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    except (AttributeError, ValueError, OSError):
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+@contextlib.contextmanager
 def atomic_path(final: str | os.PathLike):
     """Yield a temporary path next to ``final``; rename it over ``final`` on success.
 
@@ -36,8 +52,9 @@ def atomic_path(final: str | os.PathLike):
     tmp = final.with_name(f".{final.stem}.partial-{uuid.uuid4().hex[:8]}{final.suffix}")
     try:
         yield tmp
-        os.replace(tmp, final)
-        guard.wrote(final)
+        with _signals_held():               # a kill between the rename and its record would orphan the file
+            os.replace(tmp, final)
+            guard.wrote(final)
     except OSError as exc:
         if exc.filename in (None, os.fspath(tmp)):      # name the file the user asked for, not ours
             raise OSError(exc.errno, exc.strerror, os.fspath(final)) from None

@@ -108,7 +108,8 @@ class Session:
         except OSError:
             return
         if os.path.isdir(path):
-            self._append(root, {"kind": "dir", "name": name})
+            if self.entries(root).get(name, {}).get("kind") != "dir":     # once: frames land in it by thousands
+                self._append(root, {"kind": "dir", "name": name})
         else:
             self._append(root, {"kind": "file", "name": name, "size": st.st_size, "mtime_ns": st.st_mtime_ns})
 
@@ -368,7 +369,8 @@ def claim(folder, what: str | None = None) -> Path:
         s.roots.append(full)
         _publish(s)
     foreign = [e.name for e in sorted(os.scandir(full), key=lambda e: e.name)
-               if e.name != STATE_DIR and not _partial(e.name) and not s.owns(full, e.name)]
+               if e.name != STATE_DIR and not _partial(e.name) and not s.owns(full, e.name)
+               and not (full / e.name / STATE_DIR / RECORD).is_file()]     # an output folder of its own
     changed = [n for n in foreign if n in s.entries(full)]
     if changed and not s.force:
         raise UsdcrowdError(f"{', '.join(changed[:3])}{' and more' if len(changed) > 3 else ''} changed since usdcrowd "
@@ -409,6 +411,8 @@ def _lock(s: Session, root: Path) -> None:
         fh.seek(0)
         holder = fh.read().strip()
         fh.close()
+        if exc.errno in (errno.ENOLCK, errno.EOPNOTSUPP, errno.ENOSYS):
+            return                          # a file system without locks (some NFS, FUSE): unguarded, as before
         if exc.errno not in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
             raise
         raise UsdcrowdError(f"another usdcrowd run{f' (pid {holder})' if holder else ''} is writing in this folder: "

@@ -132,7 +132,10 @@ class _Local:
                                         initializer=worker_ignores_interrupts)
 
     def submit(self, fn, *args):
-        return self.pool.submit(fn, *args)
+        from ..interrupts import children_deaf_to_ctrl_c
+
+        with children_deaf_to_ctrl_c():     # the workers start on the first submit
+            return self.pool.submit(fn, *args)
 
     def wait(self, pending):
         from concurrent.futures import FIRST_COMPLETED, wait
@@ -222,6 +225,10 @@ def _settings(spec: DatasetSpec):
     return resolve_variant(settings)
 
 
+# Folders from the dataset's top to a camera's frames (sequences/<seq>/render/<camera>/exr).
+DEPTH = 5
+
+
 def _check_existing(out: Path, spec: DatasetSpec, force: bool) -> None:
     """Refuse to mix two specs in one dataset, unless asked to re-make what the new spec changes."""
     try:
@@ -275,6 +282,7 @@ def make_dataset(spec_path, out_dir, executor: str = "local", workers: int = 1, 
         raise UsdcrowdError(f"no sequence {bad[0]}: the spec has {spec.sequences} (0 to {spec.sequences - 1})")
     settings = _settings(spec)
     out = output_dir(out_dir, "dataset")
+    clean_partials(out, depth=DEPTH)        # frames in flight when an earlier run was stopped
     _check_existing(out, spec, force)
     splits = assign_splits(spec)
     all_plans = {i: draw_plan(spec, i, splits[i]) for i in range(spec.sequences)}
@@ -351,7 +359,7 @@ def make_dataset(spec_path, out_dir, executor: str = "local", workers: int = 1, 
                 status()
     except BaseException:
         ex.close(now=True)          # Ctrl-C, kill or an error: stop the workers, drop the frames in flight
-        clean_partials(out)
+        clean_partials(out, depth=DEPTH)
         raise
     finally:
         for state in cams.values():

@@ -360,13 +360,14 @@ def _run_local(shot_path, camera, settings, todo, out_dir, on_done, workers):
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
     threads = max(1, (os.cpu_count() or 1) // workers)
-    from ..interrupts import stop_pool
+    from ..interrupts import children_deaf_to_ctrl_c, stop_pool
 
     ctx = multiprocessing.get_context("spawn")
     pool = ProcessPoolExecutor(workers, mp_context=ctx, initializer=_pool_worker_init,
                                initargs=(shot_path, camera, asdict(settings), threads))
     try:
-        pending = {pool.submit(_worker_render, float(t), os.fspath(out_dir)) for t in todo}
+        with children_deaf_to_ctrl_c():     # the workers start on the first submit
+            pending = {pool.submit(_worker_render, float(t), os.fspath(out_dir)) for t in todo}
         while pending:
             done, pending = wait(pending, return_when=FIRST_COMPLETED)
             for fut in done:
