@@ -14,22 +14,6 @@ _PARTIAL = re.compile(r"^\..+\.partial-[0-9a-f]{8}(\.[^/]*)?$")
 
 
 @contextlib.contextmanager
-def _signals_held():
-    """SIGINT and SIGTERM wait (delivered on leaving) while a few system calls must happen together."""
-    import signal
-
-    try:
-        old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
-    except (AttributeError, ValueError, OSError):
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
-
-
-@contextlib.contextmanager
 def atomic_path(final: str | os.PathLike):
     """Yield a temporary path next to ``final``; rename it over ``final`` on success.
 
@@ -39,7 +23,10 @@ def atomic_path(final: str | os.PathLike):
     """
     import errno
 
+    import signal
+
     from . import guard
+    from .interrupts import signals_held
 
     final = Path(final)
     guard.check_write(final)
@@ -52,7 +39,8 @@ def atomic_path(final: str | os.PathLike):
     tmp = final.with_name(f".{final.stem}.partial-{uuid.uuid4().hex[:8]}{final.suffix}")
     try:
         yield tmp
-        with _signals_held():               # a kill between the rename and its record would orphan the file
+        with signals_held(signal.SIGINT, signal.SIGTERM):   # a kill between the rename and its record
+            # would leave a file the record does not know, refused as someone else's for ever
             os.replace(tmp, final)
             guard.wrote(final)
     except OSError as exc:

@@ -150,6 +150,11 @@ def _publish(s: Session) -> None:
                                   "inputs": [os.path.abspath(p) for p in names]})
 
 
+def ray_runtime_env() -> dict | None:
+    """Ray's ``runtime_env`` that gives a cluster's workers this run's session (None outside one)."""
+    return {"env_vars": {ENV: os.environ[ENV]}} if os.environ.get(ENV) else None
+
+
 def _add_input(s: Session, path, shown) -> bool:
     try:
         st = os.stat(path)
@@ -287,12 +292,24 @@ def check_write(final) -> None:
 def wrote(final) -> None:
     """Record that ``final`` was written (call after the rename)."""
     s = current()
-    if s is None:
-        return
     final = Path(os.path.abspath(final))
+    if s is None:
+        _keep_record_true(final)
+        return
     root, name = _top(s, final)
     if not _partial(name) and (root in s.roots or root / name == final):
         s.record(root, name)
+
+
+def _keep_record_true(final: Path) -> None:
+    """Library use (no session) checks nothing, but a file it rewrites in an output folder that keeps a
+    record is recorded again: else usdcrowd's own next command would take it for the user's edit."""
+    for root in list(final.parents)[:4]:
+        if (root / STATE_DIR / RECORD).is_file():
+            name = final.relative_to(root).parts[0]
+            if not _partial(name):
+                Session(roots=[root]).record(root, name)
+            return
 
 
 def make_dir(path) -> Path:

@@ -39,19 +39,24 @@ def terminate_as_exception():
 
 
 @contextlib.contextmanager
-def children_deaf_to_ctrl_c():
-    """Processes started within are born with SIGINT blocked (the mask survives fork and exec), so a
-    Ctrl-C that arrives while they start up cannot kill them with a traceback; in this process a SIGINT
-    that arrives meanwhile waits and is delivered on leaving."""
+def signals_held(*signums):
+    """The signals wait while inside (delivered on leaving). Processes started inside are born with them
+    blocked: the mask survives fork and exec."""
     try:
-        old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-    except (AttributeError, ValueError):
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, set(signums))
+    except (AttributeError, ValueError, OSError):
         yield
         return
     try:
         yield
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def children_deaf_to_ctrl_c():
+    """Processes started within cannot be killed by a Ctrl-C with a traceback while they start up;
+    here a SIGINT that arrives meanwhile waits and is delivered on leaving."""
+    return signals_held(signal.SIGINT)
 
 
 def worker_ignores_interrupts() -> None:

@@ -171,7 +171,8 @@ class _Ray:
         if not ray.is_initialized():
             quiet = {"log_to_driver": False, "logging_level": logging.ERROR, "include_dashboard": False}
             if address:
-                ray.init(address=address, **quiet)
+                # A cluster's workers do not inherit this process's environment: hand them the guard's session.
+                ray.init(address=address, runtime_env=guard.ray_runtime_env(), **quiet)
             else:
                 # "local" starts a Ray instance for this run: never a cluster the user did not give.
                 ray.init(address="local", num_cpus=max(workers, 1), **quiet)

@@ -391,7 +391,10 @@ def _run_ray(shot_path, camera, settings, todo, out_dir, on_done, workers, addre
         # Ray's own start-up notes would bury the progress bar and our one-line errors.
         quiet = {"log_to_driver": False, "logging_level": logging.ERROR}
         if address:
-            ray.init(address=address, **quiet)
+            from .. import guard
+
+            # A cluster's workers do not inherit this process's environment: hand them the guard's session.
+            ray.init(address=address, runtime_env=guard.ray_runtime_env(), **quiet)
         else:
             # "local": a Ray instance for this run, never a cluster the user did not name
             # (a running one, or RAY_ADDRESS, would otherwise be joined).
