@@ -242,3 +242,53 @@ def test_preview_refuses_an_output_it_cannot_write_as_named(museum_shot, tmp_pat
     assert main(["preview", str(shot / "shot.usda"), "-o", str(tmp_path / name), "--no-progress"]) == 2
     one_line_error(capsys, name, "MP4", "folder of PNG frames")
     assert not (tmp_path / name).exists()
+
+
+def test_a_single_file_may_not_replace_what_another_command_wrote_in_its_folder(shot_copy, capsys):
+    """`new -o shot/shot.usda` would replace the shot's entry layer with a scenario."""
+    before = digest_tree(shot_copy)
+    capsys.readouterr()
+    assert main(["new", "museum", "-o", str(shot_copy / "shot.usda"), "--agents", "6"]) == 2
+    one_line_error(capsys, "shot.usda", "usdcrowd simulate wrote")
+    assert main(["new", "museum", "-o", str(shot_copy / "shot.usda"), "--agents", "6", "--force"]) == 2
+    assert digest_tree(shot_copy) == before
+
+
+def test_force_replaces_only_the_file_the_user_named(shot_copy, tmp_path, capsys):
+    """preview -o p.mp4 --force: the default sheet p_sheet.png is not the user's to lose."""
+    pytest.importorskip("imageio_ffmpeg")
+    sheet = tmp_path / "p_sheet.png"
+    sheet.write_bytes(b"my own picture")
+    capsys.readouterr()
+    assert main(["preview", str(shot_copy / "shot.usda"), "-o", str(tmp_path / "p.mp4"), "--frames", "1:2",
+                 "--resolution", "64x36", "--force", "--no-progress"]) == 2
+    one_line_error(capsys, "p_sheet.png", "not written by usdcrowd")
+    assert sheet.read_bytes() == b"my own picture"
+
+
+def test_the_images_a_scenario_uses_are_inputs_too(tmp_path, capsys):
+    """A behavior map (an asset attribute, not a layer) is never written over."""
+    scenario = tmp_path / "harbour.usda"
+    assert main(["new", "harbour", "-o", str(scenario), "--agents", "6"]) == 0
+    water = tmp_path / "maps" / "harbour_water.png"
+    before = water.read_bytes()
+    capsys.readouterr()
+    assert main(["preview", str(scenario), "-o", str(tmp_path / "p"), "--sheet", str(water), "--no-progress"]) == 2
+    one_line_error(capsys, "would overwrite an input", "harbour_water.png")
+    assert water.read_bytes() == before
+
+
+def test_a_folder_inside_one_another_run_writes_is_refused(museum_shot, tmp_path, capsys):
+    scenario, _ = museum_shot
+    ds = tmp_path / "ds"
+    ds.mkdir()
+    holder = _hold_lock(ds)
+    try:
+        capsys.readouterr()
+        assert main(["simulate", str(scenario), "-o", str(ds / "sequences" / "mine"), "--frames", "1:6",
+                     "--no-progress"]) == 2
+        one_line_error(capsys, "another usdcrowd run", str(ds))
+    finally:
+        holder.kill()
+        holder.wait()
+    assert not (ds / "sequences").exists()

@@ -133,3 +133,23 @@ def test_dataset_stops_at_once_on_ctrl_c(tmp_path):
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
     assert took < PROMPT_S and not alive
     assert not partials(out)
+
+
+def test_a_stopped_simulate_into_an_earlier_shot_leaves_that_shot_whole(tmp_path):
+    """Re-simulating into a finished shot replaces its layers one by one; stopped half-way, every one is put back."""
+    from test_guard import digest_tree
+
+    scenario = tmp_path / "crowded.usda"
+    assert main(["new", "museum", "-o", str(scenario), "--agents", "2000"]) == 0
+    out = tmp_path / "shot"
+    assert main(["simulate", str(scenario), "-o", str(out), "--frames", "1:24", "--no-progress"]) == 0
+    parts = sorted(p.name for p in out.glob("crowd.part*.usdc"))
+    assert parts, "a crowd this size is written by part writers"
+    before = digest_tree(out)
+    proc = start(["simulate", str(scenario), "-o", str(out), "--no-progress", "--frames", "1:600", "--seed", "2"])
+    wait_for(lambda: len(family(proc)) >= 2, 120, proc)
+    time.sleep(1.5)
+    returncode, err, took, alive = stop(proc, signal.SIGINT, group=True)
+    assert returncode == 130, err
+    assert digest_tree(out) == before
+    assert main(["validate", str(out / "shot.usda")]) == 0

@@ -52,6 +52,44 @@ def atomic_path(final: str | os.PathLike):
             tmp.unlink()
 
 
+@contextlib.contextmanager
+def restored_on_failure(paths):
+    """Within, the files ``paths`` may be replaced one by one; if the block fails (an error, Ctrl-C, kill)
+    each is put back as it was, and those that did not exist are removed.
+
+    The previous files are kept as hard links under temporary names (no copy of the bytes), which a
+    later run's :func:`clean_partials` removes if this process is killed outright.
+    """
+    kept = {}
+    try:
+        for path in map(Path, paths):
+            if path.is_file():
+                backup = path.with_name(f".{path.stem}.previous.partial-{uuid.uuid4().hex[:8]}{path.suffix}")
+                try:
+                    os.link(path, backup)
+                except OSError:             # no hard links here (some network or FUSE file systems)
+                    shutil.copy2(path, backup)
+                kept[path] = backup
+            else:
+                kept[path] = None
+        yield
+    except BaseException:
+        for path, backup in kept.items():
+            with contextlib.suppress(OSError):
+                if backup is not None and path.exists() and os.path.samefile(backup, path):
+                    backup.unlink()         # never replaced (rename over its own hard link would do nothing)
+                elif backup is not None:
+                    os.replace(backup, path)
+                elif path.exists():
+                    path.unlink()
+        raise
+    else:
+        for backup in kept.values():
+            if backup is not None:
+                with contextlib.suppress(OSError):
+                    backup.unlink()
+
+
 def clean_partials(folder: str | os.PathLike, depth: int = 2) -> int:
     """Remove the temporary files an interrupted run left in ``folder`` (and its subfolders, ``depth`` deep).
 
@@ -98,6 +136,7 @@ def output_dir(path: str | os.PathLike, what: str | None = None) -> Path:
     if out.exists() and not out.is_dir():
         raise UsdcrowdError("exists and is not a folder: give a folder for the outputs", file=os.fspath(out))
     guard.check_not_input(out, "output folder")
+    guard.check_free(out)
     try:
         guard.make_dir(out)
     except OSError as exc:

@@ -47,9 +47,12 @@ class Session:
     inputs: dict = field(default_factory=dict)       # (st_dev, st_ino) -> the path the user knows it by
     roots: list = field(default_factory=list)        # claimed output folders, absolute
     force: bool = False
+    command: str | None = None                       # the command, recorded with what it writes
+    named: set = field(default_factory=set)          # the output paths the user named (what --force may replace)
     locks: dict = field(default_factory=dict)        # root -> open lock file (this process's)
     in_place: set = field(default_factory=set)       # layers of an input this run may replace (edit_in_place)
     made_state: set = field(default_factory=set)     # folders whose state folder this run created
+    from_env: bool = False                           # a worker process's copy of its command's session
     _records: dict = field(default_factory=dict)     # root -> (bytes read, {name: entry})
 
     # -------------------------------------------------------------- inputs
@@ -111,7 +114,8 @@ class Session:
             if self.entries(root).get(name, {}).get("kind") != "dir":     # once: frames land in it by thousands
                 self._append(root, {"kind": "dir", "name": name})
         else:
-            self._append(root, {"kind": "file", "name": name, "size": st.st_size, "mtime_ns": st.st_mtime_ns})
+            self._append(root, {"kind": "file", "name": name, "size": st.st_size, "mtime_ns": st.st_mtime_ns,
+                                "by": self.command})
 
     def record_folder(self, root: Path, what: str) -> None:
         """Note what kind of output folder ``root`` is (its entry ``"."``)."""
@@ -137,7 +141,8 @@ def current() -> Session | None:
     global _SESSION
     if _SESSION is None and os.environ.get(ENV):
         data = json.loads(os.environ[ENV])
-        _SESSION = Session(force=data["force"], roots=[Path(r) for r in data["roots"]])
+        _SESSION = Session(force=data["force"], roots=[Path(r) for r in data["roots"]], command=data["command"],
+                           named={Path(p) for p in data["named"]}, from_env=True)
         for path in data["inputs"]:
             _add_input(_SESSION, path, path)
     return _SESSION
@@ -146,7 +151,8 @@ def current() -> Session | None:
 def _publish(s: Session) -> None:
     """Hand the session to worker processes started from now on."""
     names = sorted(set(s.inputs.values()))
-    os.environ[ENV] = json.dumps({"force": s.force, "roots": [os.fspath(r) for r in s.roots],
+    os.environ[ENV] = json.dumps({"force": s.force, "roots": [os.fspath(r) for r in s.roots], "command": s.command,
+                                  "named": sorted(os.fspath(p) for p in s.named),
                                   "inputs": [os.path.abspath(p) for p in names]})
 
 
@@ -164,8 +170,41 @@ def _add_input(s: Session, path, shown) -> bool:
     return True
 
 
-def _layers_used(path: str) -> list[str]:
-    """The files a USD stage is made of, besides itself: its layers' sublayers, references, payloads."""
+def _assets_of(layer, folder: str) -> list[str]:
+    """Files a layer names besides its composition: asset-valued attributes (textures, behavior maps) in
+    text layers, and value clips (crowd.clips/) on root prims."""
+    from pxr import Sdf
+
+    found = []
+
+    def add(asset) -> None:
+        path = getattr(asset, "path", asset)
+        if isinstance(path, str) and path:
+            found.append(os.path.normpath(os.path.join(folder, path)))
+
+    for prim in layer.rootPrims:
+        for clip_set in (prim.GetInfo("clips") if prim.HasInfo("clips") else {}).values():
+            for asset in list(clip_set.get("assetPaths", [])) + [clip_set.get("manifestAssetPath")]:
+                if asset is not None:
+                    add(asset)
+    if layer.GetFileFormat().formatId != "usda":
+        return found                        # binary crowd layers hold animation, not textures
+
+    def visit(path) -> None:
+        if not path.IsPropertyPath():
+            return
+        spec = layer.GetPropertyAtPath(path)
+        if isinstance(spec, Sdf.AttributeSpec) and spec.typeName == Sdf.ValueTypeNames.Asset:
+            if spec.HasDefaultValue():
+                add(spec.default)
+
+    layer.Traverse(Sdf.Path.absoluteRootPath, visit)
+    return found
+
+
+def _files_used(path: str) -> list[str]:
+    """The files a USD stage is made of, besides itself: its layers' sublayers, references, payloads,
+    value clips and asset-valued attributes (images)."""
     import stat
 
     from pxr import Sdf
@@ -182,18 +221,25 @@ def _layers_used(path: str) -> list[str]:
             layer = None
         if layer is None:
             continue
+        folder = os.path.dirname(current_path)
         for asset in layer.GetCompositionAssetDependencies():
-            dep = os.path.normpath(os.path.join(os.path.dirname(current_path), asset))
+            dep = os.path.normpath(os.path.join(folder, asset))
             if dep not in seen and os.path.isfile(dep):
                 seen.add(dep)
                 found.append(dep)
                 todo.append(dep)
+        for dep in _assets_of(layer, folder):
+            if dep not in seen and os.path.isfile(dep):
+                seen.add(dep)
+                found.append(dep)
+                if dep.endswith((".usd", ".usda", ".usdc")):
+                    todo.append(dep)
         del layer
     return found
 
 
 @contextlib.contextmanager
-def session(inputs=(), force: bool = False):
+def session(inputs=(), force: bool = False, outputs=(), command: str | None = None):
     """Guard every write of the command run inside: see the module's docstring.
 
     Parameters
@@ -204,16 +250,20 @@ def session(inputs=(), force: bool = False):
     force : bool
         Write into output folders that hold entries usdcrowd did not write
         (those entries are still never replaced), and replace a single
-        output file the user named even if usdcrowd did not write it.
+        output file the user named (in ``outputs``) even if usdcrowd did not write it.
+    outputs : iterable of str
+        The output paths the user named.
+    command : str, optional
+        The command's name, recorded with each file it writes.
     """
     global _SESSION
     previous, env = _SESSION, os.environ.get(ENV)
-    s = Session(force=force)
+    s = Session(force=force, command=command, named={Path(os.path.abspath(p)) for p in outputs})
     for path in inputs:
         if path is None or not _add_input(s, path, path):
             continue
         if os.path.splitext(os.fspath(path))[1].lower() in (".usd", ".usda", ".usdc"):
-            for dep in _layers_used(os.fspath(path)):
+            for dep in _files_used(os.fspath(path)):
                 _add_input(s, dep, dep)
     _SESSION = s
     _publish(s)
@@ -277,9 +327,13 @@ def check_write(final) -> None:
         return
     root, name = _top(s, final)
     entry = root / name
-    if _partial(name) or not os.path.lexists(entry) or s.owns(root, name):
+    if _partial(name) or not os.path.lexists(entry):
         return
-    if s.force and root not in s.roots and entry == final:
+    if s.owns(root, name):
+        if root not in s.roots:
+            _refuse_another_commands(s, root, name, final)
+        return
+    if s.force and root not in s.roots and final in s.named:
         return                              # a single output file the user named, replaced on --force
     if entry == final:
         raise UsdcrowdError("exists and was not written by usdcrowd (or was changed since): usdcrowd replaces "
@@ -287,6 +341,16 @@ def check_write(final) -> None:
                             + ("" if root in s.roots else ", or give --force to replace it"), file=os.fspath(final))
     raise UsdcrowdError(f"{name} in {root} was not made by usdcrowd: usdcrowd writes only in its own folders; "
                         f"move it away or choose another output folder", file=os.fspath(final))
+
+
+def _refuse_another_commands(s: Session, root: Path, name: str, final: Path) -> None:
+    """A single file written into another command's output folder may not replace what that command wrote
+    there (``new -o shot/shot.usda`` would replace a shot's entry layer)."""
+    kind = s.entries(root).get(".", {}).get("what")
+    by = s.entries(root)[name].get("by")
+    if kind and by and by != s.command:
+        raise UsdcrowdError(f"is part of the {kind} that usdcrowd {by} wrote in this folder: choose another name",
+                            file=os.fspath(final))
 
 
 def wrote(final) -> None:
@@ -297,19 +361,33 @@ def wrote(final) -> None:
         _keep_record_true(final)
         return
     root, name = _top(s, final)
-    if not _partial(name) and (root in s.roots or root / name == final):
+    if _partial(name):
+        return
+    if root in s.roots or root / name == final:
         s.record(root, name)
+    inner = _innermost_record(final, stop=root)
+    if inner is not None:                   # a folder of its own inside this run's (the demo's shot)
+        Session(command=s.command).record(inner, final.relative_to(inner).parts[0])
 
 
 def _keep_record_true(final: Path) -> None:
     """Library use (no session) checks nothing, but a file it rewrites in an output folder that keeps a
     record is recorded again: else usdcrowd's own next command would take it for the user's edit."""
-    for root in list(final.parents)[:4]:
-        if (root / STATE_DIR / RECORD).is_file():
-            name = final.relative_to(root).parts[0]
-            if not _partial(name):
-                Session(roots=[root]).record(root, name)
-            return
+    root = _innermost_record(final)
+    if root is not None:
+        name = final.relative_to(root).parts[0]
+        if not _partial(name):
+            Session().record(root, name)
+
+
+def _innermost_record(final: Path, stop: Path | None = None) -> Path | None:
+    """The nearest folder above ``final`` (at most 4 up, below ``stop``) that keeps a record."""
+    for folder in list(final.parents)[:4]:
+        if folder == stop:
+            return None
+        if (folder / STATE_DIR / RECORD).is_file():
+            return folder
+    return None
 
 
 def make_dir(path) -> Path:
@@ -381,9 +459,14 @@ def claim(folder, what: str | None = None) -> Path:
     if full in s.locks:
         return folder
     check_not_input(full, "output folder")
-    _lock(s, full)
+    if s.root_of(full) is None:
+        check_free(full)
+        _lock(s, full)
+    # else: inside a folder this run holds already (a dataset's sequences, the demo's shot): its lock covers it.
     if full not in s.roots:
-        s.roots.append(full)
+        # Folders nested in this run's own are claimed one after another (a worker's sequences):
+        # forget the earlier ones, so the session stays small however many there are.
+        s.roots = [r for r in s.roots if s.root_of(r) is None or r in full.parents] + [full]
         _publish(s)
     foreign = [e.name for e in sorted(os.scandir(full), key=lambda e: e.name)
                if e.name != STATE_DIR and not _partial(e.name) and not s.owns(full, e.name)
@@ -407,6 +490,33 @@ def claim(folder, what: str | None = None) -> Path:
         if made is None:
             s.record_folder(full, what)
     return folder
+
+
+def check_free(folder) -> None:
+    """Refuse a folder inside an output folder another run is writing (``simulate -o ds/sequences/x/shot``
+    while the dataset ``ds`` is made), before anything is made in it."""
+    import fcntl
+
+    s = current()
+    if s is None:
+        return
+    full = Path(os.path.abspath(folder))
+    if s.root_of(full) is not None:
+        return                              # inside this run's own folder
+
+    for parent in full.parents:
+        lock = parent / STATE_DIR / LOCK
+        if parent in s.roots or not lock.is_file():
+            continue
+        with open(lock) as fh:
+            try:
+                fcntl.flock(fh, fcntl.LOCK_SH | fcntl.LOCK_NB)
+            except OSError as exc:
+                if exc.errno in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
+                    raise UsdcrowdError(f"is inside {parent}, which another usdcrowd run is writing: wait for it "
+                                        "to finish or choose another folder", file=os.fspath(full)) from None
+            else:
+                fcntl.flock(fh, fcntl.LOCK_UN)
 
 
 def _partial(name: str) -> bool:

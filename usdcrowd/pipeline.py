@@ -97,7 +97,7 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     """
     from pxr import Sdf, UsdLux
 
-    from .atomic import output_dir
+    from .atomic import output_dir, restored_on_failure
     from .errors import ScenarioError
     from .events import EventDetector
     from .events.scenario import layer_events
@@ -147,39 +147,39 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     plotted = np.sort(np.random.default_rng(0).permutation(len(scenario.agents))[:PLOT_MAX_AGENTS])
     stride = max(1, scenario.time.n_frames // 200)
     cameras = plot = None
-    try:
-        _author_frames(writer, crowd_source(scenario), scenario, plotted, stride, progress,
-                       collected, detector if events else None)
-        positions = collected.positions
-        detected = list(detector.finish()) + layer_events(
-            scenario.fields, positions, scenario.time.codes, scenario.agents.visible, detector.scope) if events else []
-        shot_events = model.EventTable(list(scenario.events) + detected)
-        with Sdf.ChangeBlock():
-            n_events = author_events(writer.layer, shot_events, scenario.agents.path, scenario.agents.agent_id,
-                                     sframe)
-        # The part writers save while the cameras and the picture are made.
-        writer.start_saving()
-        tracks = film_cameras(scenario, positions, shot_events, default_prim, progress, count=camera_count,
-                              summary=collected.summary())
-        cameras = write_camera_tracks(out_dir, tracks, sframe, default_prim, scenario.time,
-                                      defined={p for p in scenario.cameras.path},
-                                      extra={"seed": int(scenario.seed), "events": len(shot_events)})
-        plot = trajectory_map(_subset(scenario, plotted), np.concatenate(collected.tracks),
-                              out_dir / "trajectories.png",
-                              title=f"{Path(scenario_path).name}: {len(scenario.agents)} agents, "
-                                    f"{scenario.time.n_frames} frames, seed {scenario.seed}")
-        crowd = writer.save()
-    except BaseException:
-        writer.abort()          # stop the part writers; nothing half-written is left behind
-        for done in (cameras, plot):
-            if done is not None and os.path.exists(done):
-                os.unlink(done)
-        raise
-    finally:
-        store.close()
-    # Last: the shot is the entry point, and exists only once everything it sublayers does.
-    shot = write_shot(out_dir, scenario_path, scenario.time, sframe, default_prim, scenario.seed,
-                      add_lights=not has_lights)
+    # A run into an earlier shot's folder replaces its layers one by one: stopped half-way, it puts them back.
+    previous = [out_dir / CAMERAS, out_dir / "trajectories.png", out_dir / CROWD, *getattr(writer, "part_paths", [])]
+    with restored_on_failure(previous):
+        try:
+            _author_frames(writer, crowd_source(scenario), scenario, plotted, stride, progress,
+                           collected, detector if events else None)
+            positions = collected.positions
+            detected = list(detector.finish()) + layer_events(
+                scenario.fields, positions, scenario.time.codes, scenario.agents.visible, detector.scope) if events else []
+            shot_events = model.EventTable(list(scenario.events) + detected)
+            with Sdf.ChangeBlock():
+                n_events = author_events(writer.layer, shot_events, scenario.agents.path, scenario.agents.agent_id,
+                                         sframe)
+            # The part writers save while the cameras and the picture are made.
+            writer.start_saving()
+            tracks = film_cameras(scenario, positions, shot_events, default_prim, progress, count=camera_count,
+                                  summary=collected.summary())
+            cameras = write_camera_tracks(out_dir, tracks, sframe, default_prim, scenario.time,
+                                          defined={p for p in scenario.cameras.path},
+                                          extra={"seed": int(scenario.seed), "events": len(shot_events)})
+            plot = trajectory_map(_subset(scenario, plotted), np.concatenate(collected.tracks),
+                                  out_dir / "trajectories.png",
+                                  title=f"{Path(scenario_path).name}: {len(scenario.agents)} agents, "
+                                        f"{scenario.time.n_frames} frames, seed {scenario.seed}")
+            crowd = writer.save()
+        except BaseException:
+            writer.abort()          # stop the part writers; nothing half-written is left behind
+            raise
+        finally:
+            store.close()
+        # Last: the shot is the entry point, and exists only once everything it sublayers does.
+        shot = write_shot(out_dir, scenario_path, scenario.time, sframe, default_prim, scenario.seed,
+                          add_lights=not has_lights)
     camera = tracks[0].path
     return ShotResult(shot, crowd, cameras, camera, plot, len(scenario.agents), scenario.time.n_frames,
                       scenario.seed, [t.path for t in tracks], n_events)

@@ -57,9 +57,10 @@ def _run_guarded(args) -> int:
     """The command inside a guard session: its inputs are never written, its outputs only where it may."""
     from .. import guard
 
-    with terminate_as_exception(), guard.session(_named(args, getattr(args, "inputs", ())),
-                                                 force=getattr(args, "force", False)):
-        for path in _named(args, getattr(args, "outputs", ())):
+    outputs = _named(args, getattr(args, "outputs", ()))
+    with terminate_as_exception(), guard.session(_named(args, getattr(args, "inputs", ())), outputs=outputs,
+                                                 force=getattr(args, "force", False), command=args.command):
+        for path in outputs:
             guard.check_not_input(path)         # before any work, not when the output is finally written
         return int(args.run(args) or 0)
 

@@ -80,8 +80,43 @@ def add_frames(parser: argparse.ArgumentParser) -> None:
                         help="frames to use: N, START:END or START:ENDxSTRIDE (default: the stage's range)")
 
 
+# Seeds are stored in customLayerData as unsigned 32-bit integers (numpy's generators take any, USD's int64 not).
+MAX_SEED = 2**32 - 1
+
+
+def int_in(lo: int, hi: int, what: str = "a whole number"):
+    """An argparse type: a whole number in [lo, hi], else a one-line usage error naming the range."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {what} from {lo:,} to {hi:,}, got {text!r}") from None
+        if not lo <= value <= hi:
+            raise argparse.ArgumentTypeError(f"expected {what} from {lo:,} to {hi:,}, got {text!r}")
+        return value
+
+    return parse
+
+
+def finite_float(lo: float = -float("inf"), hi: float = float("inf"), what: str = "a number"):
+    """An argparse type: a finite number in [lo, hi] (nan and inf refused), else a one-line usage error."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = float("nan")
+        if not (np.isfinite(value) and lo <= value <= hi):
+            bounds = f" from {lo:g} to {hi:g}" if np.isfinite(lo) and np.isfinite(hi) else (
+                f" >= {lo:g}" if np.isfinite(lo) else (f" <= {hi:g}" if np.isfinite(hi) else ""))
+            raise argparse.ArgumentTypeError(f"expected {what}{bounds} (finite), got {text!r}")
+        return value
+
+    return parse
+
+
 def add_seed(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--seed", type=int, help="seed of every random draw (default: the stage's, else 0)")
+    parser.add_argument("--seed", type=int_in(0, MAX_SEED, "a seed"),
+                        help="seed of every random draw (default: the stage's, else 0)")
 
 
 def add_camera(parser: argparse.ArgumentParser) -> None:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .args import add_force, add_limits, add_seed, limits_of
+from .args import add_force, add_limits, add_seed, int_at_least, limits_of
 
 
 def add_parser(sub):
@@ -12,7 +12,7 @@ def add_parser(sub):
                        description="Write a scenario stage from one of the example scenes in stages/.")
     p.add_argument("template", help=f"one of: {', '.join(list_templates())}")
     p.add_argument("-o", "--output", required=True, help="the new stage (.usda, .usdc or .usd)")
-    p.add_argument("--agents", type=int, help="total number of agents (clones are rescaled per group)")
+    p.add_argument("--agents", type=int_at_least(1), help="total number of agents (clones are rescaled per group)")
     p.add_argument("--scenery", metavar="USD", help="a DCC tool's scenery (any up axis and units) in place of the "
                                                    "template's: referenced with the transform it needs")
     add_seed(p)

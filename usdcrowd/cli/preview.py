@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .args import add_camera, add_force, add_frames, add_progress, add_resolution, int_at_least
+from .args import add_camera, add_force, add_frames, add_progress, add_resolution, finite_float, int_at_least
 
 OVERLAYS = ("frusta", "trajectories", "layers", "events", "ids")
 
@@ -27,7 +27,8 @@ def add_parser(sub):
     p.add_argument("--aovs", action="store_true",
                    help="with a frames folder, also write ids (uint32) and depth (metres) per frame as .npz")
     p.add_argument("--sheet", metavar="PNG", help="contact sheet path (default: next to the output)")
-    p.add_argument("--exposure", type=float, default=1.0, help="multiplies linear radiance (default 1)")
+    p.add_argument("--exposure", type=finite_float(0, 1e6, "a radiance scale"), default=1.0,
+                   help="multiplies linear radiance (default 1)")
     add_force(p)
     add_progress(p)
     p.set_defaults(run=run, inputs=("stage",), outputs=("output", "sheet"))

@@ -2,7 +2,12 @@
 
 from __future__ import annotations
 
-from .args import add_camera, add_executor, add_force, add_frames, add_progress, add_resolution, int_at_least
+from .args import (MAX_SEED, add_camera, add_executor, add_force, add_frames, add_progress, add_resolution,
+                   finite_float, int_in)
+
+
+# The most samples per pixel asked for (the dataset spec's bound too): 1080p at this many is days a frame.
+MAX_SPP = 65536
 
 
 def add_parser(sub):
@@ -18,14 +23,15 @@ def add_parser(sub):
     add_resolution(p)
     p.add_argument("--preset", default="groundtruth", help="preset in render/presets.toml: preview, groundtruth "
                                                             "(default), final")
-    p.add_argument("--spp", type=int_at_least(1), help="beauty samples per pixel (overrides the preset)")
-    p.add_argument("--people-spp", type=int_at_least(0), metavar="N",
+    p.add_argument("--spp", type=int_in(1, MAX_SPP, "samples per pixel"),
+                   help="beauty samples per pixel (overrides the preset)")
+    p.add_argument("--people-spp", type=int_in(0, MAX_SPP, "samples per pixel"), metavar="N",
                    help="N more samples on each pixel that sees a person, where the denoiser leaves noise "
                         "(overrides the preset; 0: none)")
-    p.add_argument("--max-depth", type=int_at_least(1), help="longest light path (overrides the preset)")
+    p.add_argument("--max-depth", type=int_in(1, 1000, "a path length"), help="longest light path (overrides the preset)")
     p.add_argument("--no-ground-truth", dest="ground_truth", action="store_const", const=False, default=None,
                    help="beauty only: no ground-truth passes or annotations")
-    p.add_argument("--exposure", type=float, help="display exposure in stops (PNG, sheet, MP4)")
+    p.add_argument("--exposure", type=finite_float(-64, 64, "stops"), help="display exposure in stops (PNG, sheet, MP4)")
     p.add_argument("--working-space", choices=("sRGB", "ACEScg"), help="linear RGB space of the EXR beauty")
     p.add_argument("--variant", default="auto", help="Mitsuba variant (default: auto: cuda_ad_rgb, llvm_ad_rgb, "
                                                      "scalar_rgb, the first that works)")
@@ -33,13 +39,13 @@ def add_parser(sub):
     add_executor(p, "worker processes or Ray actors (default 1: Mitsuba already uses every core)",
                  "Ray cluster address (default: start a local Ray instance)", min_workers=0)
     p.add_argument("--mp4", action="store_true", help="also write render.mp4 (needs imageio-ffmpeg)")
-    p.add_argument("--seed", type=int, default=0, help="sampler seed of the beauty pass")
+    p.add_argument("--seed", type=int_in(0, MAX_SEED, "a seed"), default=0, help="sampler seed of the beauty pass")
     p.add_argument("--sampler", choices=("independent", "stratified", "multijitter", "orthogonal", "ldsampler"),
                    help="Mitsuba sampler of the beauty (default: the preset's, multijitter)")
-    p.add_argument("--motion-blur", dest="shutter", type=float, metavar="SHUTTER",
+    p.add_argument("--motion-blur", dest="shutter", type=finite_float(0, 1, "a shutter in frames"), metavar="SHUTTER",
                    help="open the shutter for SHUTTER frames around each frame (0.5: a 180-degree shutter); the "
                         "scene is posed at --subframes times in that interval (the ground truth stays at the frame)")
-    p.add_argument("--subframes", type=int_at_least(2), metavar="N",
+    p.add_argument("--subframes", type=int_in(2, 1024, "sub-frames"), metavar="N",
                    help="with --motion-blur: times the shutter interval is sampled at (default 8)")
     denoise = p.add_mutually_exclusive_group()
     denoise.add_argument("--denoise", dest="denoise", action="store_const", const=True, default=None,

@@ -236,6 +236,9 @@ def _check_existing(out: Path, spec: DatasetSpec, force: bool) -> None:
         old = json.loads((out / MANIFEST).read_text())
     except (OSError, ValueError):
         return
+    made = (out / "sequences").is_dir() and any((out / "sequences").iterdir())
+    if old.get("state") == "in progress" and not made:
+        return                  # an earlier run that failed before making anything: nothing to mix with
     if old.get("spec_sha256") not in (None, spec.digest()) and not force:
         raise UsdcrowdError(f"this dataset was made from another spec (sha256 {old['spec_sha256'][:12]}, "
                             f"now {spec.digest()[:12]}); give --force to re-make what the new one changes",

@@ -67,6 +67,8 @@ SHOTS = ("close-up", "medium", "long")
 # More than this many sequences is a typo rather than a plan (a cluster's worth is far less).
 MAX_SEQUENCES = 1_000_000
 MAX_FRAMES = 100_000
+# The largest number any key takes (metres, degrees, kelvin, counts).
+MAX_MAGNITUDE = 1_000_000
 
 
 @dataclass
@@ -171,6 +173,8 @@ def _checked(value, kind: str, path: str, where: str):
             fail("expected " + ("a whole number" if integer else "a number"))
         if not np.isfinite(v):
             fail("expected a finite number")
+        if abs(v) > MAX_MAGNITUDE:          # no quantity here is that large; draws between them would overflow
+            fail(f"expected a number within +-{MAX_MAGNITUDE:,}")
         return v
 
     if kind in ("int", "float"):
@@ -220,6 +224,8 @@ def _check_meaning(spec: DatasetSpec, path: str) -> None:
     def fail(where, what):
         raise UsdcrowdError(what, file=path, attribute=where)
 
+    if not 0 <= spec.seed <= 2**32 - 1:
+        fail("dataset.seed", f"expected a seed from 0 to 4,294,967,295, got {spec.seed}")
     if not 1 <= spec.sequences <= MAX_SEQUENCES:
         fail("dataset.sequences", f"expected 1 to {MAX_SEQUENCES:,} sequences, got {spec.sequences}")
     if not 2 <= spec.frames <= MAX_FRAMES:
@@ -237,6 +243,10 @@ def _check_meaning(spec: DatasetSpec, path: str) -> None:
             fail("scene.sceneries", f"no such scenery file {s!r} (paths are relative to the spec)")
     if spec.agents[0] < 1:
         fail("scene.agents", f"expected at least 1 agent, got {spec.agents[0]}")
+    from ..limits import DEFAULT
+
+    if spec.agents[1] > DEFAULT.max_agents:
+        fail("scene.agents", f"expected at most {DEFAULT.max_agents:,} agents, got {spec.agents[1]:,}")
     if not (0 <= spec.sun_elevation[0] and spec.sun_elevation[1] <= 90):
         fail("light.sun_elevation", "expected degrees in [0, 90]")
     for key in ("sun_strength", "sky_strength"):
@@ -255,6 +265,8 @@ def _check_meaning(spec: DatasetSpec, path: str) -> None:
         fail("cameras.static", f"expected 0 to 16 static cameras, got {spec.static}")
     if spec.focal_length[0] <= 0 or spec.height[0] < 0 or spec.distance[0] <= 0:
         fail("cameras", "focal lengths and distances must be > 0, heights >= 0")
+    if spec.focal_length[1] > 2000:
+        fail("cameras.focal_length", f"expected a lens of at most 2000 mm, got {spec.focal_length[1]:g}")
     for b in spec.toric:
         if b not in BEHAVIORS:
             fail("cameras.toric", f"unknown behavior {b!r} (behaviors: {', '.join(BEHAVIORS)})")

@@ -510,6 +510,8 @@ def render_sequence(shot_path, out_dir, camera: str | None = None, frames=None,
     shot.lights, shot.scenery
     if executor not in ("local", "inline", "ray"):
         raise UsdcrowdError(f"unknown executor {executor!r} (local, inline, ray)")
+    if address and executor != "ray":
+        raise UsdcrowdError("--address is a Ray cluster's: give it with --executor ray", attribute="--address")
     resolve_variant(settings)
     output_dir(out, "render")
     header = {"shot": shot_path, "camera": cam_path, "settings": settings.fingerprint()}
