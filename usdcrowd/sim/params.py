@@ -68,6 +68,10 @@ WALL_CONTACT_GAIN = 15.0  # m/s^2
 # Position-based non-overlap correction after each step, fraction of the
 # overlap removed per pass (Jacobi, both agents move).
 OVERLAP_RELAX = 0.5
+# Before the first frame, overlapping spawns are pushed apart in at most this many passes, until no two
+# bodies overlap by more than the tolerance (m).
+SPAWN_SEPARATION_PASSES = 500
+SPAWN_OVERLAP_TOLERANCE = 0.01
 # Exact wall projection runs for agents whose grid clearance is below this.
 WALL_PROJECT_MARGIN = 0.6  # m
 # Containment (Reynolds): look-ahead time and gain at the scene bounds.

@@ -35,7 +35,7 @@ import numpy as np
 from ..model import (BEHAVIORS, CHARACTER_TYPES, HEALTH_STATES, ROLES, CrowdFrames, Scenario, code)
 from . import params as P
 from .behavior_maps import Reactions
-from .collision import agent_avoidance, project_out_of_walls, resolve_overlaps, wall_avoidance
+from .collision import agent_avoidance, project_out_of_walls, resolve_overlaps, separate_spawns, wall_avoidance
 from .distance_maps import DistanceMaps
 from .grid import WalkGrid
 from .groups import Groups, flocking, mate_mask
@@ -166,13 +166,15 @@ class Simulation:
         self.terrain = Terrain(scenario.field("height"))
         project_out_of_walls(self.grid, self.pos, self.radius)
 
-        # Groups and neighbours. Invisible leaders neither avoid nor are avoided.
-        self.groups = Groups(a, scenario.groups, self.pos)
+        # Neighbours. Invisible leaders neither avoid nor are avoided.
         invisible = np.asarray(a.role) == code(ROLES, "invisibleLeader")
         self.nl = NeighborList(n, np.where(~invisible)[0], k=s.neighbor_k)
+        self.movable = (~invisible).astype(f32)
+        # Bodies that start on top of each other are set apart now, not flung apart by the first steps.
+        separate_spawns(self.nl, self.grid, self.pos, self.radius, self.movable)
+        self.groups = Groups(a, scenario.groups, self.pos)
         self.isolated = self.groups.isolated
         self.mates = None
-        self.movable = (~invisible).astype(f32)
 
         # Who steers how: followers follow; the others ("navigators") by behavior.
         follower = np.zeros(n, bool)
