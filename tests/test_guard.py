@@ -292,3 +292,22 @@ def test_a_folder_inside_one_another_run_writes_is_refused(museum_shot, tmp_path
         holder.kill()
         holder.wait()
     assert not (ds / "sequences").exists()
+
+
+def test_a_shot_whose_scenario_changed_is_reported_by_every_reader(museum_shot, tmp_path, capsys):
+    scenario, _ = museum_shot
+    own = tmp_path / "museum.usda"
+    own.write_bytes(scenario.read_bytes())
+    shot = tmp_path / "shot"
+    assert main(["simulate", str(own), "-o", str(shot), "--frames", "1:6", "--no-progress"]) == 0
+    capsys.readouterr()
+    assert main(["validate", str(shot / "shot.usda")]) == 0
+    assert "warning" not in capsys.readouterr().err           # unchanged: nothing said
+    own.write_text(own.read_text().replace("uniform float crowd:height = 1.", "uniform float crowd:height = 1.0", 1))
+    for argv in (["validate", str(shot / "shot.usda")],
+                 ["cameras", str(shot / "shot.usda"), "--count", "1", "--no-progress"],
+                 ["preview", str(shot / "shot.usda"), "-o", str(tmp_path / "p"), "--frames", "1",
+                  "--resolution", "32x18", "--no-progress"]):
+        main(argv)
+        err = capsys.readouterr().err
+        assert "changed since the shot was simulated" in err and "museum.usda" in err, (argv, err)

@@ -202,9 +202,9 @@ def _assets_of(layer, folder: str) -> list[str]:
     return found
 
 
-def _files_used(path: str) -> list[str]:
+def files_used(path: str) -> list[str]:
     """The files a USD stage is made of, besides itself: its layers' sublayers, references, payloads,
-    value clips and asset-valued attributes (images)."""
+    value clips and asset-valued attributes (images), nearest first."""
     import stat
 
     from pxr import Sdf
@@ -263,7 +263,7 @@ def session(inputs=(), force: bool = False, outputs=(), command: str | None = No
         if path is None or not _add_input(s, path, path):
             continue
         if os.path.splitext(os.fspath(path))[1].lower() in (".usd", ".usda", ".usdc"):
-            for dep in _files_used(os.fspath(path)):
+            for dep in files_used(os.fspath(path)):
                 _add_input(s, dep, dep)
     _SESSION = s
     _publish(s)

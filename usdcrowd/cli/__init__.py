@@ -62,7 +62,25 @@ def _run_guarded(args) -> int:
                                                  force=getattr(args, "force", False), command=args.command):
         for path in outputs:
             guard.check_not_input(path)         # before any work, not when the output is finally written
+        _warn_if_stale(args)
         return int(args.run(args) or 0)
+
+
+def _warn_if_stale(args) -> None:
+    """A shot whose scenario changed since simulate: every command that reads it says so (one line)."""
+    import stat
+
+    from ..usd.shot import stale_scenario
+
+    for path in _named(args, getattr(args, "inputs", ())):
+        try:
+            if not (stat.S_ISREG(os.stat(path).st_mode) and str(path).endswith((".usd", ".usda", ".usdc"))):
+                continue
+        except OSError:
+            continue
+        why = stale_scenario(path)
+        if why:
+            print(f"usdcrowd {args.command}: warning: {path}: {why}", file=sys.stderr)
 
 
 def main(argv: list[str] | None = None) -> int:

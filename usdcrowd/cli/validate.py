@@ -12,7 +12,7 @@ def add_parser(sub):
     p.add_argument("stage", help="a .usda/.usdc/.usd stage")
     p.add_argument("--strict", action="store_true", help="count warnings as errors")
     add_limits(p)
-    p.set_defaults(run=run)
+    p.set_defaults(run=run, inputs=("stage",))
 
 
 def run(args) -> int:

@@ -29,6 +29,47 @@ def _relative(target: str, start_dir: str) -> str:
     return rel if rel.startswith(".") else f"./{rel}"
 
 
+def scenario_digest(scenario_path: str | os.PathLike) -> str:
+    """sha256 over the scenario file and every file it uses (sublayers, references, scenery, images):
+    what the shot was simulated from."""
+    import hashlib
+
+    from ..guard import files_used
+
+    scenario_path = os.path.abspath(scenario_path)
+    total = hashlib.sha256()
+    for path in [scenario_path, *files_used(scenario_path)]:
+        file_hash = hashlib.sha256()
+        with open(path, "rb") as fh:
+            for block in iter(lambda: fh.read(1 << 20), b""):
+                file_hash.update(block)
+        total.update(f"{os.path.relpath(path, os.path.dirname(scenario_path))}\0{file_hash.hexdigest()}\n".encode())
+    return total.hexdigest()
+
+
+def stale_scenario(shot_path: str | os.PathLike) -> str | None:
+    """Why ``shot_path``'s scenario no longer is what the shot was simulated from, or None (also for
+    stages that are not shots, or shots written before the digest was recorded)."""
+    from pxr import Sdf
+
+    try:
+        layer = Sdf.Layer.FindOrOpen(os.fspath(shot_path))
+    except Exception:
+        return None
+    data = layer.customLayerData.get("usdcrowd") if layer is not None else None
+    if not isinstance(data, dict) or not isinstance(data.get("scenarioSha256"), str):
+        return None
+    scenario = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(shot_path)), str(data.get("scenario"))))
+    try:
+        now = scenario_digest(scenario)
+    except OSError:
+        return None                         # a missing scenario is the readers' own error
+    if now == data["scenarioSha256"]:
+        return None
+    return (f"its scenario {data.get('scenario')} (or a file it uses) changed since the shot was simulated: "
+            "the shot shows the old one; run simulate again")
+
+
 def write_shot(out_dir: str | os.PathLike, scenario_path: str, time: model.TimeRange, frame: StageFrame,
                default_prim: str, seed: int, add_lights: bool) -> str:
     """Write shot.usda in ``out_dir``, sublayering cameras, crowd and scenario.
@@ -51,7 +92,8 @@ def write_shot(out_dir: str | os.PathLike, scenario_path: str, time: model.TimeR
     layer.pseudoRoot.SetInfo("metersPerUnit", frame.meters_per_unit)
     schema.author_fallbacks(layer)          # readable without our schemas (Blender, plain usd-core)
     layer.customLayerData = {"usdcrowd": {"version": __version__, "seed": int(seed),
-                                          "scenario": _relative(scenario_path, out_dir)}}
+                                          "scenario": _relative(scenario_path, out_dir),
+                                          "scenarioSha256": scenario_digest(scenario_path)}}
     if add_lights:
         root = f"/{default_prim}" if default_prim else ""
         with Sdf.ChangeBlock():
