@@ -433,3 +433,30 @@ def test_a_damaged_shot_layer_is_one_line_in_every_command(clipped_shot, tmp_pat
     assert not out.exists() or not any(out.rglob("*.*"))
     # cameras replaces cameras.usda in place: a refused run leaves the shot as it was.
     assert sorted(p.name for p in shot.iterdir()) == sorted(p.name for p in clipped_shot.iterdir())
+
+
+def test_a_hierarchy_nested_thousands_deep_is_refused_at_once(tmp_path, capsys):
+    """10,000 nested prims made simulate run for ever (layer writing grows with the square of the depth)."""
+    depth = 5000
+    nested = "".join(f'def Xform "N{i}"\n{{\n' for i in range(depth)) + "}\n" * depth
+    stage = _crowd_stage(tmp_path / "deep.usda", nested)
+    code, err = _run(capsys, "simulate", stage, tmp_path / "out")
+    assert code == 2 and err.count("\n") == 1 and "nested more than 256 deep" in err and "deep.usda" in err, err
+    assert main(["validate", str(stage)]) == 1
+    assert "nested more than 256 deep" in capsys.readouterr().out
+
+
+def test_an_agent_inside_an_instanceable_prim_is_refused(tmp_path, capsys):
+    """USD instances are read-only: the agent's animation would be lost without a word."""
+    stage = tmp_path / "instanced.usda"
+    stage.write_text('#usda 1.0\n(\n    defaultPrim = "World"\n    upAxis = "Z"\n    metersPerUnit = 1\n)\n'
+                     'class Xform "Proto"\n{\n    def SkelRoot "Bob" (\n'
+                     '        prepend apiSchemas = ["CrowdAgentAPI"]\n    )\n    {\n    }\n}\n'
+                     'def Xform "World"\n{\n    def CrowdGroup "Crowd"\n    {\n        uniform int crowd:clones = 2\n'
+                     '        def Xform "Crowds" (\n            instanceable = true\n'
+                     '            references = </Proto>\n        )\n        {\n        }\n    }\n}\n')
+    code, err = _run(capsys, "simulate", stage, tmp_path / "out")
+    assert code == 2 and err.count("\n") == 1, err
+    assert "/World/Crowd/Crowds/Bob" in err and "instanceable prim /World/Crowd/Crowds" in err, err
+    assert main(["validate", str(stage)]) == 1
+    assert "instanceable" in capsys.readouterr().out

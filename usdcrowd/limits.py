@@ -31,3 +31,7 @@ class Limits:
 
 
 DEFAULT = Limits()
+
+# Deepest prim path accepted (USD itself has no bound; writing a layer costs the square of the depth:
+# 10,000 nested prims hung simulate). DCC scenes rarely go past 30.
+MAX_PRIM_DEPTH = 256

@@ -17,9 +17,9 @@ import os
 import numpy as np
 
 from .. import model, schema
-from ..errors import ScenarioError, UsdcrowdError
+from ..errors import ScenarioError, StageError, UsdcrowdError
 from ..limits import DEFAULT as DEFAULT_LIMITS
-from ..limits import Limits
+from ..limits import MAX_PRIM_DEPTH, Limits
 from .attributes import FALLBACKS, INHERITED, AgentSpec, GroupSpec, inherited_values, resolve_group_members
 from .events import read_camera_agents, read_events
 from .ranges import MAX_AGENT_ID, MAX_SEED, extent_problem, range_problem
@@ -290,6 +290,10 @@ def _read(r: _Reader, seed: int | None) -> model.Scenario | None:
         if not prim.IsActive():
             it.PruneChildren()
             continue
+        if prim.GetPath().pathElementCount > MAX_PRIM_DEPTH:
+            shown = str(prim.GetPath())
+            raise ScenarioError(f"prims nested more than {MAX_PRIM_DEPTH} deep ({shown[:60]}...): flatten the "
+                                "hierarchy", file=source)
         tname = prim.GetTypeName()
         if tname == schema.GROUP:
             # Known (as an empty group) even when its values cannot be read, so its agents still find it.
@@ -300,6 +304,10 @@ def _read(r: _Reader, seed: int | None) -> model.Scenario | None:
                 _read_group(r, prim, groups, waypoints, time.start)
         elif schema.is_agent(prim):
             it.PruneChildren()        # an agent's skeleton and body are not scenery
+            if prim.IsInstanceProxy():
+                with r.checking():
+                    raise _instanced_agent(prim)
+                continue
             with r.checking():
                 group = _agent_group(r, prim, group_row)
                 agents.append(AgentSpec(str(prim.GetPath()), group))     # until its values are read
@@ -336,6 +344,16 @@ def _read(r: _Reader, seed: int | None) -> model.Scenario | None:
     bounds = _bounds(ground, obstacles, table, interest, fields)
     return model.Scenario(source, time, int(seed), group_table, table, fields, interest, obstacles, bounds,
                           cameras=cameras, events=events)
+
+
+def _instanced_agent(prim) -> StageError:
+    """An agent inside an instanceable prim: USD instances are read-only, so its animation could not be written."""
+    instance = prim.GetParent()
+    while instance and not instance.IsInstance():
+        instance = instance.GetParent()
+    return StageError(f"is inside the instanceable prim {instance.GetPath()}: an instance's prims cannot be "
+                      "animated; set instanceable = false on it", file=prim.GetStage().GetRootLayer().identifier,
+                      prim=str(prim.GetPath()))
 
 
 def _read_group(r: _Reader, prim, groups: list[GroupSpec], waypoints: list, start: float) -> None:
