@@ -98,7 +98,7 @@ def test_bad_scenarios_fail_simulate_with_one_line_and_no_output(write_stage, tm
 
 @pytest.mark.parametrize("argv, text", [
     (["new", "nowhere", "-o", "x.usda"], "unknown template 'nowhere'"),
-    (["new", "museum", "-o", "x.usda", "--agents", "0"], "--agents must be >= 1"),
+    (["new", "museum", "-o", "x.usda", "--agents", "0"], "argument --agents: expected a positive integer"),
     (["new", "museum", "-o", "x.usda", "--agents", "3"], "needs at least 4 agents"),
     (["new", "dialogue", "-o", "x.usda", "--agents", "9"], "fixed cast of 4 agents"),
     (["simulate", "s.usda", "-o", "o", "--frames", "10:1"], "bad frame spec"),

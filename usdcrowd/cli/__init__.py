@@ -86,7 +86,10 @@ def _warn_if_stale(args) -> None:
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit code."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:               # a usage error (printed), --help or --version: an exit code, as the rest
+        return int(exc.code or 0)
     try:
         return _run_guarded(args)
     except UsdcrowdError as exc:
