@@ -179,6 +179,7 @@ SPEC_CASES = [
     ("[render]\npreset = \"cinema\"\n", "render.preset"),
     ("[render]\nresolution = [100000, 10]\n", "render.resolution"),
     ("[dataset]\nsequences = 2000000\n", "dataset.sequences"),
+    ("[dataset]\nsequences = 1000000\n", "dataset.sequences"),
     ("[dataset]\nframes = 1\n", "dataset.frames"),
     ("[dataset]\nstride = 0\n", "dataset.stride"),
     ("[dataset]\nseed = -1\n", "dataset.seed"),

@@ -120,9 +120,9 @@ def test_cinematic_features_give_back_the_framing_and_the_characters_orientation
     assert f.main == 1                                   # B is the larger on screen on average
     written = write_features(f, tmp_path / "f.csv", tmp_path / "f.json", camera="/World/Cameras/Toric")
     rows = list(csv.DictReader(open(written[0])))
-    assert len(rows) == 4 and float(rows[1]["theta"]) == pytest.approx(2.2) and rows[0]["M"] == "B"
+    assert len(rows) == 4 and float(rows[1]["theta_deg"]) == pytest.approx(np.degrees(2.2)) and rows[0]["M"] == "B"
     doc = json.loads((tmp_path / "f.json").read_text())
-    assert doc["camera"] == "/World/Cameras/Toric" and doc["frames"][2]["pA_x"] == pytest.approx(-0.6)
+    assert doc["camera"] == "/World/Cameras/Toric" and doc["frames"][2]["pA_x_ndc"] == pytest.approx(-0.6)
 
 
 def test_heads_and_shoulders_come_from_the_rig():

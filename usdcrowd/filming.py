@@ -17,8 +17,18 @@ from pathlib import Path
 import numpy as np
 
 from . import model
-from .errors import StageError
+from .errors import StageError, UsdcrowdError
 from .framestore import FrameStore
+
+# Cameras one command may film (of each kind for metrics): each is a (frames, 4, 4) track and a
+# steering agent, so a typing mistake (a million) would allocate without bound.
+MAX_CAMERAS = 1000
+
+
+def check_camera_count(n: int, option: str) -> None:
+    """Refuse more than :data:`MAX_CAMERAS` cameras, naming the option that asked for them."""
+    if n > MAX_CAMERAS:
+        raise UsdcrowdError(f"{option}: {n:,} cameras is too many (at most {MAX_CAMERAS:,} cameras)")
 
 
 @dataclass
@@ -148,6 +158,7 @@ def refilm_shot(shot_path: str | os.PathLike, count: int | None = None, static: 
     from .usd.cameras import write_camera_tracks
     from .usd.events import author_events
 
+    check_camera_count((count or 0) + static, "--count and --static")
     sc = load_shot(shot_path, progress=progress, limits=limits)
     tracks = film_cameras(sc.scenario, sc.positions, sc.events, sc.default_prim, progress, count=count,
                           static=static, seed=seed)
@@ -175,35 +186,53 @@ def evaluate_shot(shot_path: str | os.PathLike, out_dir: str | os.PathLike, coun
     dict
         ``{N: {"autonomous": summary, "static": summary}}``.
     """
+    from tqdm import tqdm
+
     from .atomic import atomic_path, output_dir
     from .cameras.metrics import active_mask, coverage
+    from .cameras.overview import crowd_summary
     from .pipeline import film_cameras
     from .plots import coverage_plot
 
+    for n in counts:
+        check_camera_count(n, f"--counts {n}")
     sc = load_shot(shot_path, progress=progress, limits=limits)
     out = output_dir(out_dir, "metrics")
     active = active_mask(sc.events, sc.scenario.time.codes, len(sc.scenario.agents))
+    visible = sc.scenario.agents.visible
+    summary = crowd_summary(sc.positions, visible)
     results = {}
-    for n in counts:
-        tracks = film_cameras(sc.scenario, sc.positions, sc.events, sc.default_prim, progress, count=n, static=n,
-                              seed=seed)
-        auto = [t for t in tracks if t.state is not None]
-        stat = [t for t in tracks if t.state is None and "/Static" in t.path]
-        series = {"autonomous": coverage(auto, sc.positions, active, sc.scenario.agents.visible),
-                  "static": coverage(stat, sc.positions, active, sc.scenario.agents.visible)}
-        results[n] = {k: s.summary() for k, s in series.items()}
-        for name, column in (("activity", "active_share"), ("viewed", "viewed_share")):
-            with atomic_path(out / f"{name}_{n}.csv") as tmp, open(tmp, "w", newline="") as fh:
-                w = csv.writer(fh)
-                w.writerow(["time", "autonomous_score_active", "autonomous_score_idle", "autonomous_active",
-                            "autonomous_active_viewed", "static_score_active", "static_score_idle",
-                            "static_active", "static_active_viewed"])
-                a, s = series["autonomous"], series["static"]
-                for k in range(len(a.times)):
-                    w.writerow([f"{a.times[k]:g}", f"{a.score_active[k]:.6g}", f"{a.score_idle[k]:.6g}",
-                                int(a.n_active[k]), int(a.n_active_viewed[k]), f"{s.score_active[k]:.6g}",
-                                f"{s.score_idle[k]:.6g}", int(s.n_active[k]), int(s.n_active_viewed[k])])
-            coverage_plot(series, column, n, out / f"{name}_{n}.png", sc.scenario.time.fps)
+    # One bar over the steps, named after the one running ("metrics 4 autonomous"); the filming's own
+    # frame bar shows below it.
+    with tqdm(total=3 * len(counts), desc="metrics", unit="step", disable=not progress, leave=False,
+              dynamic_ncols=True) as steps:
+        for n in counts:
+            steps.set_description(f"metrics {n} autonomous")
+            tracks = film_cameras(sc.scenario, sc.positions, sc.events, sc.default_prim, progress, count=n, static=0,
+                                  seed=seed, summary=summary)
+            series = {"autonomous": coverage([t for t in tracks if t.state is not None], sc.positions, active, visible)}
+            steps.update(1)
+            steps.set_description(f"metrics {n} static")
+            tracks = film_cameras(sc.scenario, sc.positions, sc.events, sc.default_prim, False, count=0, static=n,
+                                  seed=seed, summary=summary)
+            series["static"] = coverage([t for t in tracks if t.state is None and "/Static" in t.path], sc.positions,
+                                        active, visible)
+            steps.update(1)
+            steps.set_description(f"metrics {n} plots")
+            results[n] = {k: s.summary() for k, s in series.items()}
+            for name, column in (("activity", "active_share"), ("viewed", "viewed_share")):
+                with atomic_path(out / f"{name}_{n}.csv") as tmp, open(tmp, "w", newline="") as fh:
+                    w = csv.writer(fh)
+                    w.writerow(["time", "autonomous_score_active", "autonomous_score_idle", "autonomous_active",
+                                "autonomous_active_viewed", "static_score_active", "static_score_idle",
+                                "static_active", "static_active_viewed"])
+                    a, s = series["autonomous"], series["static"]
+                    for k in range(len(a.times)):
+                        w.writerow([f"{a.times[k]:g}", f"{a.score_active[k]:.6g}", f"{a.score_idle[k]:.6g}",
+                                    int(a.n_active[k]), int(a.n_active_viewed[k]), f"{s.score_active[k]:.6g}",
+                                    f"{s.score_idle[k]:.6g}", int(s.n_active[k]), int(s.n_active_viewed[k])])
+                coverage_plot(series, column, n, out / f"{name}_{n}.png", sc.scenario.time.fps)
+            steps.update(1)
     with atomic_path(out / "summary.csv") as tmp, open(tmp, "w", newline="") as fh:
         w = csv.writer(fh)
         keys = list(next(iter(next(iter(results.values())).values())).keys())

@@ -135,6 +135,32 @@ def _agents(sc: model.Scenario) -> dict:
     }
 
 
+def agent_list(path: str | os.PathLike, limits=None) -> list[dict]:
+    """Every agent of a stage (scenario or shot): name, prim path, id, group, visible and role, in the
+    scenario's order (what ``inspect --agents`` lists); empty for a stage without a crowd."""
+    from .scenario import load_scenario, open_stage
+
+    path = os.fspath(path)
+    stage = open_stage(path)
+    if not any(p.GetTypeName() == schema.GROUP or schema.is_agent(p) for p in stage.Traverse()):
+        return []
+    sc = load_scenario(path, stage=stage, **({"limits": limits} if limits else {}))
+    a = sc.agents
+    return [{"name": path.rsplit("/", 1)[-1], "path": path, "id": int(a.agent_id[i]),
+             "group": sc.groups.path[a.group[i]], "visible": bool(a.visible[i]), "role": model.ROLES[a.role[i]]}
+            for i, path in enumerate(a.path)]
+
+
+def format_agents(agents: list[dict]) -> str:
+    """One line per agent (after a header): what ``inspect --agents`` prints."""
+    if not agents:
+        return "no agents"
+    rows = [("name", "path", "id", "group", "visible", "role")] + [
+        (a["name"], a["path"], str(a["id"]), a["group"], "yes" if a["visible"] else "no", a["role"]) for a in agents]
+    widths = [max(len(r[k]) for r in rows) for k in range(5)]
+    return "\n".join("  ".join(v.ljust(w) for v, w in zip(r, widths)) + "  " + r[5] for r in rows)
+
+
 def _snake(name: str) -> str:
     return "".join("_" + c.lower() if c.isupper() else c for c in name)
 
@@ -169,7 +195,8 @@ def format_summary(s: dict) -> str:
             lines.append(f"  {name:<34} {g['agents']:>6} agents ({g['agentsInTree']} in tree)  " + " ".join(bits))
         a = s["agents"]
         lines.append(f"agents  {a['count']} ({a['visible']} visible), ids {a['ids'][0]}-{a['ids'][1]}, "
-                     f"roles {a['roles']}, {a['withLeader']} follow a leader" if a["count"] else "agents  0")
+                     f"roles {a['roles']}, {a['withLeader']} follow a leader (names: inspect --agents)"
+                     if a["count"] else "agents  0")
         lines.append(f"layers  {len(s['behaviorLayers'])} behavior layer(s)")
         for f in s["behaviorLayers"]:
             lines.append(f"  {f['path']}  {f['meaning']} ({f['generator']}), extent {f['extent']}, influence {f['influence']:g}")

@@ -91,7 +91,7 @@ def shot_features(shot, camera: str | None, agent_a: str, agent_b: str, times=No
 
     scene = shot if isinstance(shot, ShotScene) else ShotScene(shot)
     paths = scene.agent_paths
-    ia, ib = scene.agent_row(agent_a), scene.agent_row(agent_b)
+    ia, ib = agent_row(scene, agent_a), agent_row(scene, agent_b)
     times = np.asarray(scene.time_codes if times is None else times, dtype=np.float64)
     scene.check_times(times)
     heads, yaws, grounds, boxes, mats, fovs = [], [], [], [], [], []
@@ -119,21 +119,73 @@ def shot_features(shot, camera: str | None, agent_a: str, agent_b: str, times=No
     return features, about
 
 
+def agent_row(scene, name: str) -> int:
+    """``scene.agent_row(name)``; when no agent has that name, the error suggests the nearest ones.
+
+    Raises
+    ------
+    StageError
+        No such agent (the nearest names suggested), or more than one with that name.
+    """
+    paths = scene.agent_paths
+    if any(p == name or p.rsplit("/", 1)[-1] == name for p in paths):
+        return scene.agent_row(name)            # one, or several to tell apart by path
+    near = nearest_agents(name, paths)
+    hint = f"did you mean {' or '.join(repr(n) for n in near)}? " if near else ""
+    raise StageError(f"no agent named {name!r} in this stage ({hint}`usdcrowd inspect {scene.path} --agents` lists "
+                     f"its {len(paths)} agents)", file=scene.path, prim=name)
+
+
+def nearest_agents(name: str, paths: list[str], n: int = 3) -> list[str]:
+    """Up to ``n`` agents whose names (or, for a ``name`` with a slash, paths) are nearest ``name``,
+    ignoring case: by name where the name is unique, else by path."""
+    import difflib
+    from collections import Counter
+
+    names = [p.rsplit("/", 1)[-1] for p in paths]
+    count = Counter(names)
+    shown: dict[str, list[str]] = {}
+    for key, nm, path in zip(paths if "/" in name else names, names, paths):
+        shown.setdefault(key.lower(), []).append(nm if count[nm] == 1 else path)
+    hits = difflib.get_close_matches(name.lower(), list(shown), n=n, cutoff=0.6)
+    return list(dict.fromkeys(s for h in hits for s in shown[h]))[:n]
+
+
+def _hidden(scene, row: int, time: float) -> str | None:
+    """Why the agent at ``row`` is not seen at ``time`` (an invisible leader, or hidden), or None."""
+    from pxr import UsdGeom
+
+    prim = scene.stage.GetPrimAtPath(scene.agent_paths[row])
+    role = prim.GetAttribute("crowd:role")
+    if role and role.Get() == "invisibleLeader":
+        return "an invisible leader (crowd:role = invisibleLeader)"
+    if UsdGeom.Imageable(prim).ComputeVisibility(time) == UsdGeom.Tokens.invisible:
+        return f"invisible at frame {time:g} (visibility)"
+    return None
+
+
 def check_spans(scene, spans: list[PairSpan]) -> list[tuple[float, int, int]]:
     """Rows of each span's agents, refusing what cannot be filmed.
 
     Raises
     ------
     StageError
-        An agent that is not in the shot, the same agent twice, or spans
-        that do not start in order within the shot.
+        An agent that is not in the shot (the nearest names suggested) or
+        that is not visible, the same agent twice, or spans that do not
+        start in order within the shot.
     """
     if not spans:
         raise StageError("no characters to frame: give --targets A B", file=scene.path)
     out = []
     lo, hi = float(scene.time_codes[0]), float(scene.time_codes[-1])
     for k, span in enumerate(spans):
-        ia, ib = scene.agent_row(span.a), scene.agent_row(span.b)
+        ia, ib = agent_row(scene, span.a), agent_row(scene, span.b)
+        for row in (ia, ib):
+            why = _hidden(scene, row, float(span.start) if k else lo)
+            if why:
+                raise StageError(f"the target {scene.agent_paths[row]} is {why}: a toric camera frames two "
+                                 f"characters the viewer sees; choose another (`usdcrowd inspect {scene.path} "
+                                 "--agents` says which are visible)", file=scene.path, prim=scene.agent_paths[row])
         if ia == ib:
             raise StageError(f"the two targets are the same agent ({scene.agent_paths[ia]}): a toric camera "
                              "frames two characters", file=scene.path, prim=scene.agent_paths[ia])
@@ -223,6 +275,8 @@ def auto_spans(scene, span: float = 5.0, step: float = 0.5, reach: float = 4.0, 
 
     times = scene.time_codes
     fps = float(scene.fps)
+    if not span * fps >= 1.0:               # else a span a frame: countless edges
+        raise StageError(f"a span (--span) of {span:g} s is shorter than a frame (1/{fps:g} s)", file=scene.path)
     samples = times[:: max(1, int(round(step * fps)))]
     n = len(scene.agent_paths)
     ground = np.zeros((len(samples), n, 2))
@@ -409,14 +463,16 @@ def read_reference(shot_path, camera: str | None = None, targets: tuple[str, str
                    progress: bool = False) -> Reference:
     """The cinematic features of a reference stage's camera filming two characters.
 
-    Without ``targets`` the camera must be a toric camera (its first targets
-    are taken). Frames where a head is behind the camera carry the last
-    frame's camera features.
+    Without ``camera`` the reference's toric camera is taken (its first, in
+    stage order, when it has several). Without ``targets`` the camera must be
+    a toric camera (its first targets are taken). Frames where a head is
+    behind the camera carry the last frame's camera features.
 
     Raises
     ------
     StageError
-        No such camera, no targets to take, or no frame that frames both heads.
+        No such camera, no toric camera to take, no targets to take, or no
+        frame that frames both heads.
     """
     from .cameras.features import head_and_facing
     from .cameras.moe import camera_features, character_features
@@ -426,13 +482,13 @@ def read_reference(shot_path, camera: str | None = None, targets: tuple[str, str
 
     scene = ShotScene(shot_path)
     times = scene.time_codes
-    first = scene.camera(camera, times[0])
+    first = scene.camera(camera if camera is not None else toric_camera(scene), times[0])
     if targets is None:
         if first.toric is None:
             raise StageError("the reference camera is not a toric camera: name its two characters with "
                              "--like-targets A B", file=scene.path, prim=first.path)
         targets = (first.toric["target_a"], first.toric["target_b"])
-    rows = [scene.agent_row(targets[0]), scene.agent_row(targets[1])]
+    rows = [agent_row(scene, targets[0]), agent_row(scene, targets[1])]
     if rows[0] == rows[1]:
         raise StageError("the reference's two characters are the same agent", file=scene.path, prim=targets[0])
     heads = np.zeros((len(times), 2, 3))
@@ -461,6 +517,23 @@ def read_reference(shot_path, camera: str | None = None, targets: tuple[str, str
         heads[:, 0], np.array([scene.camera(first.path, t).cam_to_world for t in times[:: max(1, len(times) // 24)]]),
         times, fov_x, aspect)
     return Reference(scene.path, first.path, scene.agent_paths[rows[0]], scene.agent_paths[rows[1]], char, cam, size)
+
+
+def toric_camera(scene) -> str:
+    """The path of a stage's toric camera (ToricCameraAPI, or a ``crowd:toric:behavior``): its first.
+
+    Raises
+    ------
+    StageError
+        The stage has none (its cameras named).
+    """
+    for path in scene.camera_paths:
+        prim = scene.stage.GetPrimAtPath(path)
+        if prim.HasAPI(schema.TORIC_CAMERA_API) or prim.HasAttribute("crowd:toric:behavior"):
+            return path
+    raise StageError(f"the reference has no toric camera (its cameras: {', '.join(scene.camera_paths) or 'none'}): "
+                     "name the one to learn from with --camera, and its characters with --like-targets A B",
+                     file=scene.path)
 
 
 def _shot_size_of(heads_a: np.ndarray, cams: np.ndarray, times, fov_x: float, aspect: float) -> str:

@@ -7,7 +7,8 @@ Per frame, for characters A and B and a camera:
 - ``theta``, ``phi``: the camera's toric angles about the two heads;
 - ``dAB``: the distance between the two characters on the ground, metres;
 - ``sA``, ``sB``: the angle between the line AB and each character's
-  shoulders' front, radians in [-pi, pi), positive counter-clockwise seen
+  shoulders' front, radians in [-pi, pi) (written in degrees, like every
+  angle :func:`write_features` writes), positive counter-clockwise seen
   from above (0: A faces B, and B faces A; pi: it turns its back on the
   other). Like the paper's, they do not depend on the camera;
 - ``sAB``: the yaw of B's shoulders relative to A's, wrapped;
@@ -32,28 +33,36 @@ import numpy as np
 from ..character.rig import wrap_angle
 from .toric import ToricError, pose_to_toric
 
-NAMES = ("pA_x", "pA_y", "pB_x", "pB_y", "theta", "phi", "dAB", "sA", "sB", "sAB")
+# The features as written (CSV header, JSON keys): each with its unit. Angles in degrees, as the USD attributes
+# (crowd:toric:theta) and the renderer's camera_intent have them; screen positions in NDC.
+COLUMNS = ("pA_x_ndc", "pA_y_ndc", "pB_x_ndc", "pB_y_ndc", "theta_deg", "phi_deg", "dAB_m", "sA_deg", "sB_deg",
+           "sAB_deg")
 
 
 @dataclass
 class CinematicFeatures:
-    """Features of ``t`` frames (see the module); NaN where the toric angles are undefined."""
+    """Features of ``t`` frames (see the module); NaN where the toric angles are undefined.
+
+    Angles are radians here; :meth:`rows` (what is written) gives them in degrees.
+    """
 
     times: np.ndarray        # (t,) float
     p_a: np.ndarray          # (t, 2)
     p_b: np.ndarray          # (t, 2)
-    theta: np.ndarray        # (t,)
-    phi: np.ndarray          # (t,)
-    d_ab: np.ndarray         # (t,)
-    s_a: np.ndarray          # (t,)
-    s_b: np.ndarray          # (t,)
-    s_ab: np.ndarray         # (t,)
+    theta: np.ndarray        # (t,) radians
+    phi: np.ndarray          # (t,) radians
+    d_ab: np.ndarray         # (t,) metres
+    s_a: np.ndarray          # (t,) radians
+    s_b: np.ndarray          # (t,) radians
+    s_ab: np.ndarray         # (t,) radians
     main: int                # 0: A, 1: B
 
     def rows(self) -> list[dict]:
-        """One dict per frame (for CSV and JSON)."""
-        cols = np.column_stack([self.p_a, self.p_b, self.theta, self.phi, self.d_ab, self.s_a, self.s_b, self.s_ab])
-        return [{"time": float(t), **{n: (None if np.isnan(v) else float(v)) for n, v in zip(NAMES, row)},
+        """One dict per frame (for CSV and JSON), keyed by :data:`COLUMNS`: angles in degrees."""
+        deg = np.degrees
+        cols = np.column_stack([self.p_a, self.p_b, deg(self.theta), deg(self.phi), self.d_ab, deg(self.s_a),
+                                deg(self.s_b), deg(self.s_ab)])
+        return [{"time": float(t), **{n: (None if np.isnan(v) else float(v)) for n, v in zip(COLUMNS, row)},
                  "M": "A" if self.main == 0 else "B"} for t, row in zip(self.times, cols)]
 
 
@@ -121,14 +130,19 @@ def pair_orientation(ground_a, ground_b, yaw_a, yaw_b):
 
 
 def write_features(features: CinematicFeatures, csv_path, json_path=None, **about) -> list[str]:
-    """Write the features as CSV (and JSON, with ``about``: camera, characters...) atomically."""
+    """Write the features as CSV (and JSON, with ``about``: camera, characters...) atomically.
+
+    Both name each value with its unit (:data:`COLUMNS`: ``theta_deg``, ``dAB_m``...): angles in
+    degrees, distances in metres, screen positions in normalised device coordinates, ``time`` in
+    time codes (frames).
+    """
     from ..atomic import atomic_path
 
     rows = features.rows()
     written = []
     with atomic_path(csv_path) as tmp:
         with open(tmp, "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=["time", *NAMES, "M"])
+            w = csv.DictWriter(f, fieldnames=["time", *COLUMNS, "M"])
             w.writeheader()
             w.writerows(rows)
     written.append(os.fspath(csv_path))

@@ -56,6 +56,11 @@ class CameraParams:
         Metres: lower scenery (kerbs, bollards) cannot hide a person.
     obstacle_clearance : float
         Metres kept between a camera and scenery it flies beside.
+    bounds_margin : float
+        Metres kept inside the scene's bounds.
+    bounds_braking : float
+        Share of maxForce a camera brakes with as it nears the bounds (it stops at their margin, not
+        against it: stopped there by the hard limit, it would brake harder than maxForce).
     wander_jitter : float
         Radians per second of random change of the wandering direction (Reynolds 1999).
     wander_speed : float
@@ -96,6 +101,8 @@ class CameraParams:
     obstacle_range: float = 40.0
     obstacle_min_height: float = 1.2
     obstacle_clearance: float = 0.6
+    bounds_margin: float = 0.5
+    bounds_braking: float = 0.8
     wander_jitter: float = 1.5
     wander_speed: float = 0.6
     wander_look_distance: float = 15.0

@@ -227,6 +227,7 @@ class CameraAgents:
         # Algorithm 1, with Reynolds' limits on force and speed.
         t = self.table
         force = _clamp(self.params.force_gain * force, t.max_force)
+        force = _clamp(self._brake_at_bounds(force, dt), t.max_force)
         self.v = _clamp(self.v + force * dt, t.max_speed)
         self.p = self.p + self.v * dt
         self._constrain()
@@ -339,12 +340,30 @@ class CameraAgents:
         self.focus[due] = cand[np.arange(len(due)), pick]
         self.focus_until[due] = time + prm.scout_dwell * self.fps * self.rng.uniform(0.5, 1.5, len(due))
 
+    def _brake_at_bounds(self, force: np.ndarray, dt: float) -> np.ndarray:
+        """``force`` (c, 3) changed so that no camera heads for the scene's bounds faster than it can stop
+        (at ``bounds_braking`` of its maxForce) before their margin."""
+        if self.bounds is None:
+            return force
+        margin = self.params.bounds_margin
+        lo, hi = self.bounds[0] + margin, self.bounds[1] - margin
+        brake = self.params.bounds_braking * self.table.max_force[:, None]
+        v = self.v[:, :2] + force[:, :2] * dt
+        p = self.p[:, :2] + v * dt
+        fastest_out_hi = np.sqrt(2.0 * brake * np.maximum(hi - p, 0.0))
+        fastest_out_lo = np.sqrt(2.0 * brake * np.maximum(p - lo, 0.0))
+        limited = np.clip(v, -fastest_out_lo, fastest_out_hi)
+        force = force.copy()
+        force[:, :2] += (limited - v) / dt
+        return force
+
     def _constrain(self) -> None:
         """Keep cameras inside their elevation range and out of scenery (pushed to its outline)."""
         t = self.table
         self.p[:, 2] = np.clip(self.p[:, 2], np.maximum(t.elevation[:, 0], 0.3), t.elevation[:, 1])
         if self.bounds is not None:
-            lo, hi = self.bounds[0] + 0.5, self.bounds[1] - 0.5
+            margin = self.params.bounds_margin
+            lo, hi = self.bounds[0] + margin, self.bounds[1] - margin
             out = (self.p[:, :2] < lo) | (self.p[:, :2] > hi)
             self.p[:, :2] = np.clip(self.p[:, :2], lo, np.maximum(lo, hi))
             self.v[:, :2][out] = 0.0

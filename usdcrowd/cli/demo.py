@@ -6,9 +6,12 @@ import time
 from pathlib import Path
 
 from .args import add_force, add_progress, add_seed
+from .cameras import camera_count
 
 
 def add_parser(sub):
+    from ..filming import MAX_CAMERAS
+
     p = sub.add_parser("demo", help="run every part that exists on a small scene, end to end",
                        description="New scenario from the museum template, validate it, simulate it, "
                                    "validate the shot, preview it with OpenGL, render frames with ground "
@@ -16,11 +19,17 @@ def add_parser(sub):
     p.add_argument("-o", "--output", default="out/demo", help="output folder (default: out/demo)")
     p.add_argument("--template", default="museum", help="example scene to use (default: museum)")
     p.add_argument("--agents", type=int, default=None, help="number of agents (default: the template's)")
-    p.add_argument("--cameras", type=int, default=3, help="steering camera agents to run (default 3)")
+    p.add_argument("--cameras", type=camera_count, default=3,
+                   help=f"steering camera agents to run (default 3, at most {MAX_CAMERAS})")
     add_seed(p)
     add_force(p)
     add_progress(p)
     p.set_defaults(run=run, outputs=("output",))
+
+
+def _starts(step: int, name: str, what: str) -> None:
+    """The line a step prints as it starts (its result follows when it ends)."""
+    print(f"[{step}] {name:<9} {what} ...", flush=True)
 
 
 def run(args) -> int:
@@ -33,19 +42,23 @@ def run(args) -> int:
 
     out = output_dir(args.output, "demo")
     t0 = time.perf_counter()
+    _starts(1, "scenario", f"from the {args.template} template")
     info = new_scenario(args.template, out / "scenario.usda", args.agents, args.seed)
     print(f"[1] scenario  {info['path']} ({info['agents']} agents, template {args.template})")
+    _starts(2, "validate", "scenario")
     errors = [p for p in validate(info["path"]) if p.severity == "error"]
     if errors:
         for p in errors:
             print(p)
         return 1
     print("[2] validate  scenario: 0 errors")
+    _starts(3, "simulate", f"{info['agents']} agents with {args.cameras} camera agents into {out / 'shot'}")
     r = simulate_shot(info["path"], out / "shot", seed=args.seed, progress=args.progress,
                       camera_count=args.cameras)
     agents = [p for p in r.camera_paths if "/Agent" in p]
     print(f"[3] simulate  {r.shot} ({r.n_agents} agents x {r.n_frames} frames, {r.n_events} events, "
           f"{len(agents)} camera agents)")
+    _starts(4, "validate", "shot")
     errors = [p for p in validate(r.shot) if p.severity == "error"]
     for p in errors:
         print(p)
@@ -54,7 +67,7 @@ def run(args) -> int:
     print("[4] validate  shot: 0 errors")
     toric = _toric(r, args.progress)
     preview = _preview(r, out, args.progress, toric)
-    final = _final(r, out)
+    final = _final(r, out, args.progress)
     print()
     print(format_summary(summarize(r.shot)))
     print()
@@ -69,17 +82,25 @@ def run(args) -> int:
     return 0
 
 
-def _final(r, out: Path) -> dict:
+def _final(r, out: Path, progress: bool) -> dict:
     """Eight path-traced frames across the shot with their ground truth (EXR, MOT, COCO)."""
     import numpy as np
 
     from ..errors import UsdcrowdError
 
     frames = np.unique(np.linspace(1, r.n_frames, 8).round())
+    _starts(7, "render", f"{len(frames)} frames with ground truth (Mitsuba, 480x270, 32 spp)")
     try:
         from ..render.final import demo_outputs
+        from ..render.sequence import render_sequence, settings_from_preset
 
-        paths = demo_outputs(r.shot, out / "render", camera=r.camera, frames=frames, resolution=(480, 270), spp=32)
+        size, spp = (480, 270), 32
+        # The frames first, with the renderer's labelled progress bar; demo_outputs then finds them
+        # done (the same settings) and writes the ground truth files.
+        render_sequence(r.shot, out / "render", camera=r.camera, frames=frames, executor="inline",
+                        settings=settings_from_preset("groundtruth", resolution=size, spp=spp), progress=progress,
+                        sequence_files=False)
+        paths = demo_outputs(r.shot, out / "render", camera=r.camera, frames=frames, resolution=size, spp=spp)
     except UsdcrowdError as exc:          # no Mitsuba here: say so, the rest of the demo stands
         print(f"[7] render    skipped: {exc}")
         return {}
@@ -94,6 +115,7 @@ def _toric(r, progress: bool) -> str | None:
     from ..errors import UsdcrowdError
     from ..toric_filming import frame_shot
 
+    _starts(5, "frame", "a toric camera orbiting the pair the scene brings together")
     try:
         _, track, _, signals = frame_shot(r.shot, Behavior("orbit", "medium"), "auto", smooth=True,
                                           progress=progress)
@@ -112,6 +134,7 @@ def _preview(r, out: Path, progress: bool, toric: str | None = None) -> dict:
 
     from ..errors import UsdcrowdError
 
+    _starts(6, "preview", "OpenGL, every other frame, and a gallery of every camera")
     try:
         from ..render.preview import demo_outputs
 

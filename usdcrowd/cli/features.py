@@ -7,9 +7,11 @@ from .args import add_camera, add_force, add_frames, add_resolution
 
 def add_parser(sub):
     p = sub.add_parser("features", help="seed 002's cinematic features of a camera filming two characters",
-                       description="Per frame: the two heads' screen positions, the camera's toric angles "
-                                   "(theta, phi), the characters' distance and shoulder orientations, and the "
-                                   "main character; written as features.csv and features.json.")
+                       description="Per frame: the two heads' screen positions (NDC), the camera's toric "
+                                   "angles (theta, phi), the characters' distance (m) and shoulder orientations, "
+                                   "and the main character; written as features.csv and features.json, each "
+                                   "column named with its unit (pA_x_ndc, theta_deg, dAB_m, sA_deg...): angles "
+                                   "in degrees, like the USD attributes and the renderer's JSON.")
     p.add_argument("shot", help="the shot stage (shot.usda)")
     p.add_argument("a", metavar="A", help="first character: prim path, or its name when unique")
     p.add_argument("b", metavar="B", help="second character")

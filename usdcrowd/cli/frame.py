@@ -2,7 +2,24 @@
 
 from __future__ import annotations
 
-from .args import add_force, add_progress, add_resolution
+from .args import add_force, add_progress, add_resolution, finite_float
+
+# Orbits faster than this (degrees per second) turn more than 150 degrees a frame at 24 fps: no shot.
+MAX_ORBIT_SPEED = 3600.0
+# A span longer than this (seconds, 10 days) is a typing mistake, not a shot.
+MAX_SPAN = 864_000.0
+
+
+def prim_name(text: str) -> str:
+    """An argparse type: a valid USD prim name (Sdf.Path.IsValidIdentifier), else a one-line usage error."""
+    import argparse
+
+    from pxr import Sdf, Tf
+
+    if not Sdf.Path.IsValidIdentifier(text):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a USD prim name (letters, digits and _, not starting "
+                                         f"with a digit): e.g. {Tf.MakeValidIdentifier(text or 'Camera')!r}")
+    return text
 
 
 def add_parser(sub):
@@ -19,14 +36,15 @@ def add_parser(sub):
     how.add_argument("--like", metavar="REFERENCE.usda",
                      help="film the pair the way a camera of another stage films two characters (seed 002's "
                           "learned behaviors: the behavior mix is read from it and retargeted here)")
-    p.add_argument("--camera", metavar="PATH", help="with --like: the reference's camera (default: its first)")
+    p.add_argument("--camera", metavar="PATH",
+                   help="with --like: the reference's camera (default: its toric camera, the first if several)")
     p.add_argument("--like-targets", nargs=2, metavar=("A", "B"),
                    help="with --like: the reference's two characters (default: its toric camera's targets)")
     p.add_argument("--targets", nargs="+", required=True, metavar="NAME",
                    help="the two characters (prim paths, or names when unique; A is the main character), or "
                         "'auto': per span of --span seconds, the pair the scene brings together (a talk or a "
                         "trade between two, else the closest two)")
-    p.add_argument("--span", type=float, default=5.0, metavar="SECONDS",
+    p.add_argument("--span", type=finite_float(0.0, MAX_SPAN, "seconds"), default=5.0, metavar="SECONDS",
                    help="with --targets auto: how long a pair is kept at least (default 5)")
     p.add_argument("--shot", dest="shot_size", default="medium", choices=tuple(SHOT_SIZES),
                    help="how large the main character is on screen (default: medium; with --like, the "
@@ -37,13 +55,15 @@ def add_parser(sub):
                    help="smooth the final track (seed 002, section 7.2: 20-frame average, 3 passes)")
     p.add_argument("--side", choices=("left", "right"), default="left",
                    help="side of the pair (side track: of their travel; orbit and direct track: of A to B)")
-    p.add_argument("--offset", type=float, default=35.0, metavar="DEG",
-                   help="relative track: angle from A's facing to the camera (default 35)")
-    p.add_argument("--orbit-speed", type=float, default=15.0, metavar="DEG_PER_S",
+    p.add_argument("--offset", type=finite_float(-360.0, 360.0, "degrees"), default=35.0, metavar="DEG",
+                   help="relative track: angle from A's facing to the camera, degrees (default 35)")
+    p.add_argument("--orbit-speed", type=finite_float(-MAX_ORBIT_SPEED, MAX_ORBIT_SPEED, "degrees per second"),
+                   default=15.0, metavar="DEG_PER_S",
                    help="orbit: degrees per second, positive counter-clockwise from above (default 15)")
     p.add_argument("--focal-length", type=float, default=50.0, metavar="MM",
-                   help="lens on a 36 mm horizontal aperture (default 50)")
-    p.add_argument("--name", help="camera prim name (default: behavior and characters, e.g. Orbit_A_B)")
+                   help="lens on a 36 mm horizontal aperture, mm (default 50)")
+    p.add_argument("--name", type=prim_name,
+                   help="camera prim name (default: behavior and characters, e.g. Orbit_A_B)")
     add_resolution(p)
     add_force(p, " (cameras.usda changed since usdcrowd wrote it)")
     add_progress(p)

@@ -6,6 +6,8 @@ from .args import add_force, add_limits, add_progress, add_seed, int_list, limit
 
 
 def add_parser(sub):
+    from ..filming import MAX_CAMERAS
+
     p = sub.add_parser("metrics", help="seed 000's evaluation: autonomous vs static cameras on a shot",
                        description="Film the shot with N autonomous camera agents and N static cameras for "
                                    "each N, and measure the activity metric (Algorithm 7) and the share of "
@@ -13,7 +15,8 @@ def add_parser(sub):
                                    "Figures 12 to 15.")
     p.add_argument("shot", help="the shot stage (shot.usda)")
     p.add_argument("-o", "--output", required=True, help="output folder for CSVs and plots")
-    p.add_argument("--counts", type=int_list(1, "camera counts like 4,8"), default=(4, 8), metavar="N,M", help="camera counts (default 4,8)")
+    p.add_argument("--counts", type=int_list(1, "camera counts like 4,8"), default=(4, 8), metavar="N,M",
+                   help=f"camera counts: N autonomous and N static for each (default 4,8; at most {MAX_CAMERAS})")
     add_seed(p)
     add_limits(p)
     add_force(p)

@@ -289,7 +289,11 @@ def make_dataset(spec_path, out_dir, executor: str = "local", workers: int = 1, 
     clean_partials(out, depth=DEPTH)        # frames in flight when an earlier run was stopped
     _check_existing(out, spec, force)
     splits = assign_splits(spec)
-    all_plans = {i: draw_plan(spec, i, splits[i]) for i in range(spec.sequences)}
+    from tqdm import tqdm
+
+    drawing = tqdm(range(spec.sequences), unit="plan", desc="dataset plans", leave=False,
+                   disable=not progress or spec.sequences < 2000)
+    all_plans = {i: draw_plan(spec, i, splits[i]) for i in drawing}
     plans = {i: all_plans[i] for i in indices}
     if force and only is None:
         _drop_stale(out, {p["name"] for p in plans.values()})

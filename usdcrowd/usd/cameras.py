@@ -72,7 +72,7 @@ def write_camera_tracks(out_dir: str | os.PathLike, tracks: list[model.CameraTra
     layer.pseudoRoot.SetInfo("upAxis", frame.up_axis)
     layer.pseudoRoot.SetInfo("metersPerUnit", frame.meters_per_unit)
     layer.customLayerData = {"usdcrowd": {"generator": "usdcrowd cameras", "version": __version__,
-                                          "cameras": len(tracks), **(extra or {})}}
+                                          **(extra or {})}}
     with Sdf.ChangeBlock():
         for track in tracks:
             _write_track(layer, track, frame, track.path in defined)
@@ -80,6 +80,7 @@ def write_camera_tracks(out_dir: str | os.PathLike, tracks: list[model.CameraTra
             events_writer(layer)
         if keep_toric and os.path.exists(final):
             _copy_toric(Sdf.Layer.OpenAsAnonymous(final), layer, {t.path for t in tracks})
+    _count_cameras(layer)
     return export_layer(layer, final)
 
 
@@ -105,12 +106,17 @@ def _write_track(layer, track: model.CameraTrack, frame: StageFrame, over: bool)
     fl = [float(f) / lens for f in track.focal_length]
     if not over or len(set(fl)) > 1:     # the user's own lens stays theirs
         focal = Sdf.AttributeSpec(spec, "focalLength", T.Float)
-        focal.default = fl[0]           # what readers that ask without a time get
-        for i in _changes(fl):
-            layer.SetTimeSample(focal.path, float(track.times[i]), fl[i])
+        focal.default = fl[0]           # what readers that ask without a time get: a fixed lens has only it
+        if len(set(fl)) > 1:
+            for i in _changes(fl):
+                layer.SetTimeSample(focal.path, float(track.times[i]), fl[i])
     op = Sdf.AttributeSpec(spec, "xformOp:transform", T.Matrix4d)
-    for t, m in zip(track.times, stage_poses(track.cam_to_world, frame)):
-        layer.SetTimeSample(op.path, float(t), Gf.Matrix4d(m.tolist()))
+    poses = stage_poses(track.cam_to_world, frame)
+    if len(poses) and (poses == poses[0]).all():
+        op.default = Gf.Matrix4d(poses[0].tolist())     # a static camera: one pose, not one per frame
+    else:
+        for t, m in zip(track.times, poses):
+            layer.SetTimeSample(op.path, float(t), Gf.Matrix4d(m.tolist()))
     _set(spec, "xformOpOrder", T.TokenArray, Vt.TokenArray(["!resetXformStack!", "xformOp:transform"]),
          uniform=True)
     if track.state is not None:
@@ -171,7 +177,42 @@ def add_camera(cameras_path: str | os.PathLike, track: model.CameraTrack, toric:
         spec = _write_track(layer, track, frame, over=False)
         if toric is not None:
             _toric_values(layer, spec, track, toric)
+    _count_cameras(layer)
     return export_layer(layer, final)
+
+
+def camera_specs(layer) -> list[str]:
+    """Paths of the cameras a cameras layer holds, sorted: those it defines (``Camera``) and its
+    ``over``s of the scenario's own cameras (which carry a transform)."""
+    from pxr import Sdf
+
+    found = []
+
+    def visit(path):
+        if not path.IsPrimPath():
+            return
+        spec = layer.GetPrimAtPath(path)
+        if spec.typeName == "Camera" or (spec.specifier == Sdf.SpecifierOver and not spec.typeName
+                                         and "xformOp:transform" in spec.attributes):
+            found.append(str(path))
+
+    layer.Traverse(layer.pseudoRoot.path, visit)
+    return sorted(found)
+
+
+def cameras_in(path: str | os.PathLike) -> list[str]:
+    """Paths of the cameras the cameras layer at ``path`` holds (see :func:`camera_specs`)."""
+    from pxr import Sdf
+
+    return camera_specs(Sdf.Layer.OpenAsAnonymous(os.fspath(path)))
+
+
+def _count_cameras(layer) -> None:
+    """Record in customLayerData["usdcrowd"]["cameras"] how many cameras the layer holds (kept ones too)."""
+    data = dict(layer.customLayerData)
+    if "usdcrowd" in data:                  # a cameras layer usdcrowd made (not one it only adds to)
+        data["usdcrowd"] = {**dict(data["usdcrowd"]), "cameras": len(camera_specs(layer))}
+        layer.customLayerData = data
 
 
 def _toric_values(layer, spec, track: model.CameraTrack, toric: dict) -> None:
