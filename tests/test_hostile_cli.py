@@ -113,6 +113,8 @@ SHOT_CASES = [
     (["simulate", "{scenario}", "-o", "{out}", "--seed", "-1"], "--seed"),
     (["simulate", "{scenario}", "-o", "{out}", "--seed", "0x10"], "--seed"),
     (["simulate", "{scenario}", "-o", "{out}", "--frames", "x"], "--frames"),
+    (["simulate", "{scenario}", "-o", "{out}", "--frames", "0"], "--frames"),
+    (["simulate", "{scenario}", "-o", "{out}", "--frames", "1:240x2"], "no stride"),
     (["simulate", "{scenario}", "-o", "{out}", "--max-agents", "2"], "--max-agents"),
     (["simulate", "{scenario}", "-o", "{out}", "--max-frames", "5"], "--max-frames"),
     (["simulate", "{out}/missing.usda", "-o", "{out}"], "missing.usda"),

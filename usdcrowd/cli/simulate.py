@@ -23,9 +23,19 @@ def add_parser(sub):
 
 
 def run(args) -> int:
+    import numpy as np
+
+    from ..errors import UsdcrowdError
     from ..pipeline import simulate_shot
 
-    frames = (float(args.frames[0]), float(args.frames[-1])) if args.frames is not None else None
+    frames = None
+    if args.frames is not None:
+        # One meaning everywhere: the frames named are the frames made. A simulation steps every frame,
+        # so a stride would be silently dropped, and one frame is no motion.
+        if len(args.frames) < 2 or not np.allclose(np.diff(args.frames), 1.0):
+            raise UsdcrowdError("simulate makes every frame from START to END: give --frames START:END with "
+                                "END > START and no stride", attribute="--frames")
+        frames = (float(args.frames[0]), float(args.frames[-1]))
     r = simulate_shot(args.stage, args.output, seed=args.seed, frames=frames, progress=args.progress,
                       events=args.events, limits=limits_of(args))
     print(f"wrote {r.shot}: {r.n_agents} agents x {r.n_frames} frames, seed {r.seed}")
