@@ -97,6 +97,13 @@ SHOT_CASES = [
     (["preview", "{shot}", "-o", "{out}", "--sheet", "{scenario}"], "would overwrite an input"),
     (["new", "museum", "-o", "{scenario}", "--scenery", "{scenario}"], "would overwrite an input"),
     (["new", "museum", "-o", "{shot}"], "usdcrowd simulate wrote"),
+    (["features", "{shot}", "Teacher", "Guard", "-o", "{shot}"], "would overwrite an input"),
+    (["render", "{shot}", "-o", "{shotdir}"], "holds a shot's outputs"),
+    (["metrics", "{shot}", "-o", "{shotdir}"], "holds a shot's outputs"),
+    (["frame", "{shot}", "--like", "{shotdir}/cameras.usda", "--targets", "auto"], "named as an input"),
+    (["preview", "{shot}", "-o", "{out}/p.mp4", "--sheet", "{shotdir}/trajectories.png", "--frames", "1",
+      "--resolution", "32x18"], "usdcrowd simulate wrote"),
+    (["preview", "{shot}", "-o", "{shotdir}/crowd.usdc"], "crowd.usdc"),
     (["new", "museum", "-o", "{shotdir}/crowd.usdc"], "usdcrowd simulate wrote"),
     # new
     (["new", "museum", "-o", "{out}/s.usda", "--seed", "-5"], "--seed"),

@@ -126,8 +126,8 @@ def test_dataset_stops_at_once_on_ctrl_c(tmp_path):
     spec = write_spec(tmp_path)
     out = tmp_path / "ds"
     proc = start(["dataset", str(spec), "-o", str(out), "--workers", "2", "--no-progress"])
-    wait_for(lambda: bool(list(out.glob("sequences/*/*/exr/*.exr"))) or bool(list(out.glob("sequences/*/shot"))),
-             300, proc)
+    # Mid-render: the workers are rendering frames when the signal comes.
+    wait_for(lambda: bool(list(out.glob("sequences/*/render/*/exr/*.exr"))), 300, proc)
     returncode, err, took, alive = stop(proc, signal.SIGINT, group=True)
     assert returncode == 130, err
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
@@ -153,3 +153,22 @@ def test_a_stopped_simulate_into_an_earlier_shot_leaves_that_shot_whole(tmp_path
     assert returncode == 130, err
     assert digest_tree(out) == before
     assert main(["validate", str(out / "shot.usda")]) == 0
+
+
+def test_two_renders_into_one_folder_leave_one_whole_manifest(small_shot, tmp_path):
+    """Real concurrent renders: the second is refused at once, the first's manifest lists every frame."""
+    pytest.importorskip("mitsuba")
+    import json
+
+    out = tmp_path / "render"
+    first = start(_render_argv(small_shot, out))
+    wait_for(lambda: (out / ".usdcrowd" / "lock").is_file() and bool((out / ".usdcrowd" / "lock").read_text()),
+             120, first)
+    second = subprocess.run(USDCROWD + _render_argv(small_shot, out), capture_output=True, text=True, timeout=120)
+    assert first.poll() is None, "the first render ended before the second started: no overlap was tested"
+    _, err = first.communicate(timeout=600)
+    assert first.returncode == 0, err
+    assert second.returncode == 2 and "another usdcrowd run" in second.stderr, second.stderr
+    assert len(second.stderr.strip().splitlines()) == 1
+    frames = json.loads((out / "manifest.json").read_text())["frames"]
+    assert len(frames) == 48 and len(list((out / "exr").glob("*.exr"))) == 48

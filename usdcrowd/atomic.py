@@ -35,10 +35,11 @@ def atomic_path(final: str | os.PathLike):
             if not folder.is_dir():          # "x.usda" under /dev/null, or under a file
                 raise OSError(errno.ENOTDIR, "is not a folder, so nothing can be written in it", os.fspath(folder))
             break
-    final.parent.mkdir(parents=True, exist_ok=True)
+    guard.make_dir(final.parent)            # a new folder in an output folder is recorded as usdcrowd's
     tmp = final.with_name(f".{final.stem}.partial-{uuid.uuid4().hex[:8]}{final.suffix}")
     try:
         yield tmp
+        guard.check_write(final)            # again: a long write (a video) gives others time to put a file there
         with signals_held(signal.SIGINT, signal.SIGTERM):   # a kill between the rename and its record
             # would leave a file the record does not know, refused as someone else's for ever
             os.replace(tmp, final)

@@ -49,6 +49,7 @@ class Session:
     force: bool = False
     command: str | None = None                       # the command, recorded with what it writes
     named: set = field(default_factory=set)          # the output paths the user named (what --force may replace)
+    named_inputs: set = field(default_factory=set)   # the input paths the user named (never replaced in place)
     locks: dict = field(default_factory=dict)        # root -> open lock file (this process's)
     in_place: set = field(default_factory=set)       # layers of an input this run may replace (edit_in_place)
     made_state: set = field(default_factory=set)     # folders whose state folder this run created
@@ -111,11 +112,15 @@ class Session:
         except OSError:
             return
         if os.path.isdir(path):
-            if self.entries(root).get(name, {}).get("kind") != "dir":     # once: frames land in it by thousands
-                self._append(root, {"kind": "dir", "name": name})
+            self.record_dir(root, name)     # once: frames land in it by thousands
         else:
             self._append(root, {"kind": "file", "name": name, "size": st.st_size, "mtime_ns": st.st_mtime_ns,
                                 "by": self.command})
+
+    def record_dir(self, root: Path, name: str) -> None:
+        """Note that usdcrowd makes the folder ``name`` at the top of ``root`` (before making it)."""
+        if self.entries(root).get(name, {}).get("kind") != "dir":
+            self._append(root, {"kind": "dir", "name": name})
 
     def record_folder(self, root: Path, what: str) -> None:
         """Note what kind of output folder ``root`` is (its entry ``"."``)."""
@@ -125,7 +130,8 @@ class Session:
         name = entry["name"]
         (root / STATE_DIR).mkdir(exist_ok=True)
         line = (json.dumps(entry) + "\n").encode()
-        fd = os.open(root / STATE_DIR / RECORD, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        # 0o666 less the umask, as any file: a shared group folder stays writable by the group.
+        fd = os.open(root / STATE_DIR / RECORD, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o666)
         try:
             os.write(fd, line)      # one short O_APPEND write: whole, even beside other processes
         finally:
@@ -262,6 +268,7 @@ def session(inputs=(), force: bool = False, outputs=(), command: str | None = No
     for path in inputs:
         if path is None or not _add_input(s, path, path):
             continue
+        s.named_inputs.add(Path(os.path.realpath(path)))
         if os.path.splitext(os.fspath(path))[1].lower() in (".usd", ".usda", ".usdc"):
             for dep in files_used(os.fspath(path)):
                 _add_input(s, dep, dep)
@@ -403,12 +410,12 @@ def make_dir(path) -> Path:
         path.mkdir(parents=True, exist_ok=True)
         return path
     name = full.relative_to(root).parts[0]
-    new = not os.path.lexists(root / name)
-    if not new:
+    if os.path.lexists(root / name):
         check_write(full)
+    elif not _partial(name):
+        # Recorded before it is made: a worker process that finds it a moment later finds it usdcrowd's.
+        s.record_dir(root, name)
     path.mkdir(parents=True, exist_ok=True)
-    if new:
-        s.record(root, name)
     return path
 
 
@@ -421,6 +428,9 @@ def edit_in_place(path) -> None:
     if s is None:
         return
     full = Path(os.path.abspath(path))
+    if Path(os.path.realpath(full)) in s.named_inputs:
+        raise UsdcrowdError("is named as an input of this command and would be replaced: copy it elsewhere first",
+                            file=os.fspath(full))
     if full.parent not in s.locks:
         _lock(s, full.parent)
     if full.name in s.entries(full.parent) and not s.owns(full.parent, full.name) and not s.force:

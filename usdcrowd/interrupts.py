@@ -90,9 +90,10 @@ def stop_processes(processes) -> None:
 
 def stop_pool(pool) -> None:
     """Stop a ProcessPoolExecutor now: queued tasks cancelled, running ones abandoned, workers ended."""
-    processes = list((getattr(pool, "_processes", None) or {}).values())
-    pool.shutdown(wait=False, cancel_futures=True)
-    stop_processes(processes)
-    # The pool's manager thread sees its workers gone and releases the queues' semaphores (else the
-    # resource tracker warns about them at exit); with no worker left this returns at once.
-    pool.shutdown(wait=True)
+    with signals_held(signal.SIGINT, signal.SIGTERM):    # a second Ctrl-C must not leave workers running
+        processes = list((getattr(pool, "_processes", None) or {}).values())
+        pool.shutdown(wait=False, cancel_futures=True)
+        stop_processes(processes)
+        # The pool's manager thread sees its workers gone and releases the queues' semaphores (else the
+        # resource tracker warns about them at exit); with no worker left this returns at once.
+        pool.shutdown(wait=True)

@@ -57,11 +57,16 @@ def _run_guarded(args) -> int:
     """The command inside a guard session: its inputs are never written, its outputs only where it may."""
     from .. import guard
 
-    outputs = _named(args, getattr(args, "outputs", ()))
-    with terminate_as_exception(), guard.session(_named(args, getattr(args, "inputs", ())), outputs=outputs,
+    files = _named(args, getattr(args, "outputs", ()))
+    folders = _named(args, getattr(args, "output_folders", ()))
+    with terminate_as_exception(), guard.session(_named(args, getattr(args, "inputs", ())), outputs=files + folders,
                                                  force=getattr(args, "force", False), command=args.command):
-        for path in outputs:
-            guard.check_not_input(path)         # before any work, not when the output is finally written
+        # Before any work, not when the output is finally written (folders are checked as they are claimed).
+        for path in files + folders:
+            guard.check_not_input(path)
+        for path in files:
+            if not os.path.isdir(path):
+                guard.check_write(path)
         _warn_if_stale(args)
         return int(args.run(args) or 0)
 

@@ -21,7 +21,7 @@ def add_parser(sub):
     p.add_argument("--sequences", metavar="LIST", type=int_list(0, "sequence numbers like 3 or 0,5,7"),
                    help="make only these sequences, e.g. 3 or 0,5,7 (to re-make one alone)")
     add_progress(p)
-    p.set_defaults(run=run, inputs=("spec",), outputs=("output",))
+    p.set_defaults(run=run, inputs=("spec",), output_folders=("output",))
 
 
 def run(args) -> int:

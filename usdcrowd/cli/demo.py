@@ -24,7 +24,7 @@ def add_parser(sub):
     add_seed(p)
     add_force(p)
     add_progress(p)
-    p.set_defaults(run=run, outputs=("output",))
+    p.set_defaults(run=run, output_folders=("output",))
 
 
 def _starts(step: int, name: str, what: str) -> None:

@@ -20,7 +20,7 @@ def add_parser(sub):
     add_frames(p)
     add_resolution(p)
     add_force(p)
-    p.set_defaults(run=run, inputs=("shot",), outputs=("output",))
+    p.set_defaults(run=run, inputs=("shot",), output_folders=("output",))
 
 
 def run(args) -> int:

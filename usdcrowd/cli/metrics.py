@@ -21,7 +21,7 @@ def add_parser(sub):
     add_limits(p)
     add_force(p)
     add_progress(p)
-    p.set_defaults(run=run, inputs=("shot",), outputs=("output",))
+    p.set_defaults(run=run, inputs=("shot",), output_folders=("output",))
 
 
 def run(args) -> int:

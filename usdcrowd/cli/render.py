@@ -55,7 +55,7 @@ def add_parser(sub):
                          help="keep the path-traced beauty as it is (every preset denoises)")
     add_force(p)
     add_progress(p)
-    p.set_defaults(run=run, inputs=("shot",), outputs=("output",))
+    p.set_defaults(run=run, inputs=("shot",), output_folders=("output",))
 
 
 def run(args) -> int:

@@ -19,7 +19,7 @@ def add_parser(sub):
     add_limits(p)
     add_force(p)
     add_progress(p)
-    p.set_defaults(run=run, inputs=("stage",), outputs=("output",))
+    p.set_defaults(run=run, inputs=("stage",), output_folders=("output",))
 
 
 def run(args) -> int:

@@ -456,11 +456,20 @@ def write_video(out: Path, seq, camera: str) -> Path:
 
 
 def clear_merged(out: Path) -> None:
-    """The merged files are rebuilt from the frames on every run: nothing stale survives a changed spec."""
-    for folder in (out / "mot", out / "coco"):
-        if folder.exists():
-            guard.check_remove(folder)
-            shutil.rmtree(folder)
+    """The merged files are rebuilt from the frames on every run: nothing stale survives a changed spec.
+
+    Only what the merge writes goes (MOT's split folders and seqmaps, COCO's split files): anything else
+    a user put in ``mot/`` or ``coco/`` stays.
+    """
+    merged = [*(out / "mot").glob(f"{layout.BENCHMARK}-*"), out / "mot" / "seqmaps",
+              *(out / "coco").glob("*.json")]
+    for path in merged:
+        if path.is_dir() and not path.is_symlink():
+            guard.check_remove(path)
+            shutil.rmtree(path)
+        elif path.exists():
+            guard.check_remove(path)
+            path.unlink()
 
 
 def merge(out: Path, spec: DatasetSpec, sequences: list, written: set) -> dict:
