@@ -213,13 +213,19 @@ def test_a_run_again_keeps_what_a_user_put_beside_the_merged_files(tiny_dataset,
     spec, root, _ = tiny_dataset
     copy = tmp_path / "copy"
     shutil.copytree(root, copy)
-    notes = [copy / "mot" / "notes.txt", copy / "coco" / "my_subset" / "ids.txt"]
+    notes = [copy / "mot" / "notes.txt", copy / "coco" / "my_subset" / "ids.txt",
+             copy / "mot" / "seqmaps" / "USDCROWD-train-mine.txt", copy / "coco" / "train_small.json"]
     for path in notes:
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text("mine")
     make_dataset(spec, copy, executor="inline", progress=False)
     assert all(p.read_text() == "mine" for p in notes)
     assert (copy / "coco" / "train.json").read_bytes() == (root / "coco" / "train.json").read_bytes()
+
+
+def test_a_spec_seed_may_be_any_32_bit_number(tmp_path):
+    spec = write_spec(tmp_path, seed=20240611)
+    assert load_spec(spec).seed == 20240611
 
 
 def test_a_changed_spec_is_refused_unless_forced(tiny_dataset, tmp_path):

@@ -311,3 +311,50 @@ def test_a_shot_whose_scenario_changed_is_reported_by_every_reader(museum_shot, 
         main(argv)
         err = capsys.readouterr().err
         assert "changed since the shot was simulated" in err and "museum.usda" in err, (argv, err)
+
+
+def test_a_rolled_back_or_killed_write_stays_usdcrowds(tmp_path):
+    """Versions put back by a rollback, or left by a kill between rename and record, are still usdcrowd's."""
+    from usdcrowd import guard
+    from usdcrowd.atomic import atomic_path, restored_on_failure
+
+    out = tmp_path / "out"
+    with guard.session(command="test"):
+        from usdcrowd.atomic import output_dir
+
+        output_dir(out, "test")
+        with atomic_path(out / "a.txt") as tmp:
+            tmp.write_text("first")
+        with pytest.raises(KeyboardInterrupt), restored_on_failure([out / "a.txt"]):
+            with atomic_path(out / "a.txt") as tmp:
+                tmp.write_text("second, longer")
+            raise KeyboardInterrupt
+        assert (out / "a.txt").read_text() == "first"
+        # Killed after the record, before the rename: the old bytes are still known.
+        pending = out / ".a.partial-0123abcd.txt"
+        pending.write_text("third version")
+        guard.will_write(pending, out / "a.txt")
+    with guard.session(command="test") as s:
+        assert s.owns(out.resolve(), "a.txt")
+    os.replace(pending, out / "a.txt")               # ... or killed after the rename, before its own record
+    with guard.session(command="test") as s:
+        output_dir(out, "test")
+        assert s.owns(out.resolve(), "a.txt")
+        (out / "a.txt").write_text("edited by hand")
+        assert not s.owns(out.resolve(), "a.txt")
+
+
+def test_an_empty_folder_is_nobodys_and_a_busy_inner_folder_is_refused(museum_shot, shot_copy, capsys):
+    scenario, _ = museum_shot
+    (shot_copy / "render").mkdir()                    # a render stopped before its first frame
+    assert main(["simulate", str(scenario), "-o", str(shot_copy), "--frames", "1:6", "--no-progress"]) == 0
+    holder = _hold_lock(shot_copy / "render")         # a render running into shot/render
+    try:
+        capsys.readouterr()
+        assert main(["simulate", str(scenario), "-o", str(shot_copy), "--frames", "1:6", "--no-progress"]) == 2
+        one_line_error(capsys, "another usdcrowd run is writing in", "render")
+        assert main(["cameras", str(shot_copy / "shot.usda"), "--count", "1", "--no-progress"]) == 2
+        one_line_error(capsys, "another usdcrowd run is writing in")
+    finally:
+        holder.kill()
+        holder.wait()

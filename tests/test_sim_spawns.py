@@ -55,7 +55,8 @@ def group(name: str, clones: int, radius: float, centre=(0, 0), behavior="wander
     group("Tight", 200, 0.5),                                         # 200 people in half a metre
     group("A", 40, 0.0) + group("B", 40, 0.0),                        # two groups on the same point
     group("A", 30, 0.0, (3, 0)) + group("B", 30, 0.0, (3.2, 0)),      # two piles side by side
-], ids=["pile", "resting-pile", "tight-disc", "two-groups-one-point", "two-piles"])
+    group("Pile", 2000, 0.0),                                         # far more than the padded bounds hold
+], ids=["pile", "resting-pile", "tight-disc", "two-groups-one-point", "two-piles", "pile-of-2000"])
 def test_hostile_spawns_are_set_apart_before_the_first_frame(tmp_path, groups):
     path = tmp_path / "pile.usda"
     path.write_text(PILE.format(groups=groups))

@@ -42,6 +42,7 @@ def atomic_path(final: str | os.PathLike):
         guard.check_write(final)            # again: a long write (a video) gives others time to put a file there
         with signals_held(signal.SIGINT, signal.SIGTERM):   # a kill between the rename and its record
             # would leave a file the record does not know, refused as someone else's for ever
+            guard.will_write(tmp, final)
             os.replace(tmp, final)
             guard.wrote(final)
     except OSError as exc:
@@ -64,12 +65,12 @@ def restored_on_failure(paths):
     kept = {}
     try:
         for path in map(Path, paths):
-            if path.is_file():
-                backup = path.with_name(f".{path.stem}.previous.partial-{uuid.uuid4().hex[:8]}{path.suffix}")
-                try:
-                    os.link(path, backup)
-                except OSError:             # no hard links here (some network or FUSE file systems)
-                    shutil.copy2(path, backup)
+            backup = path.with_name(f".{path.stem}.previous.partial-{uuid.uuid4().hex[:8]}{path.suffix}")
+            if path.is_dir() and not path.is_symlink():     # a clip folder: its files linked one by one
+                shutil.copytree(path, backup, copy_function=_link_or_copy)
+                kept[path] = backup
+            elif path.is_file():
+                _link_or_copy(path, backup)
                 kept[path] = backup
             else:
                 kept[path] = None
@@ -77,18 +78,37 @@ def restored_on_failure(paths):
     except BaseException:
         for path, backup in kept.items():
             with contextlib.suppress(OSError):
-                if backup is not None and path.exists() and os.path.samefile(backup, path):
-                    backup.unlink()         # never replaced (rename over its own hard link would do nothing)
-                elif backup is not None:
-                    os.replace(backup, path)
-                elif path.exists():
-                    path.unlink()
+                _put_back(path, backup)
         raise
     else:
         for backup in kept.values():
             if backup is not None:
                 with contextlib.suppress(OSError):
-                    backup.unlink()
+                    shutil.rmtree(backup) if backup.is_dir() else backup.unlink()
+
+
+def _link_or_copy(src, dst) -> None:
+    try:
+        os.link(src, dst)
+    except OSError:                         # no hard links here (some network or FUSE file systems)
+        shutil.copy2(src, dst)
+
+
+def _put_back(path: Path, backup: Path | None) -> None:
+    """``path`` as ``backup`` holds it (removed when there was nothing before)."""
+    if backup is None:
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path)
+        elif path.exists():
+            path.unlink()
+    elif backup.is_dir():
+        if path.exists():
+            shutil.rmtree(path)
+        os.replace(backup, path)
+    elif path.exists() and os.path.samefile(backup, path):
+        backup.unlink()                     # never replaced (a rename over its own hard link does nothing)
+    else:
+        os.replace(backup, path)
 
 
 def clean_partials(folder: str | os.PathLike, depth: int = 2) -> int:
@@ -106,7 +126,9 @@ def clean_partials(folder: str | os.PathLike, depth: int = 2) -> int:
         if entry.is_dir(follow_symlinks=False) and _PARTIAL.match(entry.name):
             shutil.rmtree(entry.path, ignore_errors=True)       # a clip folder (usdcrowd.usd.clips)
             removed += 1
-        elif entry.is_dir(follow_symlinks=False) and depth > 0:
+        elif (entry.is_dir(follow_symlinks=False) and depth > 0
+              and not os.path.isdir(os.path.join(entry.path, ".usdcrowd"))):
+            # (an output folder of its own is cleaned by its own runs: another may be writing in it now)
             removed += clean_partials(entry.path, depth - 1)
         elif entry.is_file(follow_symlinks=False) and _PARTIAL.match(entry.name):
             with contextlib.suppress(OSError):

@@ -85,24 +85,24 @@ class Session:
             return table
         end = tail.rfind(b"\n") + 1                 # a line another process is still appending waits
         for line in tail[:end].splitlines():
-            with contextlib.suppress(ValueError, TypeError):
-                entry = json.loads(line)
-                table[entry["name"]] = entry
+            with contextlib.suppress(ValueError, TypeError, KeyError):
+                _merge(table, json.loads(line))
         self._records[root] = (done + end, table)
         return table
 
     def owns(self, root: Path, name: str) -> bool:
         """Whether the entry ``name`` at the top of ``root`` is usdcrowd's (written by it, and unchanged since)."""
         entry = self.entries(root).get(name)
-        if entry is None:
-            return False
+        if entry is None:                   # an empty folder holds nothing of anyone's (a run stopped early)
+            return (root / name).is_dir() and not (root / name).is_symlink() and not any(os.scandir(root / name))
         try:
             st = os.lstat(root / name)
         except FileNotFoundError:
             return True
         if entry["kind"] == "dir":
             return os.path.isdir(root / name) and not os.path.islink(root / name)
-        return entry["kind"] == "file" and st.st_size == entry["size"] and st.st_mtime_ns == entry["mtime_ns"]
+        # Any version usdcrowd wrote: the one a kill left just before its rename, or one a rollback put back.
+        return entry["kind"] == "file" and (st.st_size, st.st_mtime_ns) in entry["states"]
 
     def record(self, root: Path, name: str) -> None:
         """Note that usdcrowd wrote (or made) the entry ``name`` at the top of ``root``."""
@@ -114,8 +114,15 @@ class Session:
         if os.path.isdir(path):
             self.record_dir(root, name)     # once: frames land in it by thousands
         else:
-            self._append(root, {"kind": "file", "name": name, "size": st.st_size, "mtime_ns": st.st_mtime_ns,
-                                "by": self.command})
+            self.record_file(root, name, st)
+
+    def record_file(self, root: Path, name: str, st: os.stat_result) -> None:
+        """Note the file ``name`` at the top of ``root`` with the size and mtime of ``st`` (once per version)."""
+        now = self.entries(root).get(name, {})
+        if now.get("kind") == "file" and (now["size"], now["mtime_ns"]) == (st.st_size, st.st_mtime_ns):
+            return
+        self._append(root, {"kind": "file", "name": name, "size": st.st_size, "mtime_ns": st.st_mtime_ns,
+                            "by": self.command})
 
     def record_dir(self, root: Path, name: str) -> None:
         """Note that usdcrowd makes the folder ``name`` at the top of ``root`` (before making it)."""
@@ -127,7 +134,6 @@ class Session:
         self._append(root, {"kind": "folder", "name": ".", "what": what})
 
     def _append(self, root: Path, entry: dict) -> None:
-        name = entry["name"]
         (root / STATE_DIR).mkdir(exist_ok=True)
         line = (json.dumps(entry) + "\n").encode()
         # 0o666 less the umask, as any file: a shared group folder stays writable by the group.
@@ -136,7 +142,17 @@ class Session:
             os.write(fd, line)      # one short O_APPEND write: whole, even beside other processes
         finally:
             os.close(fd)
-        self.entries(root)[name] = entry
+        _merge(self.entries(root), entry)
+
+
+def _merge(table: dict, entry: dict) -> None:
+    """Add a record line to ``{name: entry}``; a file's entry keeps every (size, mtime_ns) usdcrowd gave it."""
+    name = entry["name"]
+    if entry["kind"] == "file":
+        before = table.get(name, {})
+        entry["states"] = (before.get("states", set()) if before.get("kind") == "file" else set()) | {
+            (entry["size"], entry["mtime_ns"])}
+    table[name] = entry
 
 
 _SESSION: Session | None = None
@@ -360,6 +376,19 @@ def _refuse_another_commands(s: Session, root: Path, name: str, final: Path) -> 
                             file=os.fspath(final))
 
 
+def will_write(tmp, final) -> None:
+    """Record ``final`` with ``tmp``'s size and mtime just before ``tmp`` is renamed onto it (a rename keeps
+    both): a run killed between the two leaves a file the record still knows as usdcrowd's."""
+    s = current()
+    if s is None:
+        return
+    final = Path(os.path.abspath(final))
+    root, name = _top(s, final)
+    if _partial(name) or root / name != final:
+        return                              # inside a folder of usdcrowd's: the folder's entry covers it
+    s.record_file(root, name, os.stat(tmp))
+
+
 def wrote(final) -> None:
     """Record that ``final`` was written (call after the rename)."""
     s = current()
@@ -432,6 +461,7 @@ def edit_in_place(path) -> None:
         raise UsdcrowdError("is named as an input of this command and would be replaced: copy it elsewhere first",
                             file=os.fspath(full))
     if full.parent not in s.locks:
+        check_free(full.parent)
         _lock(s, full.parent)
     if full.name in s.entries(full.parent) and not s.owns(full.parent, full.name) and not s.force:
         raise UsdcrowdError("changed since usdcrowd wrote it: your edits would be lost; move them to shot.usda "
@@ -505,28 +535,42 @@ def claim(folder, what: str | None = None) -> Path:
 def check_free(folder) -> None:
     """Refuse a folder inside an output folder another run is writing (``simulate -o ds/sequences/x/shot``
     while the dataset ``ds`` is made), before anything is made in it."""
-    import fcntl
-
     s = current()
     if s is None:
         return
     full = Path(os.path.abspath(folder))
     if s.root_of(full) is not None:
         return                              # inside this run's own folder
-
     for parent in full.parents:
-        lock = parent / STATE_DIR / LOCK
-        if parent in s.roots or not lock.is_file():
-            continue
+        if parent not in s.roots and parent not in s.locks and _busy(parent):
+            raise UsdcrowdError(f"is inside {parent}, which another usdcrowd run is writing: wait for it "
+                                "to finish or choose another folder", file=os.fspath(full))
+    # And the other way round: a run writing in a folder inside this one (a render into shot/render).
+    with contextlib.suppress(OSError):
+        for entry in os.scandir(full):
+            inner = Path(entry.path)
+            if entry.is_dir(follow_symlinks=False) and inner not in s.locks and _busy(inner):
+                raise UsdcrowdError(f"another usdcrowd run is writing in {inner}, inside this folder: wait for it "
+                                    "to finish or choose another folder", file=os.fspath(full))
+
+
+def _busy(folder: Path) -> bool:
+    """Whether another process holds ``folder``'s lock now."""
+    import fcntl
+
+    lock = folder / STATE_DIR / LOCK
+    if not lock.is_file():
+        return False
+    try:
         with open(lock) as fh:
             try:
                 fcntl.flock(fh, fcntl.LOCK_SH | fcntl.LOCK_NB)
             except OSError as exc:
-                if exc.errno in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
-                    raise UsdcrowdError(f"is inside {parent}, which another usdcrowd run is writing: wait for it "
-                                        "to finish or choose another folder", file=os.fspath(full)) from None
-            else:
-                fcntl.flock(fh, fcntl.LOCK_UN)
+                return exc.errno in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK)
+            fcntl.flock(fh, fcntl.LOCK_UN)
+    except OSError:
+        return False
+    return False
 
 
 def _partial(name: str) -> bool:

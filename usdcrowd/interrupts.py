@@ -54,9 +54,10 @@ def signals_held(*signums):
 
 
 def children_deaf_to_ctrl_c():
-    """Processes started within cannot be killed by a Ctrl-C with a traceback while they start up;
-    here a SIGINT that arrives meanwhile waits and is delivered on leaving."""
-    return signals_held(signal.SIGINT)
+    """Processes started within cannot be stopped by Ctrl-C or kill half-way through their start-up (a
+    truncated start-up pickle, a traceback); here such a signal waits and is delivered on leaving. The
+    workers unblock SIGTERM first thing (:func:`worker_ignores_interrupts`)."""
+    return signals_held(signal.SIGINT, signal.SIGTERM)
 
 
 def worker_ignores_interrupts() -> None:

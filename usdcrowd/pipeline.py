@@ -148,7 +148,8 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     stride = max(1, scenario.time.n_frames // 200)
     cameras = plot = None
     # A run into an earlier shot's folder replaces its layers one by one: stopped half-way, it puts them back.
-    previous = [out_dir / CAMERAS, out_dir / "trajectories.png", out_dir / CROWD, *getattr(writer, "part_paths", [])]
+    previous = [out_dir / CAMERAS, out_dir / "trajectories.png", out_dir / CROWD, out_dir / "crowd.clips",
+                *getattr(writer, "part_paths", [])]
     with restored_on_failure(previous):
         try:
             _author_frames(writer, crowd_source(scenario), scenario, plotted, stride, progress,

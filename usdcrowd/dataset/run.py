@@ -461,8 +461,11 @@ def clear_merged(out: Path) -> None:
     Only what the merge writes goes (MOT's split folders and seqmaps, COCO's split files): anything else
     a user put in ``mot/`` or ``coco/`` stays.
     """
-    merged = [*(out / "mot").glob(f"{layout.BENCHMARK}-*"), out / "mot" / "seqmaps",
-              *(out / "coco").glob("*.json")]
+    from .spec import SPLITS
+
+    merged = [path for split in SPLITS for path in (
+        layout.mot_dir(out, split), out / "mot" / "seqmaps" / f"{layout.BENCHMARK}-{split}.txt",
+        out / "coco" / f"{split}.json")]
     for path in merged:
         if path.is_dir() and not path.is_symlink():
             guard.check_remove(path)

@@ -175,7 +175,8 @@ def _checked(value, kind: str, path: str, where: str):
             fail("expected " + ("a whole number" if integer else "a number"))
         if not np.isfinite(v):
             fail("expected a finite number")
-        if abs(v) > MAX_MAGNITUDE:          # no quantity here is that large; draws between them would overflow
+        if abs(v) > MAX_MAGNITUDE and where != "dataset.seed":     # (seeds: checked on their own)
+            # No quantity here is that large; draws between such bounds would overflow.
             fail(f"expected a number within +-{MAX_MAGNITUDE:,}")
         return v
 

@@ -136,6 +136,8 @@ def resolve_overlaps(pos, idx, radius, movable, relax=P.OVERLAP_RELAX):
 
 # Successive pairs turn by the golden angle: coincident clones fan out evenly.
 _GOLDEN_ANGLE = np.pi * (3.0 - np.sqrt(5.0))
+# The k-th body of a pile is set sqrt(k) times this many body widths from its centre.
+SPIRAL_SPACING = 0.6
 
 
 def separate_spawns(neighbors, grid: WalkGrid, pos, radius, movable, passes: int = P.SPAWN_SEPARATION_PASSES,
@@ -161,17 +163,63 @@ def separate_spawns(neighbors, grid: WalkGrid, pos, radius, movable, passes: int
         The passes taken (``passes`` when overlaps deeper than ``tolerance`` metres remain).
     """
     n = movable.size
+    _spread_coincident(pos, radius, movable)
+    best, stalled = np.inf, 0
     for done in range(passes):
         neighbors._build(pos)
         idx = neighbors.idx
         dx = pos[:, :n, None] - pos[:, idx]
         dist = np.sqrt(dx[0] * dx[0] + dx[1] * dx[1])
         over = (radius[:n, None] + radius[idx] - dist) * (idx < n) * movable[:, None]
-        if float(over.max(initial=0.0)) <= tolerance:
+        worst = float(over.max(initial=0.0))
+        if worst <= tolerance:
+            return done
+        # A spawn disc too small for its clones never gets there: stop when the overlap stops shrinking.
+        stalled = stalled + 1 if worst > 0.99 * best else 0
+        best = min(best, worst)
+        if stalled >= P.SPAWN_STALL_PASSES:
             return done
         resolve_overlaps(pos, idx, radius, movable, relax=1.0)
         project_out_of_walls(grid, pos, radius)
     return passes
+
+
+def room_for_piles(start, radius) -> np.ndarray | None:
+    """(2, 2) bounds [min, max] that agents spawned on one point need once set out on their spiral
+    (:func:`_spread_coincident`), with the usual margin; None when no two start on one point.
+
+    Parameters
+    ----------
+    start : (2, n) float
+    radius : (n,) float
+    """
+    points, counts = np.unique(start.T, axis=0, return_counts=True)
+    piles = counts > 1
+    if not piles.any():
+        return None
+    reach = SPIRAL_SPACING * 2.0 * float(radius.max()) * np.sqrt(counts[piles]) + P.BOUNDS_PAD
+    return np.array([(points[piles] - reach[:, None]).min(0), (points[piles] + reach[:, None]).max(0)])
+
+
+def _spread_coincident(pos, radius, movable) -> None:
+    """Bodies on exactly one point, set out on a sunflower spiral around it (Vogel's: the k-th at
+    ``sqrt(k)`` body widths, turned by the golden angle), in place. A neighbour search cannot tell
+    identical points apart, and a KD-tree of thousands of them degenerates into one leaf."""
+    n = movable.size
+    _, inverse, counts = np.unique(pos[:, :n].T, axis=0, return_inverse=True, return_counts=True)
+    inverse = inverse.reshape(-1)
+    shared = (counts[inverse] > 1) & (movable > 0)
+    if not shared.any():
+        return
+    order = np.argsort(inverse, kind="stable")
+    first = np.cumsum(counts) - counts
+    rank = np.empty(n, dtype=np.int64)
+    rank[order] = np.arange(n) - first[inverse[order]]
+    # About one body's square of area each.
+    r = SPIRAL_SPACING * 2.0 * radius[:n].astype(np.float64) * np.sqrt(rank)
+    angle = rank * _GOLDEN_ANGLE
+    pos[0, :n] += np.where(shared, r * np.cos(angle), 0.0).astype(pos.dtype)
+    pos[1, :n] += np.where(shared, r * np.sin(angle), 0.0).astype(pos.dtype)
 
 
 def project_out_of_walls(grid: WalkGrid, pos, radius, rows=None, passes: int = 2):

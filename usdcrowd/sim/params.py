@@ -72,6 +72,10 @@ OVERLAP_RELAX = 0.5
 # bodies overlap by more than the tolerance (m).
 SPAWN_SEPARATION_PASSES = 500
 SPAWN_OVERLAP_TOLERANCE = 0.01
+# ... or until the deepest overlap has not shrunk by 1 % in this many passes (a disc too small for its clones).
+SPAWN_STALL_PASSES = 50
+# Metres of room kept around a pile of clones once spread out.
+BOUNDS_PAD = 2.0
 # Exact wall projection runs for agents whose grid clearance is below this.
 WALL_PROJECT_MARGIN = 0.6  # m
 # Containment (Reynolds): look-ahead time and gain at the scene bounds.

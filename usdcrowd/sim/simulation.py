@@ -27,6 +27,7 @@ neighbour lists.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Iterator
 
@@ -35,7 +36,8 @@ import numpy as np
 from ..model import (BEHAVIORS, CHARACTER_TYPES, HEALTH_STATES, ROLES, CrowdFrames, Scenario, code)
 from . import params as P
 from .behavior_maps import Reactions
-from .collision import agent_avoidance, project_out_of_walls, resolve_overlaps, separate_spawns, wall_avoidance
+from .collision import (agent_avoidance, project_out_of_walls, resolve_overlaps, room_for_piles, separate_spawns,
+                        wall_avoidance)
 from .distance_maps import DistanceMaps
 from .grid import WalkGrid
 from .groups import Groups, flocking, mate_mask
@@ -151,6 +153,10 @@ class Simulation:
         self.base_behavior = np.asarray(a.behavior, dtype=np.int8)
         self.behavior = self.base_behavior.copy()
         self.look = np.full((3, n), np.nan, f32)
+        room = room_for_piles(self.pos[:, :n], self.radius[:n])
+        if room is not None:        # clones spawned on one point spread out beyond the padded bounds: make room
+            scenario = self.scenario = dataclasses.replace(scenario, bounds=np.array(
+                [np.minimum(scenario.bounds[0], room[0]), np.maximum(scenario.bounds[1], room[1])]))
         self.lo = np.asarray(scenario.bounds[0], dtype=f32)
         self.hi = np.asarray(scenario.bounds[1], dtype=f32)
         self.time = 0.0  # seconds since the first frame
