@@ -74,9 +74,31 @@ def worker_ignores_interrupts() -> None:
     tqdm.set_lock(threading.RLock())
 
 
+def _descendants(pid: int) -> list[int]:
+    """Process ids started by ``pid`` and by those, from /proc (Linux); [] where it cannot be read."""
+    found, todo = [], [pid]
+    while todo:
+        parent = todo.pop()
+        try:
+            with open(f"/proc/{parent}/task/{parent}/children") as fh:
+                children = [int(c) for c in fh.read().split()]
+        except (OSError, ValueError):
+            children = []
+        found += children
+        todo += children
+    return found
+
+
 def stop_processes(processes) -> None:
-    """SIGTERM each live process, then SIGKILL what is left after :data:`WORKER_GRACE_S`; reap them all."""
+    """SIGTERM each live process and what it started (a dataset worker's part writers), then SIGKILL what
+    is left after :data:`WORKER_GRACE_S`; reap them all."""
+    import os
+
     processes = [p for p in processes if p is not None]
+    grandchildren = [pid for p in processes if p.pid for pid in _descendants(p.pid)]
+    for pid in grandchildren:
+        with contextlib.suppress(OSError):
+            os.kill(pid, signal.SIGTERM)
     for p in processes:
         with contextlib.suppress(Exception):
             if p.is_alive():

@@ -180,19 +180,20 @@ class _Ray:
         # On a cluster Ray runs a task per CPU of each node: one render thread each, no oversubscription.
         self.threads = 1 if address else max(1, (os.cpu_count() or 1) // max(workers, 1))
         self.remote = {}
-        self.submitted = []
+        self.submitted = set()             # the tasks not yet done (cancelled on Ctrl-C)
 
     def submit(self, fn, *args):
         if fn not in self.remote:
             self.remote[fn] = self.ray.remote(num_cpus=1)(fn)
         ref = self.remote[fn].remote(*args)
-        self.submitted.append(ref)
+        self.submitted.add(ref)
         return ref
 
     def wait(self, pending):
         from ..render.sequence import _ray_result
 
         (ref,), rest = self.ray.wait(list(pending), num_returns=1)
+        self.submitted.discard(ref)
         return [(ref, _ray_result(self.ray, ref))], list(rest)
 
     def close(self, now: bool = False):

@@ -29,27 +29,42 @@ def _relative(target: str, start_dir: str) -> str:
     return rel if rel.startswith(".") else f"./{rel}"
 
 
-def scenario_digest(scenario_path: str | os.PathLike) -> str:
-    """sha256 over the scenario file and every file it uses (sublayers, references, scenery, images):
-    what the shot was simulated from."""
+def _sha256(path: str) -> str:
     import hashlib
 
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def scenario_files(scenario_path: str | os.PathLike, known: dict | None = None) -> dict[str, str]:
+    """What a shot was simulated from: ``{path relative to the scenario: "size:mtime_ns:sha256"}`` for the
+    scenario and every file it uses (sublayers, references, scenery, images).
+
+    A file whose size and mtime match its entry in ``known`` is not read again (scenery can be large).
+    """
     from ..guard import files_used
 
     scenario_path = os.path.abspath(scenario_path)
-    total = hashlib.sha256()
+    folder = os.path.dirname(scenario_path)
+    known = known or {}
+    files = {}
     for path in [scenario_path, *files_used(scenario_path)]:
-        file_hash = hashlib.sha256()
-        with open(path, "rb") as fh:
-            for block in iter(lambda: fh.read(1 << 20), b""):
-                file_hash.update(block)
-        total.update(f"{os.path.relpath(path, os.path.dirname(scenario_path))}\0{file_hash.hexdigest()}\n".encode())
-    return total.hexdigest()
+        st = os.stat(path)
+        rel = os.path.relpath(path, folder)
+        before = str(known.get(rel, "")).split(":")
+        if len(before) == 3 and before[:2] == [str(st.st_size), str(st.st_mtime_ns)]:
+            files[rel] = known[rel]
+        else:
+            files[rel] = f"{st.st_size}:{st.st_mtime_ns}:{_sha256(path)}"
+    return files
 
 
 def stale_scenario(shot_path: str | os.PathLike) -> str | None:
     """Why ``shot_path``'s scenario no longer is what the shot was simulated from, or None (also for
-    stages that are not shots, or shots written before the digest was recorded)."""
+    stages that are not shots, or shots written before the files were recorded)."""
     from pxr import Sdf
 
     try:
@@ -57,16 +72,19 @@ def stale_scenario(shot_path: str | os.PathLike) -> str | None:
     except Exception:
         return None
     data = layer.customLayerData.get("usdcrowd") if layer is not None else None
-    if not isinstance(data, dict) or not isinstance(data.get("scenarioSha256"), str):
+    if not isinstance(data, dict) or not isinstance(data.get("scenarioFiles"), dict):
         return None
+    recorded = {str(k): str(v) for k, v in data["scenarioFiles"].items()}
     scenario = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(shot_path)), str(data.get("scenario"))))
     try:
-        now = scenario_digest(scenario)
+        now = scenario_files(scenario, recorded)
     except OSError:
         return None                         # a missing scenario is the readers' own error
-    if now == data["scenarioSha256"]:
+    sha = {k: v.rsplit(":", 1)[-1] for k, v in now.items()}
+    if sha == {k: v.rsplit(":", 1)[-1] for k, v in recorded.items()}:
         return None
-    return (f"its scenario {data.get('scenario')} (or a file it uses) changed since the shot was simulated: "
+    changed = sorted(k for k in sha.keys() | recorded.keys() if sha.get(k) != recorded.get(k, "").rsplit(":", 1)[-1])
+    return (f"its scenario {data.get('scenario')} changed since the shot was simulated ({', '.join(changed[:3])}): "
             "the shot shows the old one; run simulate again")
 
 
@@ -93,7 +111,7 @@ def write_shot(out_dir: str | os.PathLike, scenario_path: str, time: model.TimeR
     schema.author_fallbacks(layer)          # readable without our schemas (Blender, plain usd-core)
     layer.customLayerData = {"usdcrowd": {"version": __version__, "seed": int(seed),
                                           "scenario": _relative(scenario_path, out_dir),
-                                          "scenarioSha256": scenario_digest(scenario_path)}}
+                                          "scenarioFiles": scenario_files(scenario_path)}}
     if add_lights:
         root = f"/{default_prim}" if default_prim else ""
         with Sdf.ChangeBlock():
