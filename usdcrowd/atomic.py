@@ -111,6 +111,17 @@ def _put_back(path: Path, backup: Path | None) -> None:
         os.replace(backup, path)
 
 
+def file_sha256(path: str | os.PathLike) -> str:
+    """The sha256 of a file's bytes, read a megabyte at a time."""
+    import hashlib
+
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
 def clean_partials(folder: str | os.PathLike, depth: int = 2) -> int:
     """Remove the temporary files an interrupted run left in ``folder`` (and its subfolders, ``depth`` deep).
 

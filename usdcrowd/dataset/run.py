@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import guard
-from ..atomic import atomic_path, clean_partials, output_dir
+from ..atomic import atomic_path, clean_partials, file_sha256, output_dir
 from ..errors import UsdcrowdError
 from . import layout
 from .spec import DatasetSpec, assign_splits, draw_plan, load_spec
@@ -290,8 +290,6 @@ def make_dataset(spec_path, out_dir, executor: str = "local", workers: int = 1, 
     clean_partials(out, depth=DEPTH)        # frames in flight when an earlier run was stopped
     _check_existing(out, spec, force)
     splits = assign_splits(spec)
-    from tqdm import tqdm
-
     drawing = tqdm(range(spec.sequences), unit="plan", desc="dataset plans", leave=False,
                    disable=not progress or spec.sequences < 2000)
     all_plans = {i: draw_plan(spec, i, splits[i]) for i in drawing}
@@ -512,12 +510,6 @@ def _fps(shot: str) -> float:
     return float(layer.timeCodesPerSecond) if layer else 24.0
 
 
-def _digest(path: Path) -> str:
-    from ..render.sequence import _digest as digest
-
-    return digest(path)
-
-
 def _write_manifest(out: Path, spec: DatasetSpec, plans: dict, state: str) -> str:
     """``manifest.json``: the spec's sha256, every plan, and (when complete) sha256 of every file.
 
@@ -542,7 +534,7 @@ def _write_manifest(out: Path, spec: DatasetSpec, plans: dict, state: str) -> st
             st = path.stat()
             rec = recorded.get((st.st_dev, st.st_ino))
             if rec is None or st.st_size != rec["size"]:
-                rec = {"size": st.st_size, "sha256": _digest(path)}
+                rec = {"size": st.st_size, "sha256": file_sha256(path)}
             files[os.fspath(path.relative_to(out))] = {"size": rec["size"], "sha256": rec["sha256"]}
         doc["files"] = files
     path = out / MANIFEST

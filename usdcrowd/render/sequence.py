@@ -28,7 +28,6 @@ folder on a shared file system).
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import json
 import os
 import time as _time
@@ -38,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import atomic_path, clean_partials, output_dir
+from ..atomic import atomic_path, clean_partials, file_sha256, output_dir
 from ..errors import UsdcrowdError
 
 MANIFEST = "manifest.json"
@@ -143,17 +142,9 @@ def frame_files(t: float, ground_truth: bool) -> dict[str, str]:
     return files
 
 
-def _digest(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
 def _file_record(out: Path, rel: str) -> dict:
     p = out / rel
-    return {"size": p.stat().st_size, "sha256": _digest(p)}
+    return {"size": p.stat().st_size, "sha256": file_sha256(p)}
 
 
 def expected_channels(settings: RenderSettings) -> list[str]:
@@ -271,7 +262,7 @@ def verify_frame(out_dir, t: float, manifest: Manifest, settings: RenderSettings
     if entry is not None:
         recorded = entry.get("files", {})
         return set(recorded) == set(files.values()) and all(
-            (out / rel).stat().st_size == rec["size"] and _digest(out / rel) == rec["sha256"]
+            (out / rel).stat().st_size == rec["size"] and file_sha256(out / rel) == rec["sha256"]
             for rel, rec in recorded.items())
     # Written but not recorded (killed before the manifest was saved): adopt it if it reads back.
     try:

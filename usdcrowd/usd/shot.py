@@ -29,22 +29,13 @@ def _relative(target: str, start_dir: str) -> str:
     return rel if rel.startswith(".") else f"./{rel}"
 
 
-def _sha256(path: str) -> str:
-    import hashlib
-
-    digest = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
-
-
 def scenario_files(scenario_path: str | os.PathLike, known: dict | None = None) -> dict[str, str]:
     """What a shot was simulated from: ``{path relative to the scenario: "size:mtime_ns:sha256"}`` for the
     scenario and every file it uses (sublayers, references, scenery, images).
 
     A file whose size and mtime match its entry in ``known`` is not read again (scenery can be large).
     """
+    from ..atomic import file_sha256
     from ..guard import files_used
 
     scenario_path = os.path.abspath(scenario_path)
@@ -58,7 +49,7 @@ def scenario_files(scenario_path: str | os.PathLike, known: dict | None = None) 
         if len(before) == 3 and before[:2] == [str(st.st_size), str(st.st_mtime_ns)]:
             files[rel] = known[rel]
         else:
-            files[rel] = f"{st.st_size}:{st.st_mtime_ns}:{_sha256(path)}"
+            files[rel] = f"{st.st_size}:{st.st_mtime_ns}:{file_sha256(path)}"
     return files
 
 
