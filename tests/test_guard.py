@@ -361,3 +361,19 @@ def test_an_empty_folder_is_nobodys_and_a_busy_inner_folder_is_refused(museum_sh
     finally:
         holder.kill()
         holder.wait()
+
+
+def test_a_shot_made_before_records_is_adopted_only_when_forced(museum_shot, shot_copy, capsys):
+    import shutil
+
+    scenario, _ = museum_shot
+    shutil.rmtree(shot_copy / ".usdcrowd")          # as a shot written by an earlier usdcrowd
+    (shot_copy / "notes.txt").write_text("mine")
+    capsys.readouterr()
+    assert main(["simulate", str(scenario), "-o", str(shot_copy), "--frames", "1:6", "--no-progress"]) == 2
+    one_line_error(capsys, "made before usdcrowd kept a record", "--force")
+    assert main(["simulate", str(scenario), "-o", str(shot_copy), "--frames", "1:6", "--no-progress",
+                 "--force"]) == 0
+    assert "endTimeCode = 6" in (shot_copy / "shot.usda").read_text()
+    assert (shot_copy / "notes.txt").read_text() == "mine"
+    assert "notes.txt" not in (shot_copy / ".usdcrowd" / "written").read_text()     # adopted: usdcrowd's names only

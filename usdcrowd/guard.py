@@ -508,6 +508,16 @@ def claim(folder, what: str | None = None) -> Path:
         # forget the earlier ones, so the session stays small however many there are.
         s.roots = [r for r in s.roots if s.root_of(r) is None or r in full.parents] + [full]
         _publish(s)
+    if what is not None and not (full / STATE_DIR / RECORD).is_file() and _older_output(full, what):
+        if not s.force:
+            raise UsdcrowdError(f"holds a {what} made before usdcrowd kept a record of its files: give --force to "
+                                "adopt it (its files then count as usdcrowd's) or choose another folder",
+                                file=os.fspath(folder))
+        import fnmatch
+
+        for entry in os.scandir(full):          # adopted: the names usdcrowd gives a folder of this kind
+            if any(fnmatch.fnmatch(entry.name, pattern) for pattern in ADOPTABLE[what]):
+                s.record(full, entry.name)
     foreign = [e.name for e in sorted(os.scandir(full), key=lambda e: e.name)
                if e.name != STATE_DIR and not _partial(e.name) and not s.owns(full, e.name)
                and not (full / e.name / STATE_DIR / RECORD).is_file()]     # an output folder of its own
@@ -530,6 +540,33 @@ def claim(folder, what: str | None = None) -> Path:
         if made is None:
             s.record_folder(full, what)
     return folder
+
+
+# What a folder of each kind held when an earlier usdcrowd wrote it (adopted with --force).
+ADOPTABLE = {
+    "shot": ("shot.usda", "crowd.usdc", "crowd.part*.usdc", "crowd.clips", "cameras.usda", "trajectories.png"),
+    "render": ("manifest.json", "exr", "png", "json", "mot", "coco.json", "contact_sheet.png", "render.mp4"),
+    "dataset": ("manifest.json", "spec.toml", "sequences", "mot", "coco", "README.md", "card.png"),
+}
+
+
+def _older_output(folder: Path, what: str) -> bool:
+    """Whether ``folder`` holds a ``what`` an earlier usdcrowd wrote (its own signature: a render's or a
+    dataset's manifest, a shot's customLayerData), from before folders kept a record."""
+    if what in ("render", "dataset"):
+        try:
+            doc = json.loads((folder / "manifest.json").read_text())
+        except (OSError, ValueError):
+            return False
+        return isinstance(doc, dict) and ({"header", "frames"} <= doc.keys() if what == "render"
+                                          else "spec_sha256" in doc)
+    if what == "shot" and (folder / "shot.usda").is_file():
+        from pxr import Sdf
+
+        with contextlib.suppress(Exception):
+            layer = Sdf.Layer.FindOrOpen(os.fspath(folder / "shot.usda"))
+            return isinstance(layer.customLayerData.get("usdcrowd"), dict)
+    return False
 
 
 def check_free(folder) -> None:
