@@ -4,13 +4,11 @@ from __future__ import annotations
 
 import contextlib
 import os
-import re
 import shutil
 import uuid
 from pathlib import Path
 
-# The temporary names atomic_path makes: ".<stem>.partial-<8 hex><suffix>".
-_PARTIAL = re.compile(r"^\..+\.partial-[0-9a-f]{8}(\.[^/]*)?$")
+from .guard import PARTIAL_NAME          # the temporary names atomic_path makes
 
 
 @contextlib.contextmanager
@@ -134,14 +132,14 @@ def clean_partials(folder: str | os.PathLike, depth: int = 2) -> int:
     except OSError:
         return 0
     for entry in entries:
-        if entry.is_dir(follow_symlinks=False) and _PARTIAL.match(entry.name):
+        if entry.is_dir(follow_symlinks=False) and PARTIAL_NAME.match(entry.name):
             shutil.rmtree(entry.path, ignore_errors=True)       # a clip folder (usdcrowd.usd.clips)
             removed += 1
         elif (entry.is_dir(follow_symlinks=False) and depth > 0
               and not os.path.isdir(os.path.join(entry.path, ".usdcrowd"))):
             # (an output folder of its own is cleaned by its own runs: another may be writing in it now)
             removed += clean_partials(entry.path, depth - 1)
-        elif entry.is_file(follow_symlinks=False) and _PARTIAL.match(entry.name):
+        elif entry.is_file(follow_symlinks=False) and PARTIAL_NAME.match(entry.name):
             with contextlib.suppress(OSError):
                 os.unlink(entry.path)
                 removed += 1

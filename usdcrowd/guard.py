@@ -27,11 +27,14 @@ import contextlib
 import errno
 import json
 import os
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from .errors import UsdcrowdError
 
+# The temporary names usdcrowd writes under before a rename: ".<stem>.partial-<8 hex><suffix>".
+PARTIAL_NAME = re.compile(r"^\..+\.partial-[0-9a-f]{8}(\.[^/]*)?$")
 STATE_DIR = ".usdcrowd"
 RECORD = "written"
 LOCK = "lock"
@@ -611,9 +614,8 @@ def _busy(folder: Path) -> bool:
 
 
 def _partial(name: str) -> bool:
-    from .atomic import _PARTIAL
-
-    return bool(_PARTIAL.match(name))
+    """Whether ``name`` is a temporary name :func:`usdcrowd.atomic.atomic_path` makes (always usdcrowd's)."""
+    return bool(PARTIAL_NAME.match(name))
 
 
 def _lock(s: Session, root: Path) -> None:
