@@ -255,7 +255,7 @@ def test_features_writes_degrees_with_units_in_the_header_like_the_usd(made, tmp
     with open(tmp_path / "f" / "features.csv", newline="") as fh:
         rows = list(csv.DictReader(fh))
     header = list(rows[0])
-    assert header == ["time", "pA_x_ndc", "pA_y_ndc", "pB_x_ndc", "pB_y_ndc", "theta_deg", "phi_deg", "dAB_m",
+    assert header == ["time_code", "pA_x_ndc", "pA_y_ndc", "pB_x_ndc", "pB_y_ndc", "theta_deg", "phi_deg", "dAB_m",
                       "sA_deg", "sB_deg", "sAB_deg", "M"]
     doc = json.loads((tmp_path / "f" / "features.json").read_text())
     assert list(doc["frames"][0]) == header
@@ -263,7 +263,7 @@ def test_features_writes_degrees_with_units_in_the_header_like_the_usd(made, tmp
     stage = Usd.Stage.Open(str(shot))
     prim = stage.GetPrimAtPath(camera)
     for row, frame in zip(rows, doc["frames"]):
-        t = float(row["time"])
+        t = float(row["time_code"])
         for key, attr in (("theta_deg", "crowd:toric:theta"), ("phi_deg", "crowd:toric:phi")):
             assert float(row[key]) == pytest.approx(prim.GetAttribute(attr).Get(t), abs=0.05), (t, key)
             assert frame[key] == pytest.approx(float(row[key]), abs=1e-9)

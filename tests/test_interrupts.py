@@ -172,3 +172,17 @@ def test_two_renders_into_one_folder_leave_one_whole_manifest(small_shot, tmp_pa
     assert len(second.stderr.strip().splitlines()) == 1
     frames = json.loads((out / "manifest.json").read_text())["frames"]
     assert len(frames) == 48 and len(list((out / "exr").glob("*.exr"))) == 48
+
+
+def test_a_render_on_ray_stops_its_actors_and_its_ray_instance_on_ctrl_c(small_shot, tmp_path):
+    pytest.importorskip("ray")
+    pytest.importorskip("mitsuba")
+    out = tmp_path / "render"
+    proc = start(_render_argv(small_shot, out) + ["--executor", "ray", "--workers", "1"])
+    wait_for(lambda: len(list((out / "exr").glob("*.exr"))) >= 1 if (out / "exr").is_dir() else False, 300, proc)
+    returncode, err, took, alive = stop(proc, signal.SIGINT, group=True)
+    assert returncode == 130, err
+    assert "Traceback" not in err, err
+    assert took < PROMPT_S, f"took {took:.1f} s to stop"
+    assert not alive, f"orphans: {[p.name() for p in alive]}"
+    assert not partials(out)

@@ -200,7 +200,7 @@ def test_metrics_command_writes_figures_and_csvs(harbour_shot, tmp_path, capsys)
     for name in ("summary.csv", "activity_2.csv", "viewed_2.csv", "activity_2.png", "viewed_2.png"):
         assert (out / name).stat().st_size > 0, name
     rows = (out / "activity_2.csv").read_text().splitlines()
-    assert len(rows) == 1 + 240
+    assert len(rows) == 1 + 240 and rows[0].startswith("time_code,")      # time codes, like every CSV we write
 
 
 def test_refilming_a_shot_without_detected_events_detects_them_beside_the_cameras(harbour_shot, tmp_path, capsys):

@@ -163,7 +163,7 @@ def test_features_of_a_shot_match_the_renderers_projection_and_the_cli_writes_th
         np.testing.assert_allclose([f.p_a[k], f.p_b[k]], ndc, atol=1e-6)
     assert main(["features", shot, "Guide", "Teacher", "-o", str(tmp_path / "f"), "--camera", cam,
                  "--frames", "2:4"]) == 0
-    assert [r["time"] for r in csv.DictReader(open(tmp_path / "f" / "features.csv"))] == ["2.0", "3.0", "4.0"]
+    assert [r["time_code"] for r in csv.DictReader(open(tmp_path / "f" / "features.csv"))] == ["2.0", "3.0", "4.0"]
     capsys.readouterr()
     assert main(["features", shot, "clone_0000", "Guide", "-o", str(tmp_path / "g")]) == 2
     err = capsys.readouterr().err

@@ -223,7 +223,7 @@ def evaluate_shot(shot_path: str | os.PathLike, out_dir: str | os.PathLike, coun
             for name, column in (("activity", "active_share"), ("viewed", "viewed_share")):
                 with atomic_path(out / f"{name}_{n}.csv") as tmp, open(tmp, "w", newline="") as fh:
                     w = csv.writer(fh)
-                    w.writerow(["time", "autonomous_score_active", "autonomous_score_idle", "autonomous_active",
+                    w.writerow(["time_code", "autonomous_score_active", "autonomous_score_idle", "autonomous_active",
                                 "autonomous_active_viewed", "static_score_active", "static_score_idle",
                                 "static_active", "static_active_viewed"])
                     a, s = series["autonomous"], series["static"]

@@ -62,7 +62,7 @@ class CinematicFeatures:
         deg = np.degrees
         cols = np.column_stack([self.p_a, self.p_b, deg(self.theta), deg(self.phi), self.d_ab, deg(self.s_a),
                                 deg(self.s_b), deg(self.s_ab)])
-        return [{"time": float(t), **{n: (None if np.isnan(v) else float(v)) for n, v in zip(COLUMNS, row)},
+        return [{"time_code": float(t), **{n: (None if np.isnan(v) else float(v)) for n, v in zip(COLUMNS, row)},
                  "M": "A" if self.main == 0 else "B"} for t, row in zip(self.times, cols)]
 
 
@@ -142,7 +142,7 @@ def write_features(features: CinematicFeatures, csv_path, json_path=None, **abou
     written = []
     with atomic_path(csv_path) as tmp:
         with open(tmp, "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=["time", *COLUMNS, "M"])
+            w = csv.DictWriter(f, fieldnames=["time_code", *COLUMNS, "M"])
             w.writeheader()
             w.writerows(rows)
     written.append(os.fspath(csv_path))

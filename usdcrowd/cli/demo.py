@@ -5,7 +5,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from .args import add_force, add_progress, add_seed
+from .args import add_force, add_progress, add_seed, int_at_least
 from .cameras import camera_count
 
 
@@ -18,7 +18,7 @@ def add_parser(sub):
                                    "truth with Mitsuba, and print where everything is.")
     p.add_argument("-o", "--output", default="out/demo", help="output folder (default: out/demo)")
     p.add_argument("--template", default="museum", help="example scene to use (default: museum)")
-    p.add_argument("--agents", type=int, default=None, help="number of agents (default: the template's)")
+    p.add_argument("--agents", type=int_at_least(1), default=None, help="number of agents (default: the template's)")
     p.add_argument("--cameras", type=camera_count, default=3,
                    help=f"steering camera agents to run (default 3, at most {MAX_CAMERAS})")
     add_seed(p)
