@@ -377,3 +377,20 @@ def test_a_shot_made_before_records_is_adopted_only_when_forced(museum_shot, sho
     assert "endTimeCode = 6" in (shot_copy / "shot.usda").read_text()
     assert (shot_copy / "notes.txt").read_text() == "mine"
     assert "notes.txt" not in (shot_copy / ".usdcrowd" / "written").read_text()     # adopted: usdcrowd's names only
+
+
+def test_dataset_never_writes_over_its_spec(tmp_path, capsys):
+    """The spec inside the folder the dataset is asked to fill: refused, the spec unchanged."""
+    from test_dataset import write_spec
+
+    ds = tmp_path / "ds"
+    ds.mkdir()
+    spec = write_spec(ds, name="mine.toml")
+    before = spec.read_bytes()
+    capsys.readouterr()
+    assert main(["dataset", str(spec), "-o", str(ds), "--no-progress"]) == 2
+    one_line_error(capsys, "did not write", "mine.toml")
+    assert spec.read_bytes() == before and sorted(p.name for p in ds.iterdir()) == ["mine.toml"]
+    assert main(["dataset", str(spec), "-o", str(ds / "mine.toml"), "--no-progress"]) == 2
+    one_line_error(capsys, "would overwrite an input")
+    assert spec.read_bytes() == before
