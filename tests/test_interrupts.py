@@ -186,3 +186,48 @@ def test_a_render_on_ray_stops_its_actors_and_its_ray_instance_on_ctrl_c(small_s
     assert took < PROMPT_S, f"took {took:.1f} s to stop"
     assert not alive, f"orphans: {[p.name() for p in alive]}"
     assert not partials(out)
+
+
+def _renderers_alive() -> list:
+    """Ray worker processes holding one of usdcrowd's render actors, on this machine."""
+    found = []
+    for p in psutil.process_iter(["cmdline", "name"]):
+        text = " ".join(p.info.get("cmdline") or []) + " " + (p.info.get("name") or "")
+        if "_RayRenderer" in text and p.status() != psutil.STATUS_ZOMBIE:
+            found.append(p)
+    return found
+
+
+def test_a_render_on_a_ray_cluster_kills_its_actors_on_ctrl_c(small_shot, tmp_path):
+    """The cluster (`ray start --head`, joined through --address) outlives the command; the actors must not."""
+    pytest.importorskip("ray")
+    pytest.importorskip("mitsuba")
+    import os
+    import sys
+    from pathlib import Path
+
+    ray = Path(sys.executable).with_name("ray")
+    port = 27379 + os.getpid() % 1000
+    env = dict(os.environ, RAY_USAGE_STATS_ENABLED="0", RAY_AUTH_MODE="disabled")
+    started = subprocess.run([str(ray), "start", "--head", "--port", str(port), "--num-cpus", "2",
+                              "--include-dashboard", "false", "--disable-usage-stats"],
+                             capture_output=True, text=True, env=env, timeout=120)
+    assert started.returncode == 0, started.stderr[-2000:]
+    try:
+        out = tmp_path / "render"
+        proc = subprocess.Popen(USDCROWD + _render_argv(small_shot, out) + [
+            "--executor", "ray", "--address", f"127.0.0.1:{port}", "--workers", "1"],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True, env=env)
+        wait_for(lambda: len(list((out / "exr").glob("*.exr"))) >= 1 if (out / "exr").is_dir() else False, 300,
+                 proc)
+        assert _renderers_alive(), "the render actor runs in a cluster worker"
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+        assert proc.returncode == 130 and "Traceback" not in err, err
+        deadline = time.monotonic() + PROMPT_S
+        while _renderers_alive() and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert not _renderers_alive(), "a render actor outlived its command on the cluster"
+        assert not partials(out)
+    finally:
+        subprocess.run([str(ray), "stop", "--force"], capture_output=True, env=env, timeout=120)
