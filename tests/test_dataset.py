@@ -338,21 +338,14 @@ def test_a_ray_cluster_given_by_address_makes_the_same_dataset(tiny_dataset, tmp
     cluster joined here would leave to the tests after this one.
     """
     pytest.importorskip("ray")
+    from conftest import ray_head
+
     spec, root, _ = tiny_dataset
-    ray = Path(sys.executable).with_name("ray")
     port = 26379 + os.getpid() % 1000
-    # Without token authentication (Ray 2.60's `ray start` may use it; a real cluster shares its token).
-    env = dict(os.environ, RAY_USAGE_STATS_ENABLED="0", RAY_AUTH_MODE="disabled")
-    started = subprocess.run([str(ray), "start", "--head", "--port", str(port), "--num-cpus", "2",
-                              "--include-dashboard", "false", "--disable-usage-stats"],
-                             capture_output=True, text=True, env=env, timeout=120)
-    assert started.returncode == 0, started.stderr[-2000:]
-    try:
+    with ray_head(port) as env:
         made = subprocess.run([sys.executable, "-m", "usdcrowd", "dataset", str(spec), "-o", str(tmp_path / "cluster"),
                                "--executor", "ray", "--address", f"127.0.0.1:{port}", "--no-progress"],
                               capture_output=True, text=True, env=env, timeout=600)
-    finally:
-        subprocess.run([str(ray), "stop", "--force"], capture_output=True, env=env, timeout=120)
     assert made.returncode == 0, made.stderr[-2000:]
     for gt in (root / "mot").glob("*/*/gt/gt.txt"):
         assert (tmp_path / "cluster" / gt.relative_to(root)).read_text() == gt.read_text()

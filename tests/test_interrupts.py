@@ -202,18 +202,10 @@ def test_a_render_on_a_ray_cluster_kills_its_actors_on_ctrl_c(small_shot, tmp_pa
     """The cluster (`ray start --head`, joined through --address) outlives the command; the actors must not."""
     pytest.importorskip("ray")
     pytest.importorskip("mitsuba")
-    import os
-    import sys
-    from pathlib import Path
+    from conftest import ray_head
 
-    ray = Path(sys.executable).with_name("ray")
     port = 27379 + os.getpid() % 1000
-    env = dict(os.environ, RAY_USAGE_STATS_ENABLED="0", RAY_AUTH_MODE="disabled")
-    started = subprocess.run([str(ray), "start", "--head", "--port", str(port), "--num-cpus", "2",
-                              "--include-dashboard", "false", "--disable-usage-stats"],
-                             capture_output=True, text=True, env=env, timeout=120)
-    assert started.returncode == 0, started.stderr[-2000:]
-    try:
+    with ray_head(port) as env:
         out = tmp_path / "render"
         proc = subprocess.Popen(USDCROWD + _render_argv(small_shot, out) + [
             "--executor", "ray", "--address", f"127.0.0.1:{port}", "--workers", "1"],
@@ -229,5 +221,3 @@ def test_a_render_on_a_ray_cluster_kills_its_actors_on_ctrl_c(small_shot, tmp_pa
             time.sleep(0.2)
         assert not _renderers_alive(), "a render actor outlived its command on the cluster"
         assert not partials(out)
-    finally:
-        subprocess.run([str(ray), "stop", "--force"], capture_output=True, env=env, timeout=120)

@@ -41,16 +41,33 @@ def terminate_as_exception():
 @contextlib.contextmanager
 def signals_held(*signums):
     """The signals wait while inside (delivered on leaving). Processes started inside are born with them
-    blocked: the mask survives fork and exec."""
+    blocked: the mask survives fork and exec.
+
+    Blocking them in this thread is not enough: the kernel may hand a signal to another thread (a progress
+    bar's, a writer's), and Python then runs its handler in the main thread at the next check, which a
+    long write makes between two chunks (a child's start-up pickle cut short). So the Python handlers
+    are also deferred: a signal that arrives inside is raised again on leaving.
+    """
+    deferred: list[int] = []
+    handlers = {}
+    try:
+        for signum in signums:
+            handlers[signum] = signal.signal(signum, lambda n, _frame: deferred.append(n))
+    except ValueError:                      # not the main thread: its handlers are not ours to change
+        pass
     try:
         old = signal.pthread_sigmask(signal.SIG_BLOCK, set(signums))
     except (AttributeError, ValueError, OSError):
-        yield
-        return
+        old = None
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        if old is not None:
+            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        for signum, handler in handlers.items():
+            signal.signal(signum, handler)
+        for signum in dict.fromkeys(deferred):
+            signal.raise_signal(signum)
 
 
 def children_deaf_to_ctrl_c():

@@ -496,28 +496,16 @@ def _part_work(conn, layer_paths, scenario, frame, row_sets, authored, default_p
 
 
 def _start_ignoring_sigint(proc) -> None:
-    """Start a part writer deaf to Ctrl-C.
+    """Start a part writer deaf to Ctrl-C and kill while it starts (see :func:`usdcrowd.interrupts.signals_held`).
 
     The terminal sends SIGINT to the whole process group; the coordinator, not
     each worker, decides what to clean up (it terminates them in
     :meth:`CrowdLayerWriter.abort`), and workers must not print tracebacks.
-    SIGINT is blocked, not ignored, while the worker starts: the worker keeps
-    the blocked mask through exec, and a Ctrl-C that arrives meanwhile stays
-    pending for the coordinator instead of being lost.
     """
-    import signal
+    from ..interrupts import children_deaf_to_ctrl_c
 
-    try:
-        # SIGTERM too: raised here mid-start it would cut the worker's start-up data short
-        # (a truncated-pickle traceback); the worker unblocks it first thing.
-        old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
-    except (AttributeError, ValueError, OSError):     # no POSIX signal masks here
+    with children_deaf_to_ctrl_c():
         proc.start()
-        return
-    try:
-        proc.start()
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
 class CrowdLayerWriter:
