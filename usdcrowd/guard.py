@@ -1,24 +1,28 @@
 """What usdcrowd may write: never a user's input, never a file it did not make, one run per folder.
 
 A command run from the command line opens a :func:`session` naming its
-inputs. Within it:
+inputs and outputs. Within it:
 
-- nothing is written onto an input file (or onto a layer an input USD
-  stage uses);
+- nothing is written onto an input file, nor onto a layer, value clip or
+  image an input USD stage uses;
 - an output folder is *claimed*: an advisory lock (``.usdcrowd/lock``,
   ``flock``, released by the OS on any exit, even a kill) keeps a second
-  run out at once, and a folder holding entries usdcrowd did not write is
-  refused unless the session has ``force``;
+  run out at once (and out of folders inside it, or holding it); a folder
+  holding entries usdcrowd did not write is refused unless the session
+  has ``force``, and a folder made for one kind of output (a shot, a
+  render...) is refused for another;
 - each top-level entry usdcrowd writes in an output folder is recorded in
   ``.usdcrowd/written`` (one JSON line per write: a folder's name, or a
-  file's name, size and mtime). A file whose size or mtime no longer match
-  was changed by someone else and is theirs now; a folder usdcrowd made is
-  usdcrowd's with everything in it. Only usdcrowd's entries are ever
-  replaced or removed, ``force`` or not.
+  file's name, size, mtime and the command that wrote it). A file whose
+  size and mtime match none of the versions usdcrowd wrote was changed by
+  someone else and is theirs now; a folder usdcrowd made is usdcrowd's
+  with everything in it. Only usdcrowd's entries are ever replaced or
+  removed, ``force`` or not (``force`` replaces only a file the user named).
 
-Outside a session (the library API, tests) nothing is checked or recorded.
-Worker processes (a local pool, Ray on this machine) find the session in
-the environment variable ``USDCROWD_SESSION``.
+Outside a session (the library API, tests) nothing is checked; a file
+rewritten in a folder that keeps a record is recorded again, so the next
+command does not take it for a user's edit. Worker processes (a local pool,
+Ray) find the session in the environment variable ``USDCROWD_SESSION``.
 """
 
 from __future__ import annotations
@@ -56,7 +60,6 @@ class Session:
     locks: dict = field(default_factory=dict)        # root -> open lock file (this process's)
     in_place: set = field(default_factory=set)       # layers of an input this run may replace (edit_in_place)
     made_state: set = field(default_factory=set)     # folders whose state folder this run created
-    from_env: bool = False                           # a worker process's copy of its command's session
     _records: dict = field(default_factory=dict)     # root -> (bytes read, {name: entry})
 
     # -------------------------------------------------------------- inputs
@@ -167,7 +170,7 @@ def current() -> Session | None:
     if _SESSION is None and os.environ.get(ENV):
         data = json.loads(os.environ[ENV])
         _SESSION = Session(force=data["force"], roots=[Path(r) for r in data["roots"]], command=data["command"],
-                           named={Path(p) for p in data["named"]}, from_env=True)
+                           named={Path(p) for p in data["named"]})
         for path in data["inputs"]:
             _add_input(_SESSION, path, path)
     return _SESSION
