@@ -100,3 +100,20 @@ def ray_head(port: int):
         yield env
     finally:
         subprocess.run([str(ray), "stop", "--force"], capture_output=True, env=env, timeout=120)
+
+
+@contextlib.contextmanager
+def fails_if_hung(seconds: int, what: str):
+    """Within, a hang raises TimeoutError after ``seconds`` instead of blocking the suite (SIGALRM)."""
+    import signal
+
+    def hung(*_):
+        raise TimeoutError(f"{what} hung")
+
+    old = signal.signal(signal.SIGALRM, hung)
+    signal.alarm(seconds)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)

@@ -7,10 +7,8 @@ anything in it, and the inputs unchanged byte for byte.
 
 from __future__ import annotations
 
-import signal
-
 import pytest
-from conftest import cli_museum_shot
+from conftest import cli_museum_shot, fails_if_hung
 from test_guard import digest_tree
 
 from usdcrowd.cli import main
@@ -23,18 +21,8 @@ def inputs(tmp_path_factory):
 
 
 def _contract(capsys, argv, words, out, before, inputs_folder):
-    def _hung(*_):
-        raise TimeoutError(f"usdcrowd {' '.join(argv)} hung")
-
-    old = signal.signal(signal.SIGALRM, _hung)
-    signal.alarm(60)
-    try:
+    with fails_if_hung(60, f"usdcrowd {' '.join(argv)}"):
         code = main(argv)
-    except SystemExit as exc:               # argparse's own exits
-        code = exc.code
-    finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGALRM, old)
     err = capsys.readouterr().err
     assert code == 2, (argv, code, err)
     assert 1 <= len(err.strip().splitlines()) <= 3 and "Traceback" not in err, err

@@ -8,6 +8,8 @@ import signal
 
 import pytest
 
+from conftest import fails_if_hung
+
 from usdcrowd.cli import main
 from usdcrowd.resources import data_dir
 
@@ -22,16 +24,8 @@ def _run(capsys, command, stage, out):
     argv = [command, str(stage)] + [a.format(out=out) for a in COMMANDS[command]] + (
         ["--no-progress"] if command not in ("inspect", "validate") else [])
 
-    def _hung(*_):
-        raise TimeoutError(f"usdcrowd {command} hung on {stage}")
-
-    old = signal.signal(signal.SIGALRM, _hung)
-    signal.alarm(30)
-    try:
+    with fails_if_hung(30, f"usdcrowd {command} on {stage}"):
         code = main(argv)
-    finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGALRM, old)
     err = capsys.readouterr().err
     return code, err
 

@@ -46,7 +46,7 @@ them, the reference converged to the clamped and blurred picture, and the
 error of Cycles' default frame left out what those take away: on the bench frame
 0.000119 against the clamped reference, 0.000167 against the unclamped one
 (the two references differ by 0.000029); Cycles' 64-spp frame without those
-shortcuts: 0.000140 (session 14). Left as Blender has them, as they make
+shortcuts: 0.000140. Left as Blender has them, as they make
 the picture Cycles renders: diffuse and glossy bounces capped at 4 (usdcrowd
 caps a path at 6 of any kind) and a 1.5-pixel Blackman-Harris pixel filter
 (usdcrowd: a 1-pixel box). The caps take noise and time off Cycles'

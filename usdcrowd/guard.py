@@ -485,7 +485,7 @@ def check_remove(path) -> None:
 
 # ------------------------------------------------------------------ output folders
 def claim(folder, what: str | None = None) -> Path:
-    """Make ``folder`` an output folder of this session: checked, locked for this run, recorded.
+    """Make ``folder`` an output folder of the running command: checked, locked for this run, recorded.
 
     ``what`` names the kind of folder (``"shot"``, ``"render"``, ``"dataset"``...):
     a folder made for one kind is refused for another (a dataset written
