@@ -66,6 +66,21 @@ def walking_museum(tmp_path_factory):
                        frames=(1, 12), progress=False).shot
 
 
+@pytest.fixture(scope="module")
+def gl():
+    """A headless OpenGL context; the module is skipped where none can be made (no EGL, no moderngl)."""
+    pytest.importorskip("moderngl")
+    from usdcrowd.errors import UsdcrowdError
+    from usdcrowd.render.preview.context import headless_context
+
+    try:
+        ctx = headless_context()
+    except UsdcrowdError as exc:
+        pytest.skip(str(exc))
+    yield ctx
+    ctx.release()
+
+
 def cli_museum_shot(folder: Path, agents: int, last_frame: int) -> tuple[Path, Path]:
     """A museum scenario and its shot made by the command line, so usdcrowd owns their files.
 

@@ -275,3 +275,121 @@ def Xform "World"
     x, y = frames.position[..., 0], frames.position[..., 1]
     assert not ((np.abs(x) < 0.45) & (np.abs(y) < 5.95)).any()          # never inside the wall
     assert (x[-1] > 0.6).mean() > 0.5                                       # most got past it, around it
+
+
+def _box_mesh(name: str, centre, size, reverse: bool = False) -> str:
+    """A box as a Mesh prim in world coordinates (usda text); ``reverse`` lists its points the other way
+    round (the faces follow), as another exporter may."""
+    corners = np.array([[x, y, z] for z in (0, 1) for y in (-0.5, 0.5) for x in (-0.5, 0.5)])
+    points = np.asarray(centre, dtype=float) + corners * np.asarray(size, dtype=float)
+    quads = np.array([[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]])
+    if reverse:
+        points, quads = points[::-1], 7 - quads
+    return (f'def Mesh "{name}"\n{{\n    int[] faceVertexCounts = {[4] * 6}\n'
+            f'    int[] faceVertexIndices = {quads.ravel().tolist()}\n'
+            f'    point3f[] points = [{", ".join(str(tuple(p.tolist())) for p in points)}]\n}}\n')
+
+
+def _town_layer(path, roots: dict, default: str | None = None) -> None:
+    """A Z-up metre layer with ``roots`` ({root name: [box mesh usda, ...]}) and optionally a defaultPrim."""
+    head = f'    defaultPrim = "{default}"\n' if default else ""
+    body = "".join(f'def Xform "{root}"\n{{\n{textwrap.indent("".join(boxes), "    ")}}}\n'
+                   for root, boxes in roots.items())
+    path.write_text(f'#usda 1.0\n(\n{head}    metersPerUnit = 1\n    upAxis = "Z"\n)\n{body}')
+
+
+def test_a_scenery_without_default_prim_brings_every_root_prim(tmp_path, capsys):
+    """Two root prims and no defaultPrim: the kiosk beside the town blocks walking and is drawn too."""
+    from pxr import Usd
+
+    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario import load_scenario
+    from usdcrowd.scenery import dropped_root_problems
+
+    town = tmp_path / "town.usda"
+    _town_layer(town, {"Town": [_box_mesh("Hall", (14, 9, 0), (4, 6, 5))],
+                       "Kiosk": [_box_mesh("Booth", (-6, -3, 0), (2, 1, 2.5))]})
+    scenario = tmp_path / "scenario.usda"
+    assert main(["new", "dialogue", "-o", str(scenario), "--scenery", str(town)]) == 0
+    assert "scenery" in capsys.readouterr().out
+    obstacles = load_scenario(scenario).obstacles
+    found = {p: (poly, h) for p, poly, h in zip(obstacles.path, obstacles.polygons, obstacles.height)}
+    assert set(found) == {"/World/Scenery/Town/Hall", "/World/Scenery/Kiosk/Booth"}
+    booth, height = found["/World/Scenery/Kiosk/Booth"]
+    np.testing.assert_allclose([*booth.min(0), *booth.max(0)], [-7, -3.5, -5, -2.5], atol=1e-6)
+    assert height == pytest.approx(2.5)
+    hall, _ = found["/World/Scenery/Town/Hall"]
+    np.testing.assert_allclose([*hall.min(0), *hall.max(0)], HALL, atol=1e-6)
+    drawn = {item.path: item for item in ShotScene(scenario).scenery}
+    assert {"/World/Scenery/Town/Hall", "/World/Scenery/Kiosk/Booth"} <= set(drawn)
+    world = drawn["/World/Scenery/Kiosk/Booth"].local_to_world(1)
+    points = drawn["/World/Scenery/Kiosk/Booth"].mesh.vertices @ world[:3, :3] + world[3, :3]
+    np.testing.assert_allclose([*points.min(0), *points.max(0)], [-7, -3.5, 0, -5, -2.5, 2.5], atol=1e-6)
+    assert dropped_root_problems(Usd.Stage.Open(str(scenario))) == []
+
+
+def test_validate_reports_a_reference_that_drops_root_prims(write_stage, tmp_path):
+    """A hand-written scenario naming one root of a file without defaultPrim loses the other: reported."""
+    from pxr import Usd
+
+    from usdcrowd.scenery import dropped_root_problems
+
+    _town_layer(tmp_path / "town.usda", {"Town": [_box_mesh("Hall", (14, 9, 0), (4, 6, 5))],
+                                         "Kiosk": [_box_mesh("Booth", (-6, -3, 0), (2, 1, 2.5))]})
+    _town_layer(tmp_path / "kept.usda", {"Town": [_box_mesh("Hall", (14, 9, 0), (4, 6, 5))],
+                                         "Kiosk": [_box_mesh("Booth", (-6, -3, 0), (2, 1, 2.5))]}, default="Town")
+    stage = write_stage('''
+def Xform "World"
+{
+    def Xform "Scenery"
+    {
+        def "Town" (prepend references = @./town.usda@</Town>)
+        {
+        }
+        def "Declared" (prepend references = @./kept.usda@)
+        {
+        }
+    }
+}
+''')
+    (problem,) = dropped_root_problems(Usd.Stage.Open(str(stage)))
+    file, prim, message = problem
+    assert (file, prim) == (str(stage), "/World/Scenery/Town")
+    assert "/Kiosk" in message and "/Town" not in message.split("root prim(s)")[1] and "\n" not in message
+
+
+# Boxes that overlap on the museum students' spawn disc ((-11, 6), 2 m) and the family's ((-12, -6), 1.5 m):
+# agents spawned inside are pushed out of whichever footprint owns the overlap.
+ORDER_TOWN = [((-11, 6, 0), (1.2, 3.5, 3)), ((-11, 6.2, 0), (3.5, 1.2, 2)), ((-12, -6, 0), (1.5, 3, 2)),
+              ((-12, -6, 0), (3, 1.5, 3)), ((-9.5, 0.5, 0), (1, 2, 4)), ((-9.7, 1, 0), (2, 0.6, 1.2))]
+
+
+def test_the_same_town_with_its_prims_in_another_order_gives_the_same_crowd(tmp_path):
+    """Another exporter writes the same boxes in another order, under other names, their points the other
+    way round: the obstacles and the crowd (same seed) are the same, to a micrometre."""
+    from usdcrowd.scenario import load_scenario
+    from usdcrowd.scenario.crowd import read_crowd
+
+    ground = ('def Mesh "Ground"\n{\n    int[] faceVertexCounts = [4]\n    int[] faceVertexIndices = [0, 1, 2, 3]\n'
+              '    point3f[] points = [(-20, -15, 0), (20, -15, 0), (20, 15, 0), (-20, 15, 0)]\n}\n')
+    order = [3, 1, 5, 0, 2, 4]
+    towns = {"named": [ground] + [_box_mesh(f"Box{k}", *ORDER_TOWN[k]) for k in range(len(ORDER_TOWN))],
+             "exported": [_box_mesh(f"Mesh_{i:03d}", *ORDER_TOWN[k], reverse=True) for i, k in enumerate(order)]
+             + [ground]}
+    crowds, obstacles = {}, {}
+    for name, prims in towns.items():
+        _town_layer(tmp_path / f"{name}.usda", {"root": prims}, default="root")
+        scenario, shot = tmp_path / f"scenario_{name}.usda", tmp_path / f"shot_{name}"
+        assert main(["new", "museum", "-o", str(scenario), "--agents", "40", "--seed", "5",
+                     "--scenery", str(tmp_path / f"{name}.usda")]) == 0
+        obstacles[name] = load_scenario(scenario).obstacles
+        assert main(["simulate", str(scenario), "-o", str(shot), "--frames", "1:96", "--no-progress"]) == 0
+        crowds[name] = read_crowd(shot / "shot.usda")[0].position
+    a, b = obstacles["named"], obstacles["exported"]
+    assert len(a) == len(b) == len(ORDER_TOWN)
+    assert {p.rsplit("/", 1)[1] for p in a.path}.isdisjoint(p.rsplit("/", 1)[1] for p in b.path)
+    for pa, pb in zip(a.polygons, b.polygons):
+        np.testing.assert_array_equal(pa, pb)            # same footprints, same first vertex, same order
+    np.testing.assert_array_equal(a.height, b.height)
+    assert crowds["named"].shape == (96, 40, 3)
+    np.testing.assert_allclose(crowds["exported"], crowds["named"], rtol=0, atol=1e-6)

@@ -30,21 +30,6 @@ def _tool():
 
 
 @pytest.fixture(scope="module")
-def gl():
-    """Skip the module where no OpenGL context can be made."""
-    pytest.importorskip("moderngl")
-    from usdcrowd.errors import UsdcrowdError
-    from usdcrowd.render.preview.context import headless_context
-
-    try:
-        ctx = headless_context()
-    except UsdcrowdError as exc:
-        pytest.skip(str(exc))
-    yield ctx
-    ctx.release()
-
-
-@pytest.fixture(scope="module")
 def tiny_shot(tmp_path_factory, gl):
     """The baseline's tiny shot: four agents walking straight, a block, sun and sky."""
     return _tool().make_tiny_shot(tmp_path_factory.mktemp("tiny"))

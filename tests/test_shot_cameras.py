@@ -70,7 +70,7 @@ def test_cameras_layer_holds_the_authored_camera_agents_with_state_read_by_plain
     """)
     for name in ("ScoutWest", "ScoutEast", "Pier"):
         cam = got[name]
-        assert cam["type"] == "Camera" and cam["samples"] == 240 and cam["order"] == ["!resetXformStack!", "xformOp:transform"]
+        assert cam["type"] == "Camera" and cam["samples"] == 240 and cam["order"] == ["xformOp:transform"]
         assert "CameraAgentAPI" in cam["api"]
         assert set(cam["state"]) <= {"scouting", "tracking"}
     # The Pier camera's target is the boat's arrival (frames 60-840): it waits, then tracks it.
@@ -356,9 +356,11 @@ def test_cameras_on_a_scenario_is_a_one_line_error(capsys):
 
 @pytest.mark.parametrize("up, mpu", [("Z", 1.0), ("Y", 0.01)])
 def test_camera_tracks_are_world_poses_in_the_stages_units_under_a_moved_parent(tmp_path, up, mpu):
-    """A camera agent under a transformed rig, on a Y-up centimetre stage too: plain USD puts it where we said."""
+    """A camera agent under a transformed rig, on a Y-up centimetre stage too: plain USD puts it where we said
+    (its pose authored in the rig's space)."""
     from pxr import Gf, Sdf, Usd, UsdGeom
 
+    from usdcrowd.scenario.parent_space import ParentSpace
     from usdcrowd.scenario.stageio import StageFrame
     from usdcrowd.usd.cameras import write_camera_tracks
 
@@ -378,7 +380,8 @@ def test_camera_tracks_are_world_poses_in_the_stages_units_under_a_moved_parent(
     times = np.array([1.0, 2.0])
     pose = look_at(np.array([[3.0, -10.0, 2.5], [4.0, -9.0, 3.0]]), np.zeros((2, 3)))
     track = model.CameraTrack("/World/Rig/Cam", times, pose, np.full(2, 35.0), 36.0, 20.25, 0.1, 500.0)
-    write_camera_tracks(tmp_path, [track], frame, "World", model.TimeRange(1, 2, 24), defined={"/World/Rig/Cam"})
+    write_camera_tracks(tmp_path, [track], frame, "World", model.TimeRange(1, 2, 24), defined={"/World/Rig/Cam"},
+                        parents=ParentSpace(stage, times))
     shot = Sdf.Layer.CreateNew(str(tmp_path / "shot.usda"))
     shot.subLayerPaths = ["./cameras.usda", "./scenario.usda"]
     shot.Save()

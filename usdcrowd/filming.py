@@ -43,6 +43,7 @@ class ShotCrowd:
     detected_now: bool             # events were missing from the crowd layer and were detected here
     default_prim: str
     frame: object                  # StageFrame
+    parents: object = None         # ParentSpace of the shot stage: cameras and events are authored in it
 
 
 def load_shot(shot_path: str | os.PathLike, seed: int | None = None, progress: bool = True,
@@ -59,9 +60,12 @@ def load_shot(shot_path: str | os.PathLike, seed: int | None = None, progress: b
     from .scenario import load_scenario, open_stage, stage_frame
     from .pipeline import frame_progress
     from .scenario.events import layer_generator, read_events
+    from .scenario.parent_space import ParentSpace
     from .scenario.stageio import time_range
 
-    shot_path = os.fspath(shot_path)
+    from .usd.shot import find_shot
+
+    shot_path = find_shot(shot_path)       # a stage over the shot or a set placing it: the shot itself
     stage = open_stage(shot_path)
     data = dict(stage.GetRootLayer().customLayerData.get("usdcrowd", {}))
     ref = data.get("scenario")
@@ -72,6 +76,9 @@ def load_shot(shot_path: str | os.PathLike, seed: int | None = None, progress: b
                              **({"limits": limits} if limits else {}))
     scenario.time = time_range(stage)
     rows = {p: i for i, p in enumerate(scenario.agents.path)}
+    # Deactivated in the shot: out of sight for every camera (their rows stay, at the origin).
+    for path in _deactivated(stage, rows):
+        scenario.agents.visible[rows[path]] = False
     # Events as the crowd layer and the scenario hold them, without the cameras layer being replaced.
     for layer in stage.GetLayerStack(includeSessionLayers=False):
         if layer_generator(layer) == "usdcrowd cameras":
@@ -94,7 +101,7 @@ def load_shot(shot_path: str | os.PathLike, seed: int | None = None, progress: b
             scenario.fields, positions, scenario.time.codes, scenario.agents.visible, det.scope))
     default_prim = root.GetName() if root else ""
     return ShotCrowd(shot_path, Path(shot_path).parent, scenario, positions, events, detected_now, default_prim,
-                     stage_frame(stage))
+                     stage_frame(stage), ParentSpace(stage, scenario.time.codes))
 
 
 # Frames read back at a time: about this many agent-frames (reading takes
@@ -114,19 +121,25 @@ def _crowd_windows(stage, scenario: model.Scenario, rows: dict[str, int], shot_p
         a, b = t.start + start, t.start + min(start + window, t.n_frames) - 1
         frames, info = read_crowd(stage, frames=(a, b))
         if order is None:
-            order = _scenario_rows(info.path, rows, shot_path)
+            order = _scenario_rows(info.path, rows, shot_path, _deactivated(stage, rows))
         yield _reorder(frames, order, len(rows))
 
 
-def _scenario_rows(paths: list[str], rows: dict[str, int], shot_path: str) -> np.ndarray:
-    """Scenario row of each agent read from the shot; the two must hold the same agents."""
+def _deactivated(stage, rows: dict[str, int]) -> set[str]:
+    """Scenario agents the shot's stronger layers deactivated (a layout artist's edit)."""
+    return {p for p in rows if (prim := stage.GetPrimAtPath(p)) and not prim.IsActive()}
+
+
+def _scenario_rows(paths: list[str], rows: dict[str, int], shot_path: str, deactivated=frozenset()) -> np.ndarray:
+    """Scenario row of each agent read from the shot; the two must hold the same agents, except those
+    the shot deactivated."""
     order = np.array([rows.get(p, -1) for p in paths])
     if len(order) == 0 or (order < 0).any():
         missing = [p for p, r in zip(paths, order) if r < 0][:1]
         raise StageError(f"the shot's crowd does not match its scenario (agent {missing[0] if missing else '?'} "
                          f"unknown)" if missing else "the shot's crowd layer holds no agents", file=shot_path)
-    if len(set(order.tolist())) != len(rows):
-        absent = sorted(set(rows) - set(paths))[:1]
+    if len(set(order.tolist())) != len(rows) - len(deactivated):
+        absent = sorted(set(rows) - set(paths) - set(deactivated))[:1]
         raise StageError(f"the shot's crowd does not match its scenario (agent {absent[0] if absent else '?'} "
                          f"is not in the shot; simulate again)", file=shot_path)
     return order
@@ -165,11 +178,13 @@ def refilm_shot(shot_path: str | os.PathLike, count: int | None = None, static: 
     writer = None
     if sc.detected_now:
         def writer(layer):
-            author_events(layer, sc.events, sc.scenario.agents.path, sc.scenario.agents.agent_id, sc.frame)
+            author_events(layer, sc.events, sc.scenario.agents.path, sc.scenario.agents.agent_id, sc.frame,
+                          parents=sc.parents)
     path = write_camera_tracks(sc.out_dir, tracks, sc.frame, sc.default_prim, sc.scenario.time,
                                defined=set(sc.scenario.cameras.path),
                                extra={"seed": int(sc.scenario.seed if seed is None else seed),
-                                      "events": len(sc.events)}, events_writer=writer, keep_toric=True)
+                                      "events": len(sc.events)}, events_writer=writer, keep_toric=True,
+                               parents=sc.parents)
     return path, tracks, sc
 
 

@@ -478,6 +478,16 @@ def edit_in_place(path) -> None:
     s.in_place.add(full)
 
 
+def merge_into(path) -> None:
+    """Let this run update ``path``, a layer of the user's that usdcrowd keeps up to date but never
+    replaces (a shot's shot.usda: only its metadata and sublayers are usdcrowd's, every opinion in it is
+    kept), even when someone edited it since usdcrowd wrote it."""
+    s = current()
+    if s is not None:
+        check_not_input(Path(os.path.abspath(path)))
+        s.in_place.add(Path(os.path.abspath(path)))
+
+
 def check_remove(path) -> None:
     """Refuse to remove what usdcrowd did not write (inside a session)."""
     check_write(path)
@@ -527,6 +537,11 @@ def claim(folder, what: str | None = None) -> Path:
     foreign = [e.name for e in sorted(os.scandir(full), key=lambda e: e.name)
                if e.name != STATE_DIR and not _partial(e.name) and not s.owns(full, e.name)
                and not (full / e.name / STATE_DIR / RECORD).is_file()]     # an output folder of its own
+    kind = what or s.entries(full).get(".", {}).get("what")
+    for name in USER_LAYERS.get(kind, ()):
+        if name in foreign and name in s.entries(full):     # edited by the user: updated, never replaced
+            foreign.remove(name)
+            merge_into(full / name)
     changed = [n for n in foreign if n in s.entries(full)]
     if changed and not s.force:
         raise UsdcrowdError(f"{', '.join(changed[:3])}{' and more' if len(changed) > 3 else ''} changed since usdcrowd "
@@ -547,6 +562,10 @@ def claim(folder, what: str | None = None) -> Path:
             s.record_folder(full, what)
     return folder
 
+
+# Layers of a folder's kind that are the user's to edit: usdcrowd updates what it owns in them and
+# keeps every other opinion (usd.shot.write_shot), so an edited one is no reason to refuse the folder.
+USER_LAYERS = {"shot": ("shot.usda",)}
 
 # What a folder of each kind held when an earlier usdcrowd wrote it (adopted with --force).
 ADOPTABLE = {

@@ -105,11 +105,13 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     from .plots import trajectory_map
     from .scenario import load_scenario, open_stage, stage_frame
     from .scenario.events import read_events
+    from .scenario.parent_space import ParentSpace
     from . import guard
     from .usd import CAMERAS, CROWD, SHOT, CrowdLayerWriter, write_shot
     from .usd.cameras import write_camera_tracks
     from .usd.crowd_layer import write_group_properties
     from .usd.events import author_events
+    from .usd.shot import earlier_shot
     from .validation import refuse_errors
 
     scenario_path = os.fspath(scenario_path)
@@ -131,14 +133,18 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     authored = {p for p in scenario.agents.path if stage.GetPrimAtPath(p)}
     has_lights = any(p.HasAPI(UsdLux.LightAPI) for p in stage.Traverse())
     output_dir(out_dir, "shot")
+    if earlier_shot(out_dir / SHOT) is not None:
+        guard.merge_into(out_dir / SHOT)            # an earlier shot's: the user's edits in it are kept
     for name in (SHOT, CROWD, CAMERAS, "trajectories.png", "crowd.clips"):
         guard.check_write(out_dir / name)           # before the work, not when the shot is finally written
     scenario_ref = os.path.relpath(os.path.abspath(scenario_path), out_dir.resolve())
 
     # Positions for the cameras wait on disk, not in memory (they grow with the shot).
     store = FrameStore(len(scenario.agents), folder=out_dir)
+    # Everything generated is authored in its parent's space on the scenario stage.
+    space = ParentSpace(stage, scenario.time.codes)
     writer = CrowdLayerWriter(out_dir / CROWD, scenario, sframe, default_prim, scenario_ref, authored,
-                              clip_frames=clip_frames)
+                              clip_frames=clip_frames, parents=space.table(scenario.agents.path))
     write_group_properties(writer.layer, stage, scenario.groups.path)
     detector = EventDetector(scenario.agents.character_type, scenario.agents.visible, scenario.time.fps,
                              scope=f"/{default_prim}/Events" if default_prim else "/Events")
@@ -160,14 +166,15 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
             shot_events = model.EventTable(list(scenario.events) + detected)
             with Sdf.ChangeBlock():
                 n_events = author_events(writer.layer, shot_events, scenario.agents.path, scenario.agents.agent_id,
-                                         sframe)
+                                         sframe, parents=space)
             # The part writers save while the cameras and the picture are made.
             writer.start_saving()
             tracks = film_cameras(scenario, positions, shot_events, default_prim, progress, count=camera_count,
                                   summary=collected.summary())
             cameras = write_camera_tracks(out_dir, tracks, sframe, default_prim, scenario.time,
                                           defined={p for p in scenario.cameras.path},
-                                          extra={"seed": int(scenario.seed), "events": len(shot_events)})
+                                          extra={"seed": int(scenario.seed), "events": len(shot_events)},
+                                          parents=space)
             plot = trajectory_map(_subset(scenario, plotted), np.concatenate(collected.tracks),
                                   out_dir / "trajectories.png",
                                   title=f"{Path(scenario_path).name}: {len(scenario.agents)} agents, "

@@ -1,4 +1,4 @@
-"""The crowd schemas: registration with USD and the names used in code.
+"""The crowd schemas: registration with USD, the names used in code, and what is an agent.
 
 The schemas are codeless (schemas/schema.usda -> generatedSchema.usda and
 plugInfo.json), so registering the plugin folder is all USD needs. It must
@@ -57,4 +57,109 @@ def is_group(prim) -> bool:
 
 
 def is_agent(prim) -> bool:
+    """True for a prim authored as an agent with our schema (CrowdAgentAPI).
+
+    Readers of shots ask :func:`agent_id` instead, which also knows agents
+    that came back from a DCC tool without the schema.
+    """
     return prim.HasAPI(AGENT_API)
+
+
+# Where usdcrowd writes an agent's facts again for tools without our schemas
+# (usd/crowd_layer.py). Blender imports ``userProperties:crowd:agentId`` as an
+# object property named ``crowd:agentId`` and exports it back under that name,
+# so a fact may come back under either.
+USER_PROPERTIES = "userProperties:crowd:"
+
+
+def crowd_value(prim, name: str):
+    """An agent's crowd fact ``name``, wherever the stage keeps it.
+
+    Parameters
+    ----------
+    prim : Usd.Prim
+    name : str
+        The fact without namespace: ``"agentId"``, ``"group"``, ``"role"``...
+
+    Returns
+    -------
+    object or None
+        The value of ``crowd:<name>`` (our schema's attribute, fallback
+        included, or a custom property of that name), else of
+        ``userProperties:crowd:<name>``; None where neither has a value.
+    """
+    for attr_name in ("crowd:" + name, USER_PROPERTIES + name):
+        attr = prim.GetAttribute(attr_name)
+        value = attr.Get() if attr else None
+        if value is not None:
+            return value
+    return None
+
+
+def agent_id(prim) -> int | None:
+    """The track id of ``prim`` if it is an agent, None if it is not.
+
+    The one test every reader of shots uses (renderers, ground truth,
+    ``inspect``, ``validate``). An agent is either
+
+    - a prim with CrowdAgentAPI: its ``crowd:agentId`` (-1 in a scenario
+      that leaves the numbering to usdcrowd), or
+    - a transformable prim without our schemas that carries a whole-number
+      ``crowd:agentId`` or ``userProperties:crowd:agentId`` custom property:
+      a shot exported back out of a DCC tool (Blender writes what it imported
+      as custom properties on the agent's SkelRoot). Its id is the one
+      usdcrowd gave it, so tracks keep their ids through the round trip.
+
+    Neither the prim's place in the hierarchy nor its transform matters.
+    """
+    from pxr import UsdGeom
+
+    if is_agent(prim):
+        value = prim.GetAttribute("crowd:agentId").Get()
+        return -1 if value is None else int(value)
+    if not prim.IsA(UsdGeom.Xformable) or prim.GetTypeName() in _NOT_AGENTS:
+        return None
+    return _whole_number(crowd_value(prim, "agentId"))
+
+
+# Our typed schemas that are transformable but never an agent, whatever they carry.
+_NOT_AGENTS = (GROUP, INTEREST_POINT)
+
+
+def _whole_number(value) -> int | None:
+    """``value`` as an int when it is a whole number (DCC tools may keep integers as doubles), else None."""
+    if isinstance(value, bool) or value is None:
+        return None
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        return None
+    return int(number) if number.is_integer() else None
+
+
+def agent_group(prim) -> str:
+    """Path of an agent's group: its ``crowd:group`` target, else the group path it carries as a custom
+    property (groups do not survive a DCC tool's round trip), else its parent prim."""
+    rel = prim.GetRelationship("crowd:group")
+    targets = rel.GetTargets() if rel else []
+    if targets:
+        return str(targets[0])
+    carried = crowd_value(prim, "group")
+    return str(carried) if carried else str(prim.GetParent().GetPath())
+
+
+def agent_prims(stage) -> list:
+    """(prim, id) of every agent of ``stage`` (:func:`agent_id`), in stage order.
+
+    An agent's descendants are not searched: its skeleton and body are part of it.
+    """
+    from pxr import Usd
+
+    out = []
+    it = iter(Usd.PrimRange(stage.GetPseudoRoot(), Usd.TraverseInstanceProxies()))
+    for prim in it:
+        aid = agent_id(prim)
+        if aid is not None:
+            out.append((prim, aid))
+            it.PruneChildren()
+    return out

@@ -55,6 +55,10 @@ def summarize(path: str | os.PathLike, stage=None, limits=None) -> dict:
             "interest": float(sc.interest.interest[i]), "radius": float(sc.interest.radius[i]),
             "visibility": float(sc.interest.visibility[i])} for i, p in enumerate(sc.interest.path)]
         out["obstacles"] = len(sc.obstacles)
+    else:
+        carried = _carried_agents(stage)
+        if carried:
+            out["agents"] = _carried_summary(carried)
     cams, lights, events = [], [], []
     # Lens attributes are in tenths of the authoring layer's scene unit; reported in millimetres.
     frame = stage_frame(stage)
@@ -137,18 +141,44 @@ def _agents(sc: model.Scenario) -> dict:
 
 def agent_list(path: str | os.PathLike, limits=None) -> list[dict]:
     """Every agent of a stage (scenario or shot): name, prim path, id, group, visible and role, in the
-    scenario's order (what ``inspect --agents`` lists); empty for a stage without a crowd."""
+    scenario's order (what ``inspect --agents`` lists); for a shot back from a DCC tool, its agents known by
+    their custom properties, in stage order; empty for a stage without a crowd."""
     from .scenario import load_scenario, open_stage
 
     path = os.fspath(path)
     stage = open_stage(path)
     if not any(p.GetTypeName() == schema.GROUP or schema.is_agent(p) for p in stage.Traverse()):
-        return []
+        return _carried_agents(stage)
     sc = load_scenario(path, stage=stage, **({"limits": limits} if limits else {}))
     a = sc.agents
     return [{"name": path.rsplit("/", 1)[-1], "path": path, "id": int(a.agent_id[i]),
              "group": sc.groups.path[a.group[i]], "visible": bool(a.visible[i]), "role": model.ROLES[a.role[i]]}
             for i, path in enumerate(a.path)]
+
+
+def _carried_agents(stage) -> list[dict]:
+    """The rows of :func:`agent_list` for agents without our schemas, known by the crowd custom properties
+    they carry (:func:`usdcrowd.schema.agent_id`): a shot exported back out of a DCC tool."""
+    from pxr import Usd, UsdGeom
+
+    time = Usd.TimeCode(stage.GetStartTimeCode())
+    rows = []
+    for prim, aid in schema.agent_prims(stage):
+        if schema.is_agent(prim):
+            continue
+        path = str(prim.GetPath())
+        rows.append({"name": path.rsplit("/", 1)[-1], "path": path, "id": aid, "group": schema.agent_group(prim),
+                     "visible": UsdGeom.Imageable(prim).ComputeVisibility(time) != UsdGeom.Tokens.invisible,
+                     "role": str(schema.crowd_value(prim, "role") or "member")})
+    return rows
+
+
+def _carried_summary(agents: list[dict]) -> dict:
+    """:func:`_agents`'s summary of agents known only by their custom properties (who leads whom is lost)."""
+    ids = [a["id"] for a in agents]
+    return {"count": len(agents), "visible": sum(a["visible"] for a in agents),
+            "roles": dict(Counter(a["role"] for a in agents)), "personality": {}, "ids": [min(ids), max(ids)],
+            "withLeader": 0, "customProperties": True}
 
 
 def format_agents(agents: list[dict]) -> str:
@@ -175,6 +205,17 @@ def _plain(v):
     return v if isinstance(v, (int, bool)) else str(v)
 
 
+def _agents_line(a: dict) -> str:
+    """The ``agents`` line of :func:`format_summary`."""
+    if not a["count"]:
+        return "agents  0"
+    if a.get("customProperties"):
+        return (f"agents  {a['count']} ({a['visible']} visible), ids {a['ids'][0]}-{a['ids'][1]}, roles {a['roles']}, "
+                f"known by their custom properties (names: inspect --agents; what was lost: validate)")
+    return (f"agents  {a['count']} ({a['visible']} visible), ids {a['ids'][0]}-{a['ids'][1]}, "
+            f"roles {a['roles']}, {a['withLeader']} follow a leader (names: inspect --agents)")
+
+
 def format_summary(s: dict) -> str:
     """Render :func:`summarize`'s data as the text ``inspect`` prints."""
     t = s["time"]
@@ -193,10 +234,7 @@ def format_summary(s: dict) -> str:
             if "speed" in res:
                 bits.append(f"speed={res['speed'][0]:g}-{res['speed'][1]:g} m/s")
             lines.append(f"  {name:<34} {g['agents']:>6} agents ({g['agentsInTree']} in tree)  " + " ".join(bits))
-        a = s["agents"]
-        lines.append(f"agents  {a['count']} ({a['visible']} visible), ids {a['ids'][0]}-{a['ids'][1]}, "
-                     f"roles {a['roles']}, {a['withLeader']} follow a leader (names: inspect --agents)"
-                     if a["count"] else "agents  0")
+        lines.append(_agents_line(s["agents"]))
         lines.append(f"layers  {len(s['behaviorLayers'])} behavior layer(s)")
         for f in s["behaviorLayers"]:
             lines.append(f"  {f['path']}  {f['meaning']} ({f['generator']}), extent {f['extent']}, influence {f['influence']:g}")
@@ -205,6 +243,8 @@ def format_summary(s: dict) -> str:
             lines.append(f"  {p['path']}  at {p['position']}, interest {p['interest']:g}, radius {p['radius']:g} m, "
                          f"visibility {p['visibility']:g}")
         lines.append(f"scenery {s['obstacles']} obstacle(s)")
+    elif "agents" in s:
+        lines.append(_agents_line(s["agents"]))
     lines.append(f"cameras {len(s['cameras'])}")
     for c in s["cameras"]:
         lines.append(f"  {c['path']}  {c['focalLengthMm']:.4g} mm, aperture {c['apertureMm'][0]:.4g}x"

@@ -83,13 +83,15 @@ def new_scenario(template: str, out: str | os.PathLike, agents: int | None = Non
     the new stage so its relative asset paths keep working. With ``scenery``
     (a USD file from a DCC tool, any up axis and units) the template's own
     scenery is replaced by a reference to it at ``/World/Scenery``, with the
-    transform its axes and units need (:func:`usdcrowd.scenery.place_scenery`);
-    when it brings lights, the template's are dropped.
+    transform its axes and units need (:func:`usdcrowd.scenery.place_scenery`),
+    one child per root prim of the file; when it brings lights, the template's
+    are dropped.
 
     Returns
     -------
     dict
-        ``{"path", "agents", "seed", "assets"}``.
+        ``{"path", "agents", "seed", "assets", "scenery_roots"}`` (``scenery_roots``: names of the
+        scenery's root prims referenced under ``/World/Scenery``, empty without ``scenery``).
     """
     from pxr import Sdf, Usd
 
@@ -129,9 +131,10 @@ def new_scenario(template: str, out: str | os.PathLike, agents: int | None = Non
                         assets.append((source_file, out.parent / rel))
     _, n_authored, clones, _ = _cast(stage)
     total = n_authored + int(clones.sum())
+    roots = []
     if scenery is not None:
         del stage           # an open stage would try to compose the reference from an anonymous layer
-        _replace_scenery(layer, scenery, out)
+        roots = _replace_scenery(layer, scenery, out)
     with atomic_path(out) as tmp:
         if not layer.Export(str(tmp)):
             raise UsdcrowdError("could not be written", file=str(out))
@@ -141,11 +144,15 @@ def new_scenario(template: str, out: str | os.PathLike, agents: int | None = Non
                 guard.make_dir(dest.parent)
                 shutil.copyfile(source_file, dest)
                 guard.wrote(dest)
-    return {"path": str(out), "agents": total, "seed": crowd.get("seed"), "assets": [str(d) for _, d in assets]}
+    return {"path": str(out), "agents": total, "seed": crowd.get("seed"), "assets": [str(d) for _, d in assets],
+            "scenery_roots": roots}
 
 
-def _replace_scenery(layer, scenery, out: Path) -> None:
-    """The DCC scenery in place of the template's (and its lights in place of the template's, if any)."""
+def _replace_scenery(layer, scenery, out: Path) -> list[str]:
+    """The DCC scenery in place of the template's (and its lights in place of the template's, if any).
+
+    Returns the names of the scenery's root prims, each referenced under the template's Scenery.
+    """
     from .scenery import place_scenery
 
     root = f"/{layer.defaultPrim}" if layer.defaultPrim else "/World"
@@ -155,3 +162,4 @@ def _replace_scenery(layer, scenery, out: Path) -> None:
     placed = place_scenery(layer, scenery, f"{root}/Scenery", out.parent)
     if placed["lights"] and parent and "Lights" in parent.nameChildren:
         del parent.nameChildren["Lights"]
+    return placed["roots"]

@@ -437,12 +437,14 @@ def _camera_track(path: str, times, m: np.ndarray, focal_length: float, aspect: 
 
 def _author(scene, track, result, signals: TargetSignals, behavior: str, shot_size: str, smooth: bool,
             extra: dict | None = None) -> str:
+    from .scenario.parent_space import ParentSpace
     from .usd.cameras import add_camera
 
-    return add_camera(Path(scene.path).parent / CAMERAS_LAYER, track, {
-        "behavior": behavior, "shot_size": shot_size, "smoothed": smooth,
-        "target_a": signals.target_a, "target_b": signals.target_b,
-        "p_a": result.p_a, "p_b": result.p_b, "theta": result.theta, "phi": result.phi, **(extra or {})})
+    intent = {"behavior": behavior, "shot_size": shot_size, "smoothed": smooth,
+              "target_a": signals.target_a, "target_b": signals.target_b,
+              "p_a": result.p_a, "p_b": result.p_b, "theta": result.theta, "phi": result.phi, **(extra or {})}
+    return add_camera(Path(scene.path).parent / CAMERAS_LAYER, track, intent,
+                      parents=ParentSpace(scene.stage, track.times))
 
 
 # ------------------------------------------------------------------ learned behaviors (section 5)

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import schema
-from .errors import UsdcrowdError
+from .scenario.namespace import stage_path
 from .scenario.samples import sample_values
 
 # USD validators that judge packaging for delivery formats, not stages in a
@@ -206,7 +206,8 @@ def schema_problems(stage, source: str) -> list[Problem]:
                 add(prim, "", "ToricCameraAPI is applied to a prim that is not a Camera")
             for name in ("crowd:toric:targetA", "crowd:toric:targetB"):
                 attr = prim.GetAttribute(name)
-                for target in {str(attr.Get(t)) for t in (attr.GetTimeSamples() or [None])} if attr else ():
+                for target in {stage_path(attr, str(attr.Get(t)), t)
+                               for t in (attr.GetTimeSamples() or [None])} if attr else ():
                     t = stage.GetPrimAtPath(target) if target.startswith("/") else None
                     if target and not (t and schema.is_agent(t)):
                         add(prim, name, f"target {target} is not an agent of this stage")
@@ -332,9 +333,127 @@ def scenario_problems(stage, source: str, limits=None) -> list[Problem]:
     return [Problem(e.file or source, e.prim or "", e.attribute or "", e.message, "usdcrowd") for e in found]
 
 
+def round_trip_problems(stage, source: str) -> list[Problem]:
+    """What a shot exported back out of a DCC tool has lost, and what it still lets usdcrowd do.
+
+    Its agents have no CrowdAgentAPI: they are known by the crowd custom
+    properties they carry (:func:`usdcrowd.schema.agent_id`). What they lost
+    is a warning (inspect, render and the ground truth still work); ids that
+    no longer tell agents apart are errors, as for any agent.
+    """
+    agents = schema.agent_prims(stage)
+    carried = [prim for prim, _ in agents if not schema.is_agent(prim)]
+    found = _characters_without_ids(stage, agents)
+    if carried:
+        found += [(carried[0], "crowd:agentId",
+                   f"{len(carried)} agent(s) without CrowdAgentAPI, known by the crowd:agentId they carry as a "
+                   f"custom property (a shot exported back out of a DCC tool): inspect, render and the ground truth "
+                   f"read their ids, groups and roles; simulate, cameras and events need the usdcrowd shot",
+                   "warning")]
+        found += _lost_by_round_trip(stage, carried) + _carried_id_problems(agents)
+    return [Problem(source, str(prim.GetPath()) if prim else "", attr, msg, "usdcrowd", severity)
+            for prim, attr, msg, severity in found]
+
+
+def _characters_without_ids(stage, agents: list) -> list[tuple]:
+    """(prim, attribute, message, "warning") for usdcrowd's characters that are no agent: a SkelAnimation of
+    our rig's joints outside every agent, as a DCC tool exports them without custom properties (nothing
+    says who they are: they get no ground truth)."""
+    from pxr import UsdSkel
+
+    from .character import rig
+
+    inside = tuple(str(prim.GetPath()) + "/" for prim, _ in agents)
+    lost = [p for p in stage.Traverse() if p.IsA(UsdSkel.Animation)
+            and tuple(UsdSkel.Animation(p).GetJointsAttr().Get() or ()) == rig.JOINTS
+            and not str(p.GetPath()).startswith(inside)]
+    if not lost:
+        return []
+    return [(lost[0], "", f"{len(lost)} character(s) animated with usdcrowd's skeleton carry no crowd:agentId, so "
+                          f"they are no agents and get no ground truth (exported without custom properties?)",
+             "warning")]
+
+
+def _lost_by_round_trip(stage, carried: list) -> list[tuple]:
+    """(prim, attribute, message, "warning") for what agents known by custom properties no longer have:
+    their groups, per-frame states, leaders, and (when exported without it) their animation."""
+    from .render.scene import skeleton_and_animation
+
+    out = []
+    groups = sorted({schema.agent_group(p) for p in carried} - {str(p.GetPath()) for p in stage.Traverse()
+                                                                 if schema.is_group(p)})
+    if groups:
+        out.append((None, "", f"the agents' groups ({', '.join(groups[:3])}{', ...' if len(groups) > 3 else ''}) "
+                              f"are no CrowdGroup here: their crowd:* attributes are custom properties that nothing "
+                              f"inherits", "warning"))
+    held = [p for p in carried if any(a.GetName().startswith("crowd:state:") and not a.GetNumTimeSamples()
+                                      for a in p.GetAttributes())]
+    if held:
+        out.append((held[0], "crowd:state:*", f"{len(held)} agent(s) hold one crowd:state:* value each, no longer "
+                                              f"sampled per frame: the ground truth leaves their states out",
+                    "warning"))
+    leaders = [p for p in carried if str(schema.crowd_value(p, "role")) in ("leader", "invisibleLeader")]
+    if leaders and not any(p.GetRelationship("crowd:leader") for p in carried):
+        out.append((leaders[0], "crowd:leader", "who follows which leader (crowd:leader) is gone", "warning"))
+    still = [p for p in carried if skeleton_and_animation(p)[1] is None]
+    if still:
+        out.append((still[0], "skel:animationSource", f"{len(still)} agent(s) have no SkelAnimation bound to their "
+                                                      f"skeleton, so nothing renders them (export with animation: "
+                                                      f"Blender's Animation box)", "warning"))
+    return out
+
+
+def _carried_id_problems(agents: list) -> list[tuple]:
+    """(prim, "crowd:agentId", message, "error") for carried ids that are no track id or repeat another agent's
+    (Blender's duplicate copies an object's custom properties)."""
+    from .scenario.ranges import range_problem
+
+    out, seen = [], {}
+    for prim, aid in agents:
+        if not schema.is_agent(prim):            # the schema's own agents are checked by schema_problems
+            problem = range_problem("agentId", aid) or ("-1 (numbered automatically) means nothing once the shot "
+                                                        "is made: the agent lost its track id" if aid == -1 else None)
+            if not problem and aid in seen:
+                problem = f"agent id {aid} is also used by {seen[aid]}"
+            if problem:
+                out.append((prim, "crowd:agentId", problem, "error"))
+        seen.setdefault(aid, str(prim.GetPath()))
+    return out
+
+
+def dropped_root_problems(stage) -> list[Problem]:
+    """Warnings for a scenery file without a defaultPrim referenced for only some of its root prims (a
+    warning: scenarios written before every root was brought in still simulate)."""
+    from .scenery import dropped_root_problems as found
+
+    return [Problem(f, prim, "", message, "usdcrowd", "warning") for f, prim, message in found(stage)]
+
+
+def fallback_problems(stage, source: str) -> list[Problem]:
+    """A warning when the stage uses our typed prims from another layer (it references or sublayers a
+    shot or a scenario) and its root layer lacks their ``fallbackPrimTypes``: USD reads them only from
+    the root layer, and without them Blender drops the crowd's groups and with them the agents' parent."""
+    root = stage.GetRootLayer()
+    have = dict(root.pseudoRoot.GetInfo("fallbackPrimTypes")) if root.pseudoRoot.HasInfo("fallbackPrimTypes") else {}
+    missing = {}
+    for prim in stage.Traverse():
+        kind = prim.GetTypeName()
+        if kind in schema.FALLBACK_PRIM_TYPES and kind not in have and kind not in missing:
+            if prim.GetPrimStack()[-1].layer != root:       # defined elsewhere: the stage brings it in
+                missing[kind] = str(prim.GetPath())
+    if not missing:
+        return []
+    return [Problem(source, "", "fallbackPrimTypes",
+                    f"uses {', '.join(sorted(missing))} prims (e.g. {next(iter(missing.values()))}) without the "
+                    f"fallbackPrimTypes that tell tools without usdcrowd's schemas what they are: Blender drops "
+                    f"them and their agents' parent; `usdcrowd place` writes them", "usdcrowd", "warning")]
+
+
 def stage_problems(stage, source: str) -> list[Problem]:
-    """What validate finds besides the scenario reader: USD's validators, value clips, units, schema rules."""
-    return usd_problems(stage, source) + clip_problems(stage) + frame_problems(stage) + schema_problems(stage, source)
+    """What validate finds besides the scenario reader: USD's validators, value clips, units, schema rules, and what
+    a round trip through a DCC tool lost."""
+    return (usd_problems(stage, source) + clip_problems(stage) + frame_problems(stage) + schema_problems(stage, source)
+            + round_trip_problems(stage, source) + fallback_problems(stage, source) + dropped_root_problems(stage))
 
 
 def refuse_errors(stage, source: str) -> None:

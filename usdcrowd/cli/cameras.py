@@ -41,9 +41,12 @@ def run(args) -> int:
     from pathlib import Path
 
     from .. import guard
+    from ..usd.shot import find_shot
     from ..filming import refilm_shot
     from ..usd.cameras import CAMERAS, cameras_in
 
+    # A stage over the shot, or a set placing it: its cameras are the shot's, authored in its space.
+    args.shot = find_shot(args.shot)
     guard.edit_in_place(Path(args.shot).parent / CAMERAS)
 
     path, tracks, sc = refilm_shot(args.shot, count=args.count, static=args.static, seed=args.seed,

@@ -76,6 +76,7 @@ def run(args) -> int:
     import numpy as np
 
     from .. import guard
+    from ..usd.shot import find_shot
     from ..cameras.behaviors import Behavior
     from ..errors import UsdcrowdError
     from ..toric_filming import PairSpan, frame_shot
@@ -100,6 +101,8 @@ def run(args) -> int:
     width, height = args.resolution or (1920, 1080)
     from ..usd.cameras import CAMERAS
 
+    # A stage over the shot, or a set placing it: its cameras are the shot's, authored in its space.
+    args.shot = find_shot(args.shot)
     guard.edit_in_place(Path(args.shot).parent / CAMERAS)
     if args.like:
         from ..toric_filming import frame_like, read_reference

@@ -14,7 +14,8 @@ def add_parser(sub):
     p.add_argument("-o", "--output", required=True, help="the new stage (.usda, .usdc or .usd)")
     p.add_argument("--agents", type=int_at_least(1), help="total number of agents (clones are rescaled per group)")
     p.add_argument("--scenery", metavar="USD", help="a DCC tool's scenery (any up axis and units) in place of the "
-                                                   "template's: referenced with the transform it needs")
+                                                   "template's: each of its root prims referenced with the "
+                                                   "transform it needs")
     add_seed(p)
     add_limits(p)
     add_force(p)
@@ -31,6 +32,8 @@ def run(args) -> int:
                             attribute="--agents")
     info = new_scenario(args.template, args.output, args.agents, args.seed, scenery=args.scenery)
     print(f"wrote {info['path']}: template {args.template}, {info['agents']} agents, seed {info['seed']}")
+    if info["scenery_roots"]:
+        print(f"  scenery {args.scenery}: {', '.join(info['scenery_roots'])}")
     for asset in info["assets"]:
         print(f"  asset {asset}")
     return 0

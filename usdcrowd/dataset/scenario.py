@@ -199,6 +199,7 @@ def prepare_sequence(plan: dict, spec, seq_dir: str | os.PathLike) -> PreparedSe
     from ..pipeline import simulate_shot
     from ..render.scene import ShotScene
     from ..toric_filming import frame_shot
+    from ..scenario.parent_space import ParentSpace
     from ..usd.cameras import add_camera
 
     seq_dir = Path(seq_dir)
@@ -220,7 +221,7 @@ def prepare_sequence(plan: dict, spec, seq_dir: str | os.PathLike) -> PreparedSe
     aspect = plan["render"]["resolution"][0] / plan["render"]["resolution"][1]
     for k, cam in enumerate(plan["static"]):
         track = _static_track(scene, k, cam, times, aspect)
-        add_camera(r.cameras, track, None)
+        add_camera(r.cameras, track, None, parents=ParentSpace(scene.stage, track.times))
         cameras.append((track.path, "static"))
     if plan["toric"]:
         toric = plan["toric"]

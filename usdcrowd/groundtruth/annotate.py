@@ -65,6 +65,7 @@ class AgentMetadata:
         """Read groups, leaders, roles, behaviours and events from a ShotScene's stage."""
         from pxr import Usd
 
+        from .. import schema
         from ..scenario.events import read_events
         from ..scenario.stageio import time_range
 
@@ -75,8 +76,7 @@ class AgentMetadata:
             prim = stage.GetPrimAtPath(path)
 
             def token(name, default=None):
-                a = prim.GetAttribute(name)
-                v = a.Get() if a else None
+                v = schema.crowd_value(prim, name)      # also where a DCC tool's export keeps it
                 return str(v) if v is not None else default
 
             def target(name):
@@ -85,13 +85,11 @@ class AgentMetadata:
                 return str(t[0]) if t else None
 
             leader = target("crowd:leader")
-            by_path[path] = {"group": target("crowd:group") or str(prim.GetParent().GetPath()),
+            by_path[path] = {"group": schema.agent_group(prim),
                              "leader": ids.get(leader) if leader else None, "leader_path": leader,
-                             "role": token("crowd:role", "member"), "behavior": token("crowd:behavior"),
-                             "character_type": token("crowd:characterType", "human")}
-            queries[path] = {name: Usd.AttributeQuery(prim.GetAttribute(f"crowd:state:{name}"))
-                             for name in ("behavior", "animClass", "health")
-                             if prim.GetAttribute(f"crowd:state:{name}")}
+                             "role": token("role", "member"), "behavior": token("behavior"),
+                             "character_type": token("characterType", "human")}
+            queries[path] = {name: Usd.AttributeQuery(attr) for name, attr in _state_attributes(prim)}
         rows = {p: i for i, p in enumerate(shot.agent_paths)}
         events = read_events(stage, rows, time_range(stage), agent_ids=shot._agent_static[1])
         return cls(by_path, queries, events, rows)
@@ -108,6 +106,23 @@ class AgentMetadata:
         mine = self._per_time[time][row] if row is not None else []
         d["events"] = [{"path": self.events[i].path, "kind": EVENT_KINDS[self.events[i].kind]} for i in mine]
         return d
+
+
+def _state_attributes(prim) -> list[tuple[str, object]]:
+    """(name, attribute) of an agent's ``crowd:state:*`` tokens that say its state at each frame.
+
+    A shot back from a DCC tool keeps them as custom properties holding one
+    value (the state where the tool read them), which is not the agent's state
+    at the other frames: those are left out (``validate`` warns of it).
+    """
+    from .. import schema
+
+    out = []
+    for name in ("behavior", "animClass", "health"):
+        attr = prim.GetAttribute(f"crowd:state:{name}")
+        if attr and (schema.is_agent(prim) or attr.GetNumTimeSamples()):
+            out.append((name, attr))
+    return out
 
 
 def _box(x0, y0, x1, y1) -> list[float]:

@@ -24,6 +24,7 @@ from ..geometry import MeshData, mesh_of
 # The shared types live in the pure core; imported here for renderers and old imports.
 from ..poses import AgentPoses
 from ..shading import SCENERY_ID_BASE, Light, Material, distant_illuminance
+from ..scenario.stageio import unpacked
 from ..scenery import camera_lens
 from ..view import CameraView
 
@@ -61,15 +62,24 @@ class ShotScene:
 
     def __init__(self, path: str | os.PathLike, stage=None):
         from ..scenario import open_stage, stage_frame
+        from ..scenario.stageio import time_range
 
         self.path = os.fspath(path)
         self.stage = stage or open_stage(self.path)
         self.frame = stage_frame(self.stage)
         self._to_canonical = self.frame.to_canonical
         self._xf_caches: dict[float, object] = {}
-        self.time_codes = np.arange(self.stage.GetStartTimeCode(), self.stage.GetEndTimeCode() + 0.5)
+        # The root layer's frames, or the shot's under a layer that moves or edits it.
+        time = time_range(self.stage) if self._has_time_range() else None
+        self.time_codes = time.codes if time is not None else np.arange(self.stage.GetStartTimeCode(),
+                                                                         self.stage.GetEndTimeCode() + 0.5)
         self.fps = self.stage.GetTimeCodesPerSecond()
         self._scan()
+
+    def _has_time_range(self) -> bool:
+        """Whether the root layer or a sublayer of it authors the frames (else USD's 0-0 stands)."""
+        return any(layer.HasStartTimeCode() and layer.HasEndTimeCode()
+                   for layer in self.stage.GetLayerStack(includeSessionLayers=False))
 
     # ------------------------------------------------------------- traversal
     def _scan(self) -> None:
@@ -83,7 +93,7 @@ class ShotScene:
             if prim.IsA(UsdGeom.Imageable) and UsdGeom.Imageable(prim).GetPurposeAttr().Get() in ("guide", "proxy"):
                 it.PruneChildren()
                 continue
-            if schema.is_agent(prim):
+            if schema.agent_id(prim) is not None:
                 self._agent_prims.append(prim)
                 it.PruneChildren()
             elif prim.IsA(UsdGeom.Camera):
@@ -198,64 +208,55 @@ class ShotScene:
     @cached_property
     def body(self):
         """The shared skinned body (points, faces, joint indices and weights) read from the stage."""
-        from pxr import UsdGeom, UsdSkel
-
         from ..character.body import build_body
 
-        for prim in self._agent_prims:
-            body = prim.GetChild("Body")
-            if body and body.IsA(UsdGeom.Mesh):
-                mesh = UsdGeom.Mesh(body)
-                binding = UsdSkel.BindingAPI(body)
-                counts = np.array(mesh.GetFaceVertexCountsAttr().Get())
-                if len(counts) and np.all(counts == 3):
-                    k = binding.GetJointIndicesPrimvar().GetElementSize()
-                    points = np.array(mesh.GetPointsAttr().Get(), dtype=np.float32)
-                    faces = np.array(mesh.GetFaceVertexIndicesAttr().Get(), dtype=np.int32).reshape(-1, 3)
-                    regions, roughness = _body_dress(mesh, len(points), faces)
-                    return _Body(points, faces,
-                                 np.array(binding.GetJointIndicesAttr().Get(), dtype=np.int32).reshape(-1, k),
-                                 np.array(binding.GetJointWeightsAttr().Get(), dtype=np.float32).reshape(-1, k),
-                                 regions, roughness)
+        for agent in self._agent_rigs:
+            body = _read_body(agent) if agent.body is not None else None
+            if body is not None:
+                if self._vertex_colours is not None:        # colours flattened per vertex by a DCC tool
+                    body.regions = self._vertex_colours[0]
+                return body
         b = build_body()
         # No body on the stage, so no palettes either: one colour per agent.
         return _Body(b.points, b.face_vertex_indices.reshape(-1, 3), b.joint_indices, b.joint_weights,
                      np.zeros(len(b.points), np.int32), None)
 
     @cached_property
-    def _agent_queries(self):
-        from pxr import Usd, UsdSkel
+    def _agent_rigs(self) -> list[_AgentRig]:
+        """Where each animated agent's pose and body live (agents without an animation are not drawn)."""
+        return [r for r in (_rig_of(prim) for prim in self._agent_prims) if r is not None]
 
-        rows = []
-        for prim in self._agent_prims:
-            src = UsdSkel.BindingAPI(prim).GetAnimationSourceRel().GetTargets()
-            anim = UsdSkel.Animation(self.stage.GetPrimAtPath(src[0])) if src else None
-            if not anim:
-                continue
-            rows.append((prim, Usd.AttributeQuery(anim.GetRotationsAttr()),
-                         Usd.AttributeQuery(anim.GetTranslationsAttr()), Usd.AttributeQuery(anim.GetScalesAttr())))
-        return rows
+    @cached_property
+    def _vertex_colours(self):
+        """(regions, palettes) when the bodies' colours come one per vertex, else None.
+
+        usdcrowd authors a body's colours as an indexed primvar: one colour per
+        region of the palette (:mod:`usdcrowd.character.appearance`). A DCC tool
+        exports them flattened, one per vertex: the regions are found again as
+        the vertices that share their colour on every agent.
+        """
+        first = next((a.body for a in self._agent_rigs if a.body is not None), None)
+        flat = _flat_colours(first) if first is not None else None
+        if flat is None:
+            return None
+        n_points = len(flat)
+        colours = np.stack([_colours_per_vertex(a, n_points) for a in self._agent_rigs])   # (n, v, 3)
+        flat = np.ascontiguousarray(colours.transpose(1, 0, 2).reshape(n_points, -1))
+        _, firsts, regions = np.unique(flat, axis=0, return_index=True, return_inverse=True)
+        rows = _region_order(regions.reshape(-1))
+        return np.argsort(rows)[regions.reshape(-1)].astype(np.int32), colours[:, firsts[rows]]
 
     @cached_property
     def _agent_static(self):
-        from pxr import Gf
-
-        from ..character.appearance import fit_problem
-        from ..errors import StageError
+        from .. import schema
 
         rows = int(self.body.regions.max()) + 1 if len(self.body.regions) else 1
-        paths, ids, palettes = [], [], []
-        for prim, *_ in self._agent_queries:
-            paths.append(str(prim.GetPath()))
-            ids.append(prim.GetAttribute("crowd:agentId").Get())
-            c = prim.GetAttribute("crowd:color").Get() or Gf.Vec3f(0.6, 0.6, 0.6)
-            body = prim.GetChild("Body")
-            dc = body.GetAttribute("primvars:displayColor").Get() if body else None
-            dc = np.array(dc if dc else [c], dtype=np.float32).reshape(-1, 3)
-            problem = fit_problem(len(dc), rows)
-            if problem:
-                raise StageError.at(body, "primvars:displayColor", problem)
-            palettes.append(np.broadcast_to(dc, (rows, 3)))       # one colour dresses the whole body
+        paths = [str(a.prim.GetPath()) for a in self._agent_rigs]
+        ids = [schema.agent_id(a.prim) for a in self._agent_rigs]
+        if self._vertex_colours is not None:
+            palettes = self._vertex_colours[1]
+        else:
+            palettes = [_palette_of(a, rows) for a in self._agent_rigs]
         palettes = np.array(palettes, dtype=np.float32).reshape(-1, rows, 3)
         return paths, np.array(ids, dtype=np.int32), palettes
 
@@ -295,14 +296,17 @@ class ShotScene:
         visible = np.zeros(n, dtype=bool)
         t = float(time)
         for i, k in enumerate(rows):
-            prim, rq, tq, sq = self._agent_queries[k]
-            r, tr, s = rq.Get(t), tq.Get(t), sq.Get(t)
-            rot[i] = [(q.GetReal(), *q.GetImaginary()) for q in r]
-            trans[i] = np.array(tr)
+            agent = self._agent_rigs[k]
+            r, tr, s = agent.rotations.Get(t), agent.translations.Get(t), agent.scales.Get(t)
+            order = agent.order                 # the animation's joints in rig.JOINTS order
+            rot[i] = [(q.GetReal(), *q.GetImaginary()) for q in (r[int(j)] for j in order)]
+            trans[i] = np.array(tr)[order]
             if s:
-                scale[i] = np.array(s)
-            root[i] = self._world(prim, t)
-            visible[i] = UsdGeom.Imageable(prim).ComputeVisibility(t) != UsdGeom.Tokens.invisible
+                scale[i] = np.array(s)[order]
+            # The joints live in the Skeleton's space (UsdSkel), which a DCC tool may move under transforms
+            # of its own; usdcrowd's Skeleton sits untransformed under the agent.
+            root[i] = self._world(agent.skeleton, t)
+            visible[i] = UsdGeom.Imageable(agent.prim).ComputeVisibility(t) != UsdGeom.Tokens.invisible
         bad = ~(np.isfinite(rot).all(axis=(1, 2)) & np.isfinite(trans).all(axis=(1, 2))
                 & np.isfinite(scale).all(axis=(1, 2)) & np.isfinite(root).all(axis=(1, 2)))
         if bad.any():
@@ -316,8 +320,8 @@ class ShotScene:
         """A damaged animation (NaN or inf) is one line naming its layer, prim, attribute and time."""
         from ..errors import StageError
 
-        _prim, rq, tq, sq = self._agent_queries[row]
-        for values, query in ((rot[i], rq), (trans[i], tq), (scale[i], sq)):
+        agent = self._agent_rigs[row]
+        for values, query in ((rot[i], agent.rotations), (trans[i], agent.translations), (scale[i], agent.scales)):
             if not np.isfinite(values).all():
                 attr = query.GetAttribute()
                 raise StageError.at(attr.GetPrim(), attr.GetName(), f"not a finite value at time {t:g}")
@@ -338,6 +342,245 @@ class _Body:
     joint_weights: np.ndarray   # (v, k)
     regions: np.ndarray         # (v,) int32 row of an agent's palette (AgentPoses.palette)
     roughness: np.ndarray | None  # (f,) float32 per face, from the materials bound to the body's subsets
+
+
+@dataclass
+class _AgentRig:
+    """Where one agent's pose and body live on the stage.
+
+    usdcrowd binds an agent's Skeleton and SkelAnimation on its SkelRoot,
+    with the Skeleton and the Body as its children; a DCC tool may bind them
+    elsewhere (Blender: the animation on the Skeleton, the Mesh bound to it,
+    each under a transform of its own). UsdSkel's bindings say which is which.
+    """
+
+    prim: object            # the agent (schema.agent_id)
+    skeleton: object        # its Skeleton prim: the space of the joints
+    body: object | None     # the Mesh skinned by that skeleton, None if it has none
+    rotations: object       # Usd.AttributeQuery of the SkelAnimation's rotations
+    translations: object
+    scales: object
+    order: np.ndarray       # (3,) row of each of rig.JOINTS in the animation's joints
+
+
+def _rig_of(prim) -> _AgentRig | None:
+    """An agent's :class:`_AgentRig`, or None when no animation is bound to its skeleton.
+
+    Raises
+    ------
+    StageError
+        The animation lacks one of usdcrowd's joints.
+    """
+    from pxr import Usd
+
+    skeleton, anim = skeleton_and_animation(prim)
+    if anim is None:
+        return None
+    order = _rig_rows(anim.GetJointsAttr().Get() or [], anim.GetPrim(), "joints")
+    return _AgentRig(prim, skeleton, _skinned_mesh(prim, skeleton), Usd.AttributeQuery(anim.GetRotationsAttr()),
+                     Usd.AttributeQuery(anim.GetTranslationsAttr()), Usd.AttributeQuery(anim.GetScalesAttr()), order)
+
+
+def skeleton_and_animation(prim) -> tuple:
+    """(Skeleton prim, UsdSkel.Animation) that pose an agent, as UsdSkel binds them; None for what is missing.
+
+    The skeleton is the one bound on the agent (``skel:skeleton``) or else the
+    first beneath it; the animation is the one bound on that skeleton or
+    inherited from an ancestor (``skel:animationSource``), which is where
+    usdcrowd (on the SkelRoot) and Blender (on the Skeleton) put it.
+    """
+    from pxr import UsdSkel
+
+    skeleton = _skeleton_of(prim)
+    if skeleton is None:
+        return None, None
+    anim = UsdSkel.BindingAPI(skeleton).GetInheritedAnimationSource()
+    return skeleton, (UsdSkel.Animation(anim) if anim and anim.IsA(UsdSkel.Animation) else None)
+
+
+def _skeleton_of(prim):
+    """The Skeleton prim an agent binds (skel:skeleton on it or an ancestor), else the first one beneath it."""
+    from pxr import Usd, UsdSkel
+
+    bound = UsdSkel.BindingAPI(prim).GetInheritedSkeleton()
+    if bound:
+        return bound.GetPrim()
+    return next((p for p in Usd.PrimRange(prim, Usd.TraverseInstanceProxies()) if p.IsA(UsdSkel.Skeleton)), None)
+
+
+def _skinned_mesh(prim, skeleton):
+    """The first Mesh beneath an agent that the agent's skeleton skins, or None."""
+    from pxr import Usd, UsdGeom, UsdSkel
+
+    for p in Usd.PrimRange(prim, Usd.TraverseInstanceProxies()):
+        if p.IsA(UsdGeom.Mesh):
+            bound = UsdSkel.BindingAPI(p).GetInheritedSkeleton()
+            if bound and bound.GetPrim() == skeleton:
+                return p
+    return None
+
+
+def _rig_rows(names, prim, attribute: str) -> np.ndarray:
+    """Row of each of usdcrowd's joints (rig.JOINTS) in a list of joint names: UsdSkel matches joints by name.
+
+    Raises
+    ------
+    StageError
+        A joint of the rig is not in the list.
+    """
+    from ..errors import StageError
+
+    names = [str(n) for n in names]
+    missing = [j for j in rig.JOINTS if j not in names]
+    if missing:
+        raise StageError.at(prim, attribute, f"has no joint {missing[0]!r} (usdcrowd's skeleton has "
+                                             f"{', '.join(rig.JOINTS)})")
+    return np.array([names.index(j) for j in rig.JOINTS], dtype=np.int64)
+
+
+def _read_body(agent: _AgentRig) -> _Body | None:
+    """The body an agent's skeleton skins, in usdcrowd's joint order and bind space; None if not triangles.
+
+    Raises
+    ------
+    StageError
+        The skeleton's bind pose is not usdcrowd's (skinning by the rig's
+        bind pose would misplace the vertices), or the mesh is skinned by a
+        joint the rig does not have.
+    """
+    from pxr import UsdGeom, UsdSkel
+
+    mesh = UsdGeom.Mesh(agent.body)
+    counts = np.array(mesh.GetFaceVertexCountsAttr().Get() or [])
+    if not len(counts) or not np.all(counts == 3):
+        return None
+    skeleton = UsdSkel.Skeleton(agent.skeleton)
+    _check_bind_pose(skeleton)
+    binding = UsdSkel.BindingAPI(agent.body)
+    k = binding.GetJointIndicesPrimvar().GetElementSize()
+    # A mesh's joint indices index its own skel:joints when it has them, else its skeleton's joints.
+    mesh_joints = binding.GetJointsAttr().Get() or skeleton.GetJointsAttr().Get()
+    to_rig = _to_rig_index([str(n) for n in mesh_joints], agent.body)
+    points = np.array(mesh.GetPointsAttr().Get(), dtype=np.float64)
+    geom_bind = binding.GetGeomBindTransformAttr().Get()
+    if geom_bind is not None:          # the mesh's own space to the skeleton's bind space (UsdSkel)
+        g = np.array(geom_bind, dtype=np.float64)
+        points = points @ g[:3, :3] + g[3, :3]
+    faces = np.array(mesh.GetFaceVertexIndicesAttr().Get(), dtype=np.int32).reshape(-1, 3)
+    regions, roughness = _body_dress(mesh, len(points), faces)
+    return _Body(points.astype(np.float32), faces,
+                 to_rig[np.array(binding.GetJointIndicesAttr().Get(), dtype=np.int32).reshape(-1, k)],
+                 np.array(binding.GetJointWeightsAttr().Get(), dtype=np.float32).reshape(-1, k), regions, roughness)
+
+
+def _to_rig_index(names: list[str], prim) -> np.ndarray:
+    """(len(names),) index in rig.JOINTS of each joint name.
+
+    Raises
+    ------
+    StageError
+        A name is not one of the rig's joints.
+    """
+    from ..errors import StageError
+
+    unknown = [n for n in names if n not in rig.JOINTS]
+    if unknown:
+        raise StageError.at(prim, "skel:joints", f"is skinned by joint {unknown[0]!r}, which usdcrowd's skeleton "
+                                                 f"({', '.join(rig.JOINTS)}) does not have")
+    return np.array([rig.JOINTS.index(n) for n in names], dtype=np.int32)
+
+
+def _check_bind_pose(skeleton) -> None:
+    """Refuse a skeleton whose bind transforms (matched by joint name) are not usdcrowd's rig's.
+
+    Raises
+    ------
+    StageError
+    """
+    from ..errors import StageError
+
+    binds = skeleton.GetBindTransformsAttr().Get()
+    if binds is None:
+        return
+    rows = _rig_rows(skeleton.GetJointsAttr().Get() or [], skeleton.GetPrim(), "joints")
+    binds = np.array(binds, dtype=np.float64)
+    if binds.shape[1:] != (4, 4) or len(binds) <= rows.max() or not np.allclose(binds[rows], rig.BIND_SKEL,
+                                                                                  atol=1e-4):
+        raise StageError.at(skeleton.GetPrim(), "bindTransforms",
+                            "is not usdcrowd's bind pose (the skeleton was rebound in another tool), so its body "
+                            "cannot be skinned as the shot's characters are")
+
+
+def _flat_colours(mesh_prim) -> np.ndarray | None:
+    """(v, 3) displayColor of a mesh that has one, unindexed, per vertex (as DCC tools export it), else None."""
+    from pxr import UsdGeom
+
+    pv = UsdGeom.PrimvarsAPI(mesh_prim).GetPrimvar("displayColor")
+    if not pv or pv.IsIndexed() or pv.GetInterpolation() not in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying):
+        return None
+    values, points = pv.Get(), UsdGeom.Mesh(mesh_prim).GetPointsAttr().Get()
+    if values is None or points is None or len(values) != len(points) or len(points) < 2:
+        return None
+    return np.array(values, dtype=np.float32)
+
+
+def _region_order(regions: np.ndarray) -> np.ndarray:
+    """Found regions in the order of usdcrowd's body (character.body.REGIONS: the top first, the colour an
+    agent is known by) where the body is ours, vertex for vertex; else as found."""
+    from ..character.body import build_body
+
+    ours = build_body().regions
+    labels = np.arange(regions.max() + 1)
+    if len(ours) != len(regions):
+        return labels
+    # Each found region takes the place of the region of ours most of its vertices are in.
+    meant = [np.bincount(ours[regions == r]).argmax() for r in labels]
+    return labels[np.argsort(meant, kind="stable")]
+
+
+def _colours_per_vertex(agent: _AgentRig, n_points: int) -> np.ndarray:
+    """(n_points, 3) colour of each vertex of an agent's body (its displayColor, indices applied), else its crowd:color.
+
+    Raises
+    ------
+    StageError
+        Its body has neither one colour nor one per vertex (bodies are shared).
+    """
+    from pxr import UsdGeom
+
+    from ..errors import StageError
+
+    pv = UsdGeom.PrimvarsAPI(agent.body).GetPrimvar("displayColor") if agent.body is not None else None
+    colours = pv.ComputeFlattened() if pv and pv.HasValue() else None
+    if colours is None or len(colours) == 0:
+        return np.broadcast_to(_palette_of(agent, 1)[0], (n_points, 3))
+    colours = np.array(colours, dtype=np.float32).reshape(-1, 3)
+    if len(colours) not in (1, n_points):
+        raise StageError.at(agent.body, "primvars:displayColor",
+                            f"has {len(colours)} vertex colours where the other agents' bodies have {n_points}")
+    return np.broadcast_to(colours, (n_points, 3))
+
+
+def _palette_of(agent: _AgentRig, rows: int) -> np.ndarray:
+    """(rows, 3) colours of an agent's palette: its body's displayColor values, else its crowd:color.
+
+    Raises
+    ------
+    StageError
+        There are neither one colour nor ``rows`` of them.
+    """
+    from pxr import Gf
+
+    from ..character.appearance import fit_problem
+    from ..errors import StageError
+
+    c = agent.prim.GetAttribute("crowd:color").Get() or Gf.Vec3f(0.6, 0.6, 0.6)
+    dc = agent.body.GetAttribute("primvars:displayColor").Get() if agent.body is not None else None
+    dc = np.array(dc if dc else [c], dtype=np.float32).reshape(-1, 3)
+    problem = fit_problem(len(dc), rows)
+    if problem:
+        raise StageError.at(agent.body, "primvars:displayColor", problem)
+    return np.broadcast_to(dc, (rows, 3))       # one colour dresses the whole body
 
 
 def _body_dress(mesh, n_points: int, faces: np.ndarray):
@@ -458,7 +701,7 @@ def _material_of(prim) -> Material:
             tex = UsdShade.Shader(source[0].GetPrim())
             file_in = tex.GetInput("file")
             if file_in and file_in.Get() is not None:
-                mat.base_color_texture = file_in.Get().resolvedPath or None
+                mat.base_color_texture = unpacked(file_in.Get().resolvedPath) or None
             continue
         value = inp.Get()
         if value is not None:
@@ -508,7 +751,7 @@ def _light_of(prim, to_world: np.ndarray, mpu: float, up_axis: str = "Z") -> Lig
         light.intensity *= distant_illuminance(light.angle, light.normalize)
     elif kind == "dome":
         f = UsdLux.DomeLight(prim).GetTextureFileAttr().Get()
-        light.texture = (f.resolvedPath or None) if f else None
+        light.texture = (unpacked(f.resolvedPath) or None) if f else None
         if str(prim.GetTypeName()) == "DomeLight_1":
             pole = str(UsdLux.DomeLight_1(prim).GetPoleAxisAttr().Get() or "scene")
             light.pole_axis = up_axis if pole == "scene" else pole

@@ -170,6 +170,7 @@ def read_crowd(shot, frames=None) -> tuple[model.CrowdFrames, CrowdInfo]:
     from ..character.animation import BLEND_FRAMES
     from ..character.rig import wrap_angle
     from ..character.root import blend_weight, frames_since_change, recover_root_motion
+    from .parent_space import ParentSpace
 
     stage = shot if isinstance(shot, Usd.Stage) else open_stage(os.fspath(shot))
     source = stage.GetRootLayer().identifier
@@ -219,20 +220,23 @@ def read_crowd(shot, frames=None) -> tuple[model.CrowdFrames, CrowdInfo]:
     position, heading = recover_root_motion(rot[:, :, 0], trans, rot[:, :, 1], scale,
                                             anim_class[begin:], since[begin:])
 
-    # Skeleton space to canonical world: the agent's own transform and the stage frame.
+    # Skeleton space to canonical world: the agent's own transform and its parents' (which a layer
+    # over the shot, or a set referencing it, may move or animate) and the stage frame.
     to_canonical = stage_frame(stage).to_canonical
-    xf = UsdGeom.XformCache(Usd.TimeCode(float(window[0])))
+    space = ParentSpace(stage, window)
     for a, (prim, _) in enumerate(agents):
-        m = np.array(xf.GetLocalToWorldTransform(prim), dtype=np.float64) @ to_canonical
+        m = space.world(str(prim.GetPath())) @ to_canonical
         if np.allclose(m, np.eye(4), atol=1e-9):
             continue
-        r3 = m[:3, :3]
-        s3 = np.linalg.norm(r3, axis=1)
-        if not (np.allclose(s3, s3[0], rtol=1e-6) and np.allclose(r3[2, :2], 0, atol=1e-6 * s3[0])):
+        r3 = m[..., :3, :3]
+        s3 = np.linalg.norm(r3, axis=-1)
+        if not (np.allclose(s3, s3[..., :1], rtol=1e-6)
+                and np.allclose(r3[..., 2, :2], 0, atol=1e-6 * float(s3.max()))):
             raise StageError("the agent's transform tilts or stretches its skeleton", file=source,
                              prim=str(prim.GetPath()))
-        position[:, a] = position[:, a] @ r3 + m[3, :3]
-        heading[:, a] += np.arctan2(r3[0, 1], r3[0, 0])
+        position[:, a] = (position[:, a] @ r3 if r3.ndim == 2 else np.einsum("ti,tij->tj", position[:, a], r3)) \
+            + m[..., 3, :3]
+        heading[:, a] += np.arctan2(r3[..., 0, 1], r3[..., 0, 0])
     heading = wrap_angle(heading)
 
     fps = shot_time.fps

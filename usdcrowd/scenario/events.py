@@ -35,10 +35,14 @@ def _is_authored(prim) -> bool:
     """True when the prim is defined (``def``) in a layer usdcrowd did not generate.
 
     Events defined in generated layers were detected (cameras.usda holds those
-    `usdcrowd cameras` had to detect); any other was authored.
+    `usdcrowd cameras` had to detect), and say so (``crowd:detected``, which a
+    flattened or exported shot keeps); any other was authored.
     """
     from pxr import Sdf
 
+    flag = prim.GetAttribute("crowd:detected")
+    if flag and flag.Get():                 # says so itself: survives flattening into one layer
+        return False
     for spec in prim.GetPrimStack():
         if spec.specifier == Sdf.SpecifierDef and not is_generated_layer(spec.layer):
             return True
@@ -107,7 +111,10 @@ def read_events(stage, agent_rows: dict[str, int], time: model.TimeRange,
     """
     from pxr import Usd
 
+    from .parent_space import ParentSpace, scale_of, transform_points
+
     frame = stage_frame(stage)
+    space = ParentSpace(stage, time.codes)
     ids = np.asarray(agent_ids, dtype=np.int64) if agent_ids is not None else _agent_ids(stage, agent_rows)
     id_row = {int(a): r for r, a in enumerate(ids) if a >= 0}
     codes = time.codes
@@ -144,6 +151,9 @@ def read_events(stage, agent_rows: dict[str, int], time: model.TimeRange,
         center = np.array(_sampled(prim.GetAttribute("crowd:center"), times, (0.0, 0.0, 0.0)),
                           dtype=np.float64).reshape(-1, 3)
         radius = np.array(_sampled(prim.GetAttribute("crowd:radius"), times, 1.0), dtype=np.float64)
+        # Centre and radius are in the event's parent space: a moved shot moves its events.
+        to_world = space.world(path, times)
+        center, radius = transform_points(center, to_world), radius * scale_of(to_world)
         ev = model.Event(path, model.code(model.EVENT_KINDS, kind), start, end, members, times, active,
                          frame.points_to_canonical(center), frame.length_to_canonical(radius),
                          authored=_is_authored(prim))

@@ -93,7 +93,9 @@ def _texture_problem(asset) -> str | None:
     """What is wrong with a dome's texture file: missing, unreadable or not an image; None when fine."""
     if asset is None or not asset.path:
         return None
-    resolved = asset.resolvedPath
+    from .stageio import unpacked
+
+    resolved = unpacked(asset.resolvedPath)         # a texture inside a usdz: a copy on disk
     if not resolved or not os.path.isfile(resolved):
         return f"texture @{asset.path}@ not found"
     try:

@@ -598,7 +598,54 @@ def _obstacles(r: _Reader, prims):
         heights.append(top)
 
     r.each(prims, read)
-    return model.Obstacles(paths, polys, np.array(heights, dtype=np.float64)), ground
+    return _canonical_obstacles(paths, polys, heights), ground
+
+
+# Footprint coordinates are compared at this many decimals (metres): a micrometre, far below
+# anything the simulation resolves, far above the float noise of composing the same transform twice.
+_ORDER_DECIMALS = 6
+
+
+def _canonical_obstacles(paths: list[str], polys: list[np.ndarray], heights: list[float]) -> model.Obstacles:
+    """Obstacles in an order of their geometry alone, not of the prims that hold them.
+
+    The simulation depends on the order (where footprints overlap, the later one owns the
+    overlap in the walk grid, and agents there are pushed out of that one): the same town
+    exported with its prims in another order or under other names must give the same crowd.
+    Each footprint starts at its lowest (x, then y) vertex, and the footprints are sorted by
+    their coordinates, then by height.
+
+    Parameters
+    ----------
+    paths : list of str
+        Prim path of each obstacle.
+    polys : list of (k, 2) float64
+        Footprints, in the order the prims were found.
+    heights : list of float
+        Top of each obstacle, metres.
+
+    Returns
+    -------
+    Obstacles
+    """
+    polys = [_from_lowest_vertex(p) for p in polys]
+
+    def key(i: int):
+        return tuple(np.round(polys[i], _ORDER_DECIMALS).ravel()), round(float(heights[i]), _ORDER_DECIMALS)
+
+    order = sorted(range(len(polys)), key=key)
+    return model.Obstacles([paths[i] for i in order], [polys[i] for i in order],
+                           np.array([heights[i] for i in order], dtype=np.float64))
+
+
+def _from_lowest_vertex(poly: np.ndarray) -> np.ndarray:
+    """(k, 2) ``poly`` rolled to start at its lowest vertex by (x, then y), winding kept.
+
+    Qhull's first hull vertex follows the order of the points it is given.
+    """
+    rounded = np.round(poly, _ORDER_DECIMALS)
+    first = int(np.lexsort((rounded[:, 1], rounded[:, 0]))[0])
+    return np.ascontiguousarray(np.roll(poly, -first, axis=0))
 
 
 def _size_attribute(prim) -> str:
@@ -655,7 +702,9 @@ def _read_image(r: _Reader, prim, vrange, extent: np.ndarray) -> np.ndarray:
     asset = attr.Get() if attr.HasAuthoredValue() else None
     if asset is None or not asset.path:
         r.fail("a painted behavior layer needs an image", prim, "crowd:image")
-    resolved = asset.resolvedPath
+    from .stageio import unpacked
+
+    resolved = unpacked(asset.resolvedPath)         # an image inside a usdz: a copy on disk
     if not resolved or not os.path.isfile(resolved):
         r.fail(f"image @{asset.path}@ not found", prim, "crowd:image")
     try:

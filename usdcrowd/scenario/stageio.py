@@ -104,14 +104,37 @@ def time_range(stage) -> model.TimeRange:
     if not FPS_RANGE[0] <= fps <= FPS_RANGE[1]:        # NaN fails too
         raise StageError(f"timeCodesPerSecond must be {FPS_RANGE[0]:g} to {FPS_RANGE[1]:g}, got {fps:g}",
                          file=source, attribute="timeCodesPerSecond")
-    if not stage.HasAuthoredTimeCodeRange():
-        return DEFAULT_TIME
-    start, end = float(stage.GetStartTimeCode()), float(stage.GetEndTimeCode())
+    if stage.HasAuthoredTimeCodeRange():
+        start, end = float(stage.GetStartTimeCode()), float(stage.GetEndTimeCode())
+    else:
+        found = _sublayer_time_range(stage, fps)
+        if found is None:
+            return DEFAULT_TIME
+        start, end = found
     if not (np.isfinite(start) and np.isfinite(end)) or end < start:
         raise StageError(f"endTimeCode {end:g} is before startTimeCode {start:g}" if end < start else
                          f"time codes must be finite, got {start:g} to {end:g}", file=source,
                          attribute="endTimeCode")
     return model.TimeRange(start, end, fps)
+
+
+def _sublayer_time_range(stage, fps: float) -> tuple[float, float] | None:
+    """The time range of the strongest sublayer that has one, when the root layer has none: a layer a
+    DCC tool or a layout artist puts over a shot (moving it, editing it) rarely repeats the shot's frames.
+    Only a sublayer at the stage's rate and without an offset, whose time codes mean the same frames."""
+    for layer in stage.GetLayerStack(includeSessionLayers=False)[1:]:
+        if not (layer.HasStartTimeCode() and layer.HasEndTimeCode()):
+            continue
+        same_rate = not layer.HasTimeCodesPerSecond() or float(layer.timeCodesPerSecond) == fps
+        offsets = [o for o in _sublayer_offsets(stage.GetRootLayer(), layer) if not o.IsIdentity()]
+        return (float(layer.startTimeCode), float(layer.endTimeCode)) if same_rate and not offsets else None
+    return None
+
+
+def _sublayer_offsets(root, layer) -> list:
+    """The layer offsets under which ``root`` sublayers ``layer`` directly (empty when nested deeper)."""
+    return [off for path, off in zip(root.subLayerPaths, root.subLayerOffsets)
+            if root.ComputeAbsolutePath(path) == layer.identifier or path == layer.identifier]
 
 
 def open_stage(path: str | os.PathLike):
@@ -222,15 +245,58 @@ def _check_layers(root: str) -> None:
         for asset in layer.GetCompositionAssetDependencies():
             target = _local_asset(layer, asset)
             if target:
-                _check_file(target, referrer=path)
+                _check_file(_package_file(target), referrer=path)
                 todo.append(target)
         for asset in _clip_assets(layer):
             # Value clips open lazily, in the middle of a render: checked now,
             # not followed (a clip only holds samples).
             target = _local_asset(layer, asset)
             if target:
-                _check_file(target, referrer=path)
-                _check_crate(target, referrer=path)
+                _check_file(_package_file(target), referrer=path)
+                _check_crate(_package_file(target), referrer=path)
+
+
+def _package_file(target: str) -> str:
+    """The file on disk that holds ``target``: a layer inside a package (``shot.usdz[crowd.usdc]``,
+    which Sdf opens as it is) is as readable as the package itself."""
+    from pxr import Ar
+
+    return Ar.SplitPackageRelativePathOuter(target)[0] if Ar.IsPackageRelativePath(target) else target
+
+
+def unpacked(resolved: str) -> str:
+    """A path on disk for the resolved asset path ``resolved``: itself, or for a file inside a usdz
+    (``shot.usdz[0/map.png]``) a copy taken out of the package, since image readers open paths.
+
+    The copy lives in the temporary folder, named after the package's path, size, time and the
+    member (reused by worker processes and later runs; a changed package gets a new copy). A member
+    the package does not hold gives ``resolved`` back, which the caller reports as missing.
+    """
+    import hashlib
+    import tempfile
+
+    from pxr import Ar
+
+    if not resolved or not Ar.IsPackageRelativePath(resolved):
+        return resolved
+    package, member = Ar.SplitPackageRelativePathOuter(resolved)
+    try:
+        st = os.stat(package)
+    except OSError:
+        return resolved
+    key = hashlib.sha256(f"{os.path.abspath(package)}:{st.st_size}:{st.st_mtime_ns}:{member}".encode()).hexdigest()
+    folder = os.path.join(tempfile.gettempdir(), f"usdcrowd-unpacked-{os.getuid()}")
+    copy = os.path.join(folder, key[:24] + os.path.splitext(member)[1].lower())
+    if not os.path.isfile(copy):
+        asset = Ar.GetResolver().OpenAsset(Ar.ResolvedPath(resolved))
+        if asset is None:
+            return resolved
+        os.makedirs(folder, exist_ok=True)
+        partial = f"{copy}.{os.getpid()}"
+        with open(partial, "wb") as fh:
+            fh.write(asset.GetBuffer())
+        os.replace(partial, copy)               # whole, even beside another process doing the same
+    return copy
 
 
 def _check_crate(path: str, referrer: str) -> None:

@@ -6,12 +6,12 @@ their transform op order is replaced by one time-sampled
 where the user wrote them. Generated cameras are defined here, with
 CameraAgentAPI applied when they are agents.
 
-Every transform is a world pose: the op order starts with
-``!resetXformStack!``, so a transformed parent (a camera rig, a DCC
-stage's root) does not move the camera a second time. Its rotation rows are
-of unit length in the stage's units (no metersPerUnit scale), so a viewer
-that inverts the whole matrix gets camera-space depths in stage units, which
-is what ``clippingRange`` is in.
+Every transform is the camera's pose in its parent's space
+(:mod:`usdcrowd.scenario.parent_space`), so a layer or a set that moves the shot
+moves its cameras with it. Composed to the world, the rotation rows are of
+unit length in the stage's units (no metersPerUnit scale), so a viewer that
+inverts the whole matrix gets camera-space depths in stage units, which is
+what ``clippingRange`` is in.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ from .. import __version__, model, schema
 from ..atomic import export_layer
 from ..scenario.stageio import StageFrame
 from ..view import mm_per_lens_unit
+from ..scenario.parent_space import in_parent
 
 CAMERAS = "cameras.usda"
 STATE = "crowd:camera:state"
@@ -43,7 +44,8 @@ def _changes(values: list) -> list[int]:
 
 def write_camera_tracks(out_dir: str | os.PathLike, tracks: list[model.CameraTrack], frame: StageFrame,
                         default_prim: str, time: model.TimeRange, defined: set[str] = frozenset(),
-                        extra: dict | None = None, events_writer=None, keep_toric: bool = False) -> str:
+                        extra: dict | None = None, events_writer=None, keep_toric: bool = False,
+                        parents=None) -> str:
     """Write cameras.usda atomically.
 
     Parameters
@@ -60,6 +62,9 @@ def write_camera_tracks(out_dir: str | os.PathLike, tracks: list[model.CameraTra
     keep_toric : bool
         Keep the toric cameras (``usdcrowd frame``'s) of the cameras.usda
         being replaced.
+    parents : ParentSpace, optional
+        The stage the tracks were computed on: each pose is authored in its
+        parent's space there (default: parents at the identity).
     """
     from pxr import Sdf
 
@@ -75,7 +80,8 @@ def write_camera_tracks(out_dir: str | os.PathLike, tracks: list[model.CameraTra
                                           **(extra or {})}}
     with Sdf.ChangeBlock():
         for track in tracks:
-            _write_track(layer, track, frame, track.path in defined)
+            _write_track(layer, track, frame, track.path in defined,
+                         parents.of(track.path, track.times) if parents is not None else None)
         if events_writer is not None:
             events_writer(layer)
         if keep_toric and os.path.exists(final):
@@ -84,8 +90,11 @@ def write_camera_tracks(out_dir: str | os.PathLike, tracks: list[model.CameraTra
     return export_layer(layer, final)
 
 
-def _write_track(layer, track: model.CameraTrack, frame: StageFrame, over: bool):
-    """Author one camera track into ``layer`` (inside the caller's change block); returns its prim spec."""
+def _write_track(layer, track: model.CameraTrack, frame: StageFrame, over: bool, parent=None):
+    """Author one camera track into ``layer`` (inside the caller's change block); returns its prim spec.
+
+    ``parent``: (4, 4) or (t, 4, 4) local-to-world of the camera's parent, stage units (None: identity).
+    """
     from pxr import Gf, Sdf, Vt
 
     T = Sdf.ValueTypeNames
@@ -111,14 +120,14 @@ def _write_track(layer, track: model.CameraTrack, frame: StageFrame, over: bool)
             for i in _changes(fl):
                 layer.SetTimeSample(focal.path, float(track.times[i]), fl[i])
     op = Sdf.AttributeSpec(spec, "xformOp:transform", T.Matrix4d)
-    poses = stage_poses(track.cam_to_world, frame)
+    poses = np.broadcast_to(in_parent(stage_poses(track.cam_to_world, frame), parent),
+                            (len(track.times), 4, 4))
     if len(poses) and (poses == poses[0]).all():
         op.default = Gf.Matrix4d(poses[0].tolist())     # a static camera: one pose, not one per frame
     else:
         for t, m in zip(track.times, poses):
             layer.SetTimeSample(op.path, float(t), Gf.Matrix4d(m.tolist()))
-    _set(spec, "xformOpOrder", T.TokenArray, Vt.TokenArray(["!resetXformStack!", "xformOp:transform"]),
-         uniform=True)
+    _set(spec, "xformOpOrder", T.TokenArray, Vt.TokenArray(["xformOp:transform"]), uniform=True)
     if track.state is not None:
         st = Sdf.AttributeSpec(spec, STATE, T.Token)
         names = [model.CAMERA_MODES[int(s)] for s in track.state]
@@ -147,7 +156,8 @@ def _copy_toric(old, layer, replaced: set[str]) -> None:
             Sdf.CopySpec(old, path, layer, path)
 
 
-def add_camera(cameras_path: str | os.PathLike, track: model.CameraTrack, toric: dict | None) -> str:
+def add_camera(cameras_path: str | os.PathLike, track: model.CameraTrack, toric: dict | None,
+               parents=None) -> str:
     """Add (or replace) one camera, toric or plain (``toric`` None), in an existing cameras layer,
     atomically; the others are kept.
 
@@ -162,6 +172,8 @@ def add_camera(cameras_path: str | os.PathLike, track: model.CameraTrack, toric:
         ``target_b`` (lists of prim paths), ``p_a``, ``p_b`` ((t, 2) NDC),
         ``theta``, ``phi`` ((t,) radians); for a learned camera also
         ``expert_weights`` and ``reference`` (the reference stage's path).
+    parents : ParentSpace, optional
+        The stage the track was computed on (see :func:`write_camera_tracks`).
     """
     from pxr import Sdf
 
@@ -174,7 +186,8 @@ def add_camera(cameras_path: str | os.PathLike, track: model.CameraTrack, toric:
         if layer.GetPrimAtPath(track.path):
             parent = layer.GetPrimAtPath(track.path).nameParent
             del parent.nameChildren[track.path.rsplit("/", 1)[-1]]
-        spec = _write_track(layer, track, frame, over=False)
+        spec = _write_track(layer, track, frame, over=False,
+                            parent=parents.of(track.path, track.times) if parents is not None else None)
         if toric is not None:
             _toric_values(layer, spec, track, toric)
     _count_cameras(layer)

@@ -3,7 +3,7 @@
 Written with the Sdf API inside change blocks (about 2.4x faster than the Usd
 API). Layout, for an agent at ``<group>/<name>``::
 
-    class "CrowdPrototypes"            shared skeleton and skinned body
+    class "<default prim>/CrowdPrototypes"   shared skeleton and skinned body
         class Skeleton "Skel"
         class Mesh "Body"
     over <group> ... {
@@ -37,14 +37,22 @@ from ..character import body as body_mod
 from ..character import rig
 from ..character.animation import Animator
 from ..character.root import apply_root_motion, root_scale
+from ..scenario.parent_space import in_parent, is_identity, parent_key
 from ..scenario.stageio import StageFrame
+from ..schema import USER_PROPERTIES
 from . import clips
 
-PROTOTYPES = "/CrowdPrototypes"
-SKEL_PROTO = f"{PROTOTYPES}/Skel"
-BODY_PROTO = f"{PROTOTYPES}/Body"
+# Under the default prim, so a stage that references the shot gets them too (USD drops relationship
+# targets outside a reference's scope: bodies would lose their materials).
+PROTOTYPES = "CrowdPrototypes"
 # Outside the (abstract) prototype class, so DCC tools import them as any material.
-MATERIALS = "/CrowdMaterials"
+MATERIALS = "CrowdMaterials"
+
+
+def shared_paths(default_prim: str) -> tuple[str, str, str]:
+    """``(skeleton prototype, body prototype, materials scope)`` paths of a crowd layer."""
+    root = f"/{default_prim}" if default_prim else ""
+    return f"{root}/{PROTOTYPES}/Skel", f"{root}/{PROTOTYPES}/Body", f"{root}/{MATERIALS}"
 # Local bounding box of an agent around its root, canonical metres, per unit
 # of scale: arms' reach while walking and the head top with margin.
 _REACH = 0.6
@@ -96,21 +104,24 @@ def _layer_metadata(layer, scenario: model.Scenario, frame: StageFrame, default_
     layer.customLayerData = {"usdcrowd": {"generator": "usdcrowd simulate", "version": __version__}}
 
 
-def _write_prototypes(layer) -> None:
+def _write_prototypes(layer, default_prim: str) -> None:
     """The skeleton and skinned body every agent references."""
     from pxr import Gf, Sdf, Vt
 
     T = _types()
     body = body_mod.build_body()
-    _prim(layer, PROTOTYPES, "", Sdf.SpecifierClass)
-    skel = _prim(layer, SKEL_PROTO, "Skeleton", Sdf.SpecifierClass)
+    skel_proto, body_proto, materials = shared_paths(default_prim)
+    if default_prim and not layer.GetPrimAtPath(f"/{default_prim}"):
+        _prim(layer, f"/{default_prim}")            # an over: the scenario defines it
+    _prim(layer, skel_proto.rsplit("/", 1)[0], "", Sdf.SpecifierClass)
+    skel = _prim(layer, skel_proto, "Skeleton", Sdf.SpecifierClass)
     _attr(skel, "joints", T.TokenArray, Vt.TokenArray(list(rig.JOINTS)), Sdf.VariabilityUniform)
     _attr(skel, "bindTransforms", T.Matrix4dArray,
           Vt.Matrix4dArray([Gf.Matrix4d(m.tolist()) for m in rig.BIND_SKEL]), Sdf.VariabilityUniform)
     _attr(skel, "restTransforms", T.Matrix4dArray,
           Vt.Matrix4dArray([Gf.Matrix4d(m.tolist()) for m in rig.REST_LOCAL]), Sdf.VariabilityUniform)
 
-    mesh = _prim(layer, BODY_PROTO, "Mesh", Sdf.SpecifierClass)
+    mesh = _prim(layer, body_proto, "Mesh", Sdf.SpecifierClass)
     mesh.SetInfo("apiSchemas", Sdf.TokenListOp.Create(prependedItems=["SkelBindingAPI"]))
     _attr(mesh, "points", T.Point3fArray, Vt.Vec3fArray.FromNumpy(body.points))
     _attr(mesh, "normals", T.Normal3fArray, Vt.Vec3fArray.FromNumpy(body.normals)).SetInfo("interpolation", "vertex")
@@ -126,10 +137,10 @@ def _write_prototypes(layer) -> None:
         spec.SetInfo("interpolation", "vertex")
         spec.SetInfo("elementSize", k)
     _attr(mesh, "primvars:skel:geomBindTransform", T.Matrix4d, Gf.Matrix4d(1.0))
-    _write_regions(layer, mesh, body)
+    _write_regions(layer, mesh, body, body_proto, materials)
 
 
-def _write_regions(layer, mesh, body) -> None:
+def _write_regions(layer, mesh, body, body_proto: str, materials: str) -> None:
     """What the body is dressed in: an indexed displayColor and one material per region.
 
     Each vertex indexes a row of its agent's palette (``primvars:displayColor:indices``
@@ -148,10 +159,10 @@ def _write_regions(layer, mesh, body) -> None:
     faces = body.regions[body.face_vertex_indices.reshape(-1, 3)]
     # A face takes the region most of its corners have (the first corner's on a three-way tie).
     face_region = np.where(faces[:, 1] == faces[:, 2], faces[:, 1], faces[:, 0])
-    _prim(layer, MATERIALS, "Scope", Sdf.SpecifierDef)
+    _prim(layer, materials, "Scope", Sdf.SpecifierDef)
     for k, name in enumerate(regions):
         title = name.capitalize()
-        mat_path = f"{MATERIALS}/{title}"
+        mat_path = f"{materials}/{title}"
         mat = _prim(layer, mat_path, "Material", Sdf.SpecifierDef)
         surface = _prim(layer, f"{mat_path}/Surface", "Shader", Sdf.SpecifierDef)
         _attr(surface, "info:id", T.Token, "UsdPreviewSurface", Sdf.VariabilityUniform)
@@ -166,7 +177,7 @@ def _write_regions(layer, mesh, body) -> None:
         out = _attr(mat, "outputs:surface", T.Token)
         out.connectionPathList.explicitItems = [Sdf.Path(f"{mat_path}/Surface.outputs:surface")]
 
-        subset = _prim(layer, f"{BODY_PROTO}/{title}", "GeomSubset", Sdf.SpecifierDef)
+        subset = _prim(layer, f"{body_proto}/{title}", "GeomSubset", Sdf.SpecifierDef)
         subset.SetInfo("apiSchemas", Sdf.TokenListOp.Create(prependedItems=["MaterialBindingAPI"]))
         _attr(subset, "elementType", T.Token, "face", Sdf.VariabilityUniform)
         _attr(subset, "familyName", T.Token, "materialBind", Sdf.VariabilityUniform)
@@ -183,9 +194,6 @@ def _set_palette(body_spec, palette: np.ndarray) -> None:
                  Vt.Vec3fArray.FromNumpy(np.asarray(palette, dtype=np.float32)))
     spec.SetInfo("interpolation", "vertex")
 
-
-# Blender's namespace for custom properties it imports (and exports).
-USER_PROPERTIES = "userProperties:crowd:"
 
 
 def _write_group_profiles(layer, scenario: model.Scenario) -> None:
@@ -231,8 +239,11 @@ class _AgentPart:
     """Authors the prims and time samples of a subset of the agents into one layer."""
 
     def __init__(self, layer, scenario: model.Scenario, frame: StageFrame, rows: np.ndarray, authored: set[str],
-                 clip_plan: clips.ClipPlan | None = None, stem: str = ""):
+                 clip_plan: clips.ClipPlan | None = None, stem: str = "", parents: dict | None = None,
+                 default_prim: str = ""):
         self.layer = layer
+        self.parents = parents or {}
+        self._protos = shared_paths(default_prim)
         self.scenario = scenario
         self.frame = frame
         self.rows = np.asarray(rows)
@@ -293,20 +304,13 @@ class _AgentPart:
         Sdf.RelationshipSpec(spec, "skel:animationSource", custom=False).targetPathList.explicitItems = [f"{path}/Anim"]
         if a.role[i] == model.ROLES.index("invisibleLeader"):
             _attr(spec, "visibility", T.Token, "invisible")
-        # The root joint already holds the world motion: the agent must not also
-        # inherit its parents' transforms or keep the placement authored in the
-        # scenario (which only said where it starts), so reset the stack.
-        ops = ["!resetXformStack!"]
-        if not self.frame.is_canonical:
-            _attr(spec, "xformOp:transform:stageFrame", T.Matrix4d, Gf.Matrix4d(self.frame.from_canonical.tolist()))
-            ops.append("xformOp:transform:stageFrame")
-        _attr(spec, "xformOpOrder", T.TokenArray, Vt.TokenArray(ops), U)
+        self._place(spec, path)
         for name in ("crowd:state:behavior", "crowd:state:animClass", "crowd:state:health"):
             _attr(spec, name, T.Token, custom=True)
         _attr(spec, "crowd:pathMethod", T.Token, None, U, custom=True)
 
         skel = _prim(layer, f"{path}/Skel", "Skeleton", Sdf.SpecifierDef)
-        skel.referenceList.prependedItems = [Sdf.Reference(primPath=SKEL_PROTO)]
+        skel.referenceList.prependedItems = [Sdf.Reference(primPath=self._protos[0])]
         anim = _prim(layer, f"{path}/Anim", "SkelAnimation", Sdf.SpecifierDef)
         _attr(anim, "joints", T.TokenArray, Vt.TokenArray(list(rig.JOINTS)), U)
         s = float(root_scale(a.height[i]))
@@ -314,13 +318,33 @@ class _AgentPart:
         _attr(anim, "rotations", T.QuatfArray)
         _attr(anim, "translations", T.Float3Array)
         body = _prim(layer, f"{path}/Body", "Mesh", Sdf.SpecifierDef)
-        body.referenceList.prependedItems = [Sdf.Reference(primPath=BODY_PROTO)]
+        body.referenceList.prependedItems = [Sdf.Reference(primPath=self._protos[1])]
         _set_palette(body, self._palette[i])
         # Height for shaders and tools; the geometry is scaled by the root joint.
         _attr(body, "primvars:crowd:height", T.Float, float(a.height[i])).SetInfo("interpolation", "constant")
         return tuple(Sdf.Path(p) for p in (f"{path}/Anim.rotations", f"{path}/Anim.translations",
                                            f"{path}.crowd:state:behavior", f"{path}.crowd:state:animClass",
                                            f"{path}.crowd:state:health"))
+
+    def _place(self, spec, path: str) -> None:
+        """The agent's transform: the root joint holds its world motion in canonical metres, so the
+        SkelRoot maps canonical metres to the stage's axes and units and undoes its parent's transform
+        (:mod:`usdcrowd.scenario.parent_space`). The order replaces the placement the scenario may have
+        authored, which only said where the agent starts."""
+        from pxr import Gf, Sdf, Vt
+
+        T = Sdf.ValueTypeNames
+        m = in_parent(self.frame.from_canonical, self.parents.get(parent_key(path)))
+        ops = []
+        if m.ndim == 3:                     # an animated parent: the inverse follows it
+            attr = _attr(spec, "xformOp:transform:stageFrame", T.Matrix4d)
+            for t, mt in zip(self.scenario.time.codes, m):
+                self.layer.SetTimeSample(attr.path, float(t), Gf.Matrix4d(mt.tolist()))
+            ops.append("xformOp:transform:stageFrame")
+        elif not is_identity(m):
+            _attr(spec, "xformOp:transform:stageFrame", T.Matrix4d, Gf.Matrix4d(m.tolist()))
+            ops.append("xformOp:transform:stageFrame")
+        _attr(spec, "xformOpOrder", T.TokenArray, Vt.TokenArray(ops), Sdf.VariabilityUniform)
 
     def write_frames(self, frames: model.CrowdFrames) -> None:
         """Animate this part's agents over a chunk (``frames`` holds only them) and author it."""
@@ -442,7 +466,7 @@ def _agents_of(frames: model.CrowdFrames, rows: np.ndarray) -> model.CrowdFrames
 _LOST = (BrokenPipeError, ConnectionResetError, EOFError)
 
 
-def _part_worker(conn, layer_paths, scenario, frame, row_sets, authored, default_prim, clip_plan=None):
+def _part_worker(conn, layer_paths, scenario, frame, row_sets, authored, default_prim, clip_plan=None, parents=None):
     """A process that owns some part layers: commands arrive over ``conn``.
 
     When the coordinator is gone (interrupted, failed), the worker ends
@@ -452,12 +476,12 @@ def _part_worker(conn, layer_paths, scenario, frame, row_sets, authored, default
 
     worker_ignores_interrupts()             # Ctrl-C is the coordinator's to handle: it stops this process
     try:
-        _part_work(conn, layer_paths, scenario, frame, row_sets, authored, default_prim, clip_plan)
+        _part_work(conn, layer_paths, scenario, frame, row_sets, authored, default_prim, clip_plan, parents)
     except _LOST:
         pass
 
 
-def _part_work(conn, layer_paths, scenario, frame, row_sets, authored, default_prim, clip_plan):
+def _part_work(conn, layer_paths, scenario, frame, row_sets, authored, default_prim, clip_plan, parents=None):
     from pxr import Sdf
 
     from .. import schema
@@ -468,7 +492,7 @@ def _part_work(conn, layer_paths, scenario, frame, row_sets, authored, default_p
         layer = Sdf.Layer.CreateAnonymous(".usdc")
         _layer_metadata(layer, scenario, frame, default_prim)
         parts.append(_AgentPart(layer, scenario, frame, rows, authored, clip_plan,
-                                os.path.splitext(os.path.basename(path))[0]))
+                                os.path.splitext(os.path.basename(path))[0], parents, default_prim))
     # Columns of each part within the chunks this worker receives.
     bounds = np.cumsum([0] + [len(rows) for rows in row_sets])
     conn.send(("ready", None))
@@ -533,11 +557,15 @@ class CrowdLayerWriter:
         Frames per value-clip window (:mod:`usdcrowd.usd.clips`); default: as
         many as keep a process's samples near ``clips.AGENT_FRAMES_PER_PROCESS``.
         A shot no longer than one window is written without clips.
+    parents : dict, optional
+        ``{parent path: (4, 4) or (t, 4, 4)}`` local-to-world of the agents' parents on the scenario
+        stage (:meth:`~usdcrowd.scenario.parent_space.ParentSpace.table`); agents are authored in their
+        parent's space. Missing parents are the identity.
     """
 
     def __init__(self, path, scenario: model.Scenario, frame: StageFrame, default_prim: str = "",
                  scenario_ref: str = "", authored_agents: set[str] | None = None, workers: int | None = None,
-                 clip_frames: int | None = None):
+                 clip_frames: int | None = None, parents: dict | None = None):
         from pxr import Sdf
 
         self.final = os.fspath(path)
@@ -556,7 +584,7 @@ class CrowdLayerWriter:
             "scenario": scenario_ref, "agents": n, "frames": scenario.time.n_frames, "workers": workers}}
         authored = authored_agents or set()
         with Sdf.ChangeBlock():
-            _write_prototypes(self.layer)
+            _write_prototypes(self.layer, default_prim)
             _write_group_profiles(self.layer, scenario)
         self._splits = np.array_split(np.arange(n), workers)
         self.clip_plan = clips.plan(self.final, scenario.time.start, scenario.time.end,
@@ -566,7 +594,7 @@ class CrowdLayerWriter:
         self._saving = False
         if workers == 1:
             self._local = _AgentPart(self.layer, scenario, frame, self._splits[0], authored, self.clip_plan,
-                                     os.path.splitext(os.path.basename(self.final))[0])
+                                     os.path.splitext(os.path.basename(self.final))[0], parents, default_prim)
             return
         # Each worker splits its agents into layers of about AGENTS_PER_PART.
         layer_rows = [np.array_split(rows, max(1, round(len(rows) / AGENTS_PER_PART))) for rows in self._splits]
@@ -582,7 +610,7 @@ class CrowdLayerWriter:
             proc = ctx.Process(target=_part_worker, daemon=True,
                                args=(there, paths, scenario, frame, row_sets,
                                      {scenario.agents.path[i] for i in rows} & authored, default_prim,
-                                     self.clip_plan))
+                                     self.clip_plan, parents))
             _start_ignoring_sigint(proc)
             # Only the worker may hold its end: were it also open here, a send to
             # a worker that died would block on a full pipe instead of failing.

@@ -13,13 +13,17 @@ import numpy as np
 
 from .. import model
 from ..scenario.stageio import StageFrame
+from ..scenario.parent_space import points_in_parent, scale_of
 
 
 def author_events(layer, events: model.EventTable, agent_paths: list[str], agent_ids: np.ndarray,
-                  frame: StageFrame) -> int:
+                  frame: StageFrame, parents=None) -> int:
     """Define a CrowdEvent prim in ``layer`` for every event not authored by the user.
 
-    Call inside an ``Sdf.ChangeBlock``. Returns the number written.
+    ``crowd:center`` and ``crowd:radius`` are in the space of the event's parent on the stage the
+    events were found on (``parents``, a :class:`~usdcrowd.scenario.parent_space.ParentSpace`; default:
+    the world), so they move with the shot. Call inside an ``Sdf.ChangeBlock``. Returns the number
+    written.
     """
     from pxr import Gf, Sdf, Vt
 
@@ -38,6 +42,7 @@ def author_events(layer, events: model.EventTable, agent_paths: list[str], agent
         spec = Sdf.CreatePrimInLayer(layer, e.path)
         spec.specifier, spec.typeName = Sdf.SpecifierDef, "CrowdEvent"
         _uniform(spec, "crowd:kind", T.Token, model.EVENT_KINDS[e.kind])
+        Sdf.AttributeSpec(spec, "crowd:detected", T.Bool, Sdf.VariabilityUniform, True).default = True
         _uniform(spec, "crowd:startTime", T.Double, float(e.start))
         _uniform(spec, "crowd:endTime", T.Double, float(e.end))
         rel = Sdf.RelationshipSpec(spec, "crowd:members", custom=False)
@@ -53,6 +58,10 @@ def author_events(layer, events: model.EventTable, agent_paths: list[str], agent
         radius = Sdf.AttributeSpec(spec, "crowd:radius", T.Float)
         c_stage = np.asarray(e.center, dtype=np.float64) @ to_stage
         r_stage = np.asarray(e.radius, dtype=np.float64) / frame.meters_per_unit
+        if parents is not None:
+            parent = parents.of(e.path, e.times)
+            c_stage = points_in_parent(c_stage, parent)
+            r_stage = r_stage / scale_of(parent)
         for t, c, r in zip(e.times, c_stage, r_stage):
             layer.SetTimeSample(centre.path, float(t), Gf.Vec3f(*map(float, c)))
             layer.SetTimeSample(radius.path, float(t), float(r))
