@@ -452,3 +452,23 @@ def test_the_final_renderer_and_its_ground_truth_agree_on_a_moved_shot(museum_sh
     np.testing.assert_allclose(b["camera"]["K"], a["camera"]["K"], atol=1e-9)
     np.testing.assert_allclose(b["camera"]["position"], np.array(a["camera"]["position"]) @ MOVE[:3, :3] + MOVE[3, :3],
                                atol=1e-4)
+
+
+def test_the_preview_draws_a_moved_shot_as_the_shot(museum_shot, moved_shot, tmp_path, gl):
+    """The OpenGL preview through the moved camera: the same ids on the same pixels, depths twice as far
+    (the layer scales by 2)."""
+    from usdcrowd.cli import main
+    from usdcrowd.shading import SCENERY_ID_BASE
+
+    _, shot = museum_shot
+    aovs = []
+    for stage, out in ((shot / "shot.usda", tmp_path / "a"), (moved_shot, tmp_path / "b")):
+        assert main(["preview", str(stage), "-o", str(out), "--camera", "/World/Cameras/CrowdCam", "--frames", "12",
+                     "--resolution", "320x180", "--aovs", "--no-lod", "--no-progress"]) == 0
+        aovs.append(np.load(next(out.glob("*.npz"))))
+    a, b = aovs
+    people = (a["ids"] > 0) & (a["ids"] < SCENERY_ID_BASE)
+    same = a["ids"] == b["ids"]
+    assert same.mean() > 0.999 and people.any()
+    near = same & np.isfinite(a["depth"])
+    np.testing.assert_allclose(b["depth"][near], 2 * a["depth"][near], rtol=1e-3)
