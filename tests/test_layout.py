@@ -472,3 +472,45 @@ def test_the_preview_draws_a_moved_shot_as_the_shot(museum_shot, moved_shot, tmp
     assert same.mean() > 0.999 and people.any()
     near = same & np.isfinite(a["depth"])
     np.testing.assert_allclose(b["depth"][near], 2 * a["depth"][near], rtol=1e-3)
+
+
+def test_events_are_authored_in_their_parents_space_and_read_back_in_the_world(write_stage, tmp_path):
+    """A detected event found on a stage whose /World is moved: its centre and radius are written under the
+    move and read back where they were found; the same layer under an unmoved /World puts it back off by
+    the move (it belongs to the shot's space)."""
+    from pxr import Sdf, Usd
+
+    from usdcrowd import model
+    from usdcrowd.scenario.events import read_events
+    from usdcrowd.scenario.parent_space import ParentSpace
+    from usdcrowd.scenario.stageio import StageFrame
+    from usdcrowd.usd.events import author_events
+
+    moved = write_stage('''
+        def Xform "World"
+        {
+            double3 xformOp:translate = (5, -3, 0)
+            float3 xformOp:scale = (2, 2, 2)
+            uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:scale"]
+        }
+        ''', name="moved.usda")
+    times = np.arange(1.0, 5.0)
+    centre = np.array([[1.0, 2.0, 0.0]] * 4) + np.arange(4)[:, None] * [0.5, 0, 0]
+    event = model.Event("/World/Events/Meet_0001", model.EVENT_KINDS.index("groupMotion"), 1.0, 4.0,
+                        np.array([], np.int32), times, np.ones((4, 0), bool), centre, np.full(4, 1.5))
+    layer = Sdf.Layer.CreateNew(str(tmp_path / "events.usda"))
+    with Sdf.ChangeBlock():
+        author_events(layer, model.EventTable([event]), [], np.array([]), StageFrame("Z", 1.0),
+                      parents=ParentSpace(Usd.Stage.Open(str(moved)), times))
+    layer.Save()
+    for base, offset, scale in ((moved, np.array([5.0, -3.0, 0.0]), 2.0), (None, np.zeros(3), 1.0)):
+        stage_layer = Sdf.Layer.CreateNew(str(tmp_path / f"stage{scale:g}.usda"))
+        stage_layer.subLayerPaths = [str(tmp_path / "events.usda")] + ([str(base)] if base else [])
+        stage_layer.pseudoRoot.SetInfo("upAxis", "Z")
+        stage_layer.pseudoRoot.SetInfo("metersPerUnit", 1.0)
+        stage_layer.Save()
+        got, = read_events(Usd.Stage.Open(stage_layer), {}, model.TimeRange(1, 4, 24))
+        expected = centre if base else (centre - [5.0, -3.0, 0.0]) / 2.0
+        np.testing.assert_allclose(got.center, expected, atol=1e-6)
+        np.testing.assert_allclose(got.radius, 1.5 if base else 0.75, atol=1e-6)
+        assert not got.authored                     # detected, and says so in the layer itself
