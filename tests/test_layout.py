@@ -334,6 +334,8 @@ def test_your_edits_in_shot_usda_survive_simulate_and_cameras(tmp_path, capsys):
     from usdcrowd.cli import main
     from usdcrowd.groundtruth.mot import read_mot
     from usdcrowd.render.scene import ShotScene
+    from usdcrowd.summary import agent_list
+    from usdcrowd.usd.cameras import cameras_in
 
     scenario, shot = cli_museum_shot(tmp_path, agents=6, last_frame=24)
     original = ShotScene(shot / "shot.usda")
@@ -341,8 +343,15 @@ def test_your_edits_in_shot_usda_survive_simulate_and_cameras(tmp_path, capsys):
     ids = dict(zip(agents, original._agent_static[1].tolist()))
     _edit_shot_as_a_user(shot, agents)
     edited = (shot / "shot.usda").read_bytes()
+    # A camera made by `frame` is the user's work too.
+    assert main(["frame", str(shot / "shot.usda"), "--behavior", "orbit", "--targets", agents[3], agents[4],
+                 "--shot", "long", "--name", "Mine", "--no-progress"]) == 0
     assert main(["simulate", str(scenario), "-o", str(shot), "--frames", "1:24", "--no-progress"]) == 0
     assert (shot / "shot.usda").read_bytes() == edited
+    assert "kept    1 camera(s) made by frame (Mine)" in capsys.readouterr().out
+    assert "/World/Cameras/Mine" in cameras_in(shot / "cameras.usda")
+    listed = [a["path"] for a in agent_list(shot / "shot.usda")]
+    assert agents[1] not in listed and len(listed) == len(agents) - 1     # deactivated: gone, not made again
     assert main(["cameras", str(shot / "shot.usda"), "--no-progress"]) == 0
     assert (shot / "shot.usda").read_bytes() == edited
 
@@ -389,6 +398,7 @@ for path in sys.argv[1:]:
                 rec["roots"].setdefault(o.name, []).append(list((o.matrix_world @ o.pose.bones[0].matrix).translation))
             elif o.type == "CAMERA":
                 rec["cameras"].setdefault(o.name, []).append(list(o.matrix_world.translation))
+                rec.setdefault("lens", {})[o.name] = [o.data.lens, o.data.clip_end]
     rec["materials"] = [len([s for s in o.material_slots if s.material]) for o in bpy.data.objects
                         if o.type == "MESH" and o.name.startswith("Body")]
     out[path] = rec
@@ -397,7 +407,7 @@ print("RESULT " + json.dumps(out))
 
 
 @pytest.mark.slow
-def test_blender_agrees_with_usdcrowd_on_moved_and_placed_shots(museum_shot, moved_shot, placed_shot, tmp_path):
+def test_blender_agrees_with_usdcrowd_on_moved_and_placed_shots(museum_shot, moved_shot, tmp_path):
     """Blender (its own importer, no usdcrowd schemas) puts every character's root and every camera where
     usdcrowd's readers do on a moved shot and on one placed in a Y-up centimetre set, and the placed
     bodies come in with their five materials."""
@@ -405,8 +415,15 @@ def test_blender_agrees_with_usdcrowd_on_moved_and_placed_shots(museum_shot, mov
 
     from usdcrowd.render.scene import ShotScene
 
+    from usdcrowd.cli import main
+
     python = tool_python("bpy", ["bpy==5.0.1"], "USDCROWD_BPY_VENV")
-    placed, _, _ = placed_shot
+    # Placed now: the lenses place converts are those of the cameras the shot has (tests above add some).
+    _, shot = museum_shot
+    (tmp_path / "set.usda").write_text(SET)
+    placed = tmp_path / "placed.usda"
+    assert main(["place", str(shot / "shot.usda"), "--into", str(tmp_path / "set.usda"), "-o", str(placed),
+                 "--at", "500", "0", "-300", "--rotate", "40"]) == 0
     script = tmp_path / "layout.py"
     script.write_text(BLENDER_SCRIPT)
     run = subprocess.run([python, str(script), str(moved_shot), str(placed)], capture_output=True, text=True,
@@ -425,6 +442,8 @@ def test_blender_agrees_with_usdcrowd_on_moved_and_placed_shots(museum_shot, mov
             name = path.rsplit("/", 1)[-1]
             ours = np.array([scene.camera(path, t).position for t in (1.0, 12.0, 24.0)])
             np.testing.assert_allclose(rec["cameras"][name], ours, atol=1e-4, err_msg=f"{stage} {name}")
+            view = scene.camera(path, 1.0)
+            assert rec["lens"][name] == pytest.approx([view.focal_length, view.far], rel=1e-5), (stage, name)
     assert got[str(placed)]["materials"] and set(got[str(placed)]["materials"]) == {5}
 
 
@@ -514,3 +533,97 @@ def test_events_are_authored_in_their_parents_space_and_read_back_in_the_world(w
         np.testing.assert_allclose(got.center, expected, atol=1e-6)
         np.testing.assert_allclose(got.radius, 1.5 if base else 0.75, atol=1e-6)
         assert not got.authored                     # detected, and says so in the layer itself
+
+
+@pytest.mark.parametrize("case, fix", [
+    ("no default prim", lambda set_text: set_text.replace('    defaultPrim = "Set"\n', "")),
+    ("too far", None),
+    ("not a stage", None),
+])
+def test_place_refuses_what_would_make_a_broken_stage(museum_shot, tmp_path, capsys, case, fix):
+    from usdcrowd.cli import main
+
+    _, shot = museum_shot
+    (tmp_path / "set.usda").write_text(fix(SET) if fix else SET)
+    out = tmp_path / ("layout.txt" if case == "not a stage" else "layout.usda")
+    argv = ["place", str(shot / "shot.usda"), "--into", str(tmp_path / "set.usda"), "-o", str(out)]
+    if case == "too far":
+        argv += ["--at", "1e12", "0", "0"]
+    capsys.readouterr()
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    assert not out.exists()
+
+
+def test_a_shot_placed_twice_keeps_one_track_per_person(museum_shot, tmp_path, capsys):
+    """The same shot placed again in a set that holds it: the second copy's ids (and its events' member ids)
+    move past the set's, the stage plays the set's frames and the shot's, and it validates clean."""
+    from usdcrowd.cli import main
+    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.stageio import time_range
+    from usdcrowd.summary import agent_list
+
+    _, shot = museum_shot
+    (tmp_path / "set.usda").write_text(SET)
+    first, second = tmp_path / "once.usda", tmp_path / "twice.usda"
+    assert main(["place", str(shot / "shot.usda"), "--into", str(tmp_path / "set.usda"), "-o", str(first)]) == 0
+    capsys.readouterr()
+    assert main(["place", str(shot / "shot.usda"), "--into", str(first), "-o", str(second), "--at", "0", "0", "800"]) == 0
+    assert "/Set/Shot_2" in capsys.readouterr().out
+    ids = [a["id"] for a in agent_list(second)]
+    original = [a["id"] for a in agent_list(shot / "shot.usda")]
+    assert sorted(ids) == sorted(original + [i + 1000 for i in original])
+    scene = ShotScene(second)
+    assert len(set(scene._agent_static[1].tolist())) == 2 * len(original)
+    assert main(["validate", str(second)]) == 0
+    assert "0 error(s), 0 warning(s)" in capsys.readouterr().out
+
+    # A set with its own, longer frames keeps them.
+    (tmp_path / "long.usda").write_text(SET.replace('    upAxis = "Y"\n', '    upAxis = "Y"\n    startTimeCode = 1\n'
+                                                    '    endTimeCode = 100\n'))
+    assert main(["place", str(shot / "shot.usda"), "--into", str(tmp_path / "long.usda"), "-o",
+                 str(tmp_path / "long_layout.usda")]) == 0
+    from usdcrowd.scenario import open_stage
+    t = time_range(open_stage(str(tmp_path / "long_layout.usda")))
+    assert (t.start, t.end) == (1, 100)
+
+
+def test_a_placed_shots_lenses_are_in_the_sets_units_for_every_reader(museum_shot, tmp_path):
+    """USD does not convert a lens across a reference: place writes each camera's lens and clipping range
+    in the set's centimetres, so a flattened copy (what usdview, Blender and any other tool read as it
+    is) has the shot's millimetres and metres."""
+    from pxr import Usd, UsdGeom
+
+    from usdcrowd.cli import main
+    from usdcrowd.render.scene import ShotScene
+
+    _, shot = museum_shot
+    (tmp_path / "set.usda").write_text(SET)
+    placed = tmp_path / "placed.usda"
+    assert main(["place", str(shot / "shot.usda"), "--into", str(tmp_path / "set.usda"), "-o", str(placed)]) == 0
+    flat = tmp_path / "flat.usdc"
+    assert main(["export", str(placed), "--flatten", str(flat), "--no-progress"]) == 0
+    a, b = ShotScene(shot / "shot.usda"), ShotScene(flat)
+    stage = Usd.Stage.Open(str(flat))
+    for pa, pb in zip(a.camera_paths, b.camera_paths):
+        ca, cb = a.camera(pa, 12.0), b.camera(pb, 12.0)
+        assert (cb.focal_length, cb.horizontal_aperture, cb.near, cb.far) == pytest.approx(
+            (ca.focal_length, ca.horizontal_aperture, ca.near, ca.far), rel=1e-6)
+        # As plain USD reads it: tenths of the stage's centimetre, which are millimetres.
+        cam = UsdGeom.Camera(stage.GetPrimAtPath(pb))
+        assert cam.GetFocalLengthAttr().Get(12.0) == pytest.approx(ca.focal_length, rel=1e-6)
+
+
+def test_validate_says_when_a_placed_shot_was_simulated_again_over_other_frames(tmp_path, capsys):
+    from usdcrowd.cli import main
+
+    scenario, shot = cli_museum_shot(tmp_path, agents=4, last_frame=12)
+    (tmp_path / "set.usda").write_text(SET)
+    layout = tmp_path / "layout.usda"
+    assert main(["place", str(shot / "shot.usda"), "--into", str(tmp_path / "set.usda"), "-o", str(layout)]) == 0
+    assert main(["simulate", str(scenario), "-o", str(shot), "--frames", "1:20", "--no-progress"]) == 0
+    capsys.readouterr()
+    assert main(["validate", str(layout)]) == 0
+    out = capsys.readouterr().out
+    assert "1-20" in out and "place it again" in out

@@ -174,7 +174,7 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
             cameras = write_camera_tracks(out_dir, tracks, sframe, default_prim, scenario.time,
                                           defined={p for p in scenario.cameras.path},
                                           extra={"seed": int(scenario.seed), "events": len(shot_events)},
-                                          parents=space)
+                                          parents=space, keep_toric=True)
             plot = trajectory_map(_subset(scenario, plotted), np.concatenate(collected.tracks),
                                   out_dir / "trajectories.png",
                                   title=f"{Path(scenario_path).name}: {len(scenario.agents)} agents, "

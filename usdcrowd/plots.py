@@ -143,7 +143,8 @@ def coverage_plot(series: dict, column: str, n_cameras: int, out_png: str | os.P
         ax.fill_between(t, np.where(defined, y, 0), 1, where=defined, color="0.85", step="mid", label=names[1])
         ax.set_ylim(0, 1)
         ax.set_ylabel("share")
-        ax.set_title(f"{n_cameras} {kind} cameras: {label} (mean {np.nanmean(y):.2f})", fontsize=10)
+        mean = f"mean {np.mean(y[defined]):.2f}" if defined.any() else "nothing to measure"
+        ax.set_title(f"{n_cameras} {kind} cameras: {label} ({mean})", fontsize=10)
     axes[-1].set_xlabel("seconds")
     axes[0].legend(loc="upper right", fontsize=8)
     with atomic_path(out_png) as tmp:

@@ -257,5 +257,6 @@ def format_summary(s: dict) -> str:
         lines.append(f"  {li['path']}  {li['type']}, intensity {li['intensity']:g}, exposure {li['exposure']:g}")
     lines.append(f"events  {len(s['events'])}")
     for e in s["events"]:
-        lines.append(f"  {e['path']}  {e['kind']}, {e['members']} members, frames {e['start']:g}-{e['end']:g}")
+        when = f"frames {e['start']:g}-{e['end']:g}" if e["start"] <= e["end"] else "not within the stage's frames"
+        lines.append(f"  {e['path']}  {e['kind']}, {e['members']} members, {when}")
     return "\n".join(lines)

@@ -429,6 +429,60 @@ def dropped_root_problems(stage) -> list[Problem]:
     return [Problem(f, prim, "", message, "usdcrowd", "warning") for f, prim, message in found(stage)]
 
 
+def placement_problems(stage, source: str) -> list[Problem]:
+    """A warning when a stage ``usdcrowd place`` wrote no longer plays its shot's frames (the shot was
+    simulated again over other frames since): USD takes the frames from the root layer only."""
+    import os
+
+    from pxr import Sdf
+
+    data = stage.GetRootLayer().customLayerData.get("usdcrowd", {})
+    placed = data.get("placed") if isinstance(data, dict) else None
+    if not isinstance(placed, dict) or "frames" not in placed:
+        return []
+    shot = os.path.join(os.path.dirname(stage.GetRootLayer().realPath or source), str(placed.get("shot")))
+    try:
+        layer = Sdf.Layer.OpenAsAnonymous(shot)
+    except Exception:
+        return []                           # a missing shot is the stage's own error
+    now = (float(layer.startTimeCode), float(layer.endTimeCode))
+    was = tuple(float(v) for v in placed["frames"])
+    if now == was:
+        return []
+    return [Problem(source, str(placed.get("prim", "")), "endTimeCode",
+                    f"its shot now plays frames {now[0]:g}-{now[1]:g}, placed when it played {was[0]:g}-{was[1]:g}: "
+                    f"this stage still plays {stage.GetStartTimeCode():g}-{stage.GetEndTimeCode():g}; place it "
+                    f"again", "usdcrowd", "warning")]
+
+
+def lens_unit_problems(stage, source: str) -> list[Problem]:
+    """A warning for a camera whose lens was authored in other units than the stage's: usdcrowd reads it
+    in its own layer's units, but USD does not convert values across a reference, so Blender, usdview
+    and a flattened copy read it that many times too long or short."""
+    from pxr import UsdGeom
+
+    from .scenario import stage_frame
+    from .scenery import authoring_meters_per_unit
+
+    frame = stage_frame(stage)
+    out = []
+    for prim in stage.Traverse():
+        if not prim.IsA(UsdGeom.Camera):
+            continue
+        attr = UsdGeom.Camera(prim).GetFocalLengthAttr()
+        if not attr.HasAuthoredValue():
+            continue
+        t = (attr.GetTimeSamples() or [stage.GetStartTimeCode()])[0]
+        mpu = authoring_meters_per_unit(attr, t, frame)
+        if abs(mpu / frame.meters_per_unit - 1.0) > 1e-9:
+            out.append(Problem(source, str(prim.GetPath()), "focalLength",
+                               f"lens authored in a layer of {mpu:g} m per unit under a stage of "
+                               f"{frame.meters_per_unit:g}: usdcrowd reads it right, but Blender, usdview and a "
+                               f"flattened copy read it as {frame.meters_per_unit / mpu:g} times its length; "
+                               f"`usdcrowd place` converts the lenses of a shot it places", "usdcrowd", "warning"))
+    return out
+
+
 def fallback_problems(stage, source: str) -> list[Problem]:
     """A warning when the stage uses our typed prims from another layer (it references or sublayers a
     shot or a scenario) and its root layer lacks their ``fallbackPrimTypes``: USD reads them only from
@@ -453,7 +507,8 @@ def stage_problems(stage, source: str) -> list[Problem]:
     """What validate finds besides the scenario reader: USD's validators, value clips, units, schema rules, and what
     a round trip through a DCC tool lost."""
     return (usd_problems(stage, source) + clip_problems(stage) + frame_problems(stage) + schema_problems(stage, source)
-            + round_trip_problems(stage, source) + fallback_problems(stage, source) + dropped_root_problems(stage))
+            + round_trip_problems(stage, source) + fallback_problems(stage, source) + dropped_root_problems(stage)
+            + lens_unit_problems(stage, source) + placement_problems(stage, source))
 
 
 def refuse_errors(stage, source: str) -> None:

@@ -80,9 +80,9 @@ class CoverageSeries:
         """Means over the frames where they are defined."""
         ratio = self.viewed_ratio
         finite = np.isfinite(ratio)
-        return {"mean_active_share": float(np.nanmean(self.active_share)),
-                "mean_active_idle_ratio": float(np.nanmean(self.active_idle_ratio)),
-                "mean_viewed_share": float(np.nanmean(self.viewed_share)),
+        return {"mean_active_share": _mean(self.active_share),
+                "mean_active_idle_ratio": _mean(self.active_idle_ratio),
+                "mean_viewed_share": _mean(self.viewed_share),
                 "median_viewed_ratio": float(np.median(ratio[~np.isnan(ratio)])) if (~np.isnan(ratio)).any()
                 else float("nan"),
                 "frames_all_active_viewed": int(np.sum(np.isinf(ratio))),
@@ -166,3 +166,9 @@ def coverage(tracks: list[model.CameraTrack], positions: np.ndarray, active: np.
         s_idle[k] = w[~act].sum()
         n_seen[k] = len(np.unique(who[act]))
     return CoverageSeries(np.asarray(tracks[0].times, dtype=np.float64), s_act, s_idle, n_act, n_seen)
+
+
+def _mean(values: np.ndarray) -> float:
+    """Mean over the defined (non-NaN) entries; NaN, quietly, when none is (a shot without events)."""
+    defined = ~np.isnan(values)
+    return float(np.mean(values[defined])) if defined.any() else float("nan")

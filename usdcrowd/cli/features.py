@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .args import add_camera, add_force, add_frames, add_resolution
+from .args import add_camera, add_force, add_frames, add_progress, add_resolution
 
 
 def add_parser(sub):
@@ -20,6 +20,7 @@ def add_parser(sub):
     add_frames(p)
     add_resolution(p)
     add_force(p)
+    add_progress(p)         # accepted as by every command; the features are computed in one pass
     p.set_defaults(run=run, inputs=("shot",), output_folders=("output",))
 
 

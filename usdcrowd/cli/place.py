@@ -28,15 +28,23 @@ def add_parser(sub):
 
 
 def run(args) -> int:
+    import os
+
     from pxr import Tf
 
     from ..errors import UsdcrowdError
     from ..usd.place import place_shot
 
     if args.name is not None and (not args.name or Tf.MakeValidIdentifier(args.name) != args.name):
-        raise UsdcrowdError(f"--name {args.name!r} is not a prim name (letters, digits and _, not starting "
-                            f"with a digit)", attribute="--name")
-    path = place_shot(args.shot, args.into, args.output, at=args.at, rotate=args.rotate, name=args.name)
-    print(f"wrote {path}: {args.shot} placed in {args.into} at {' '.join(f'{v:g}' for v in args.at)}, "
+        raise UsdcrowdError(f"{args.name!r} is not a prim name (letters, digits and _, not starting with a digit)",
+                            attribute="--name")
+    if os.path.splitext(args.output)[1].lower() not in (".usda", ".usd", ".usdc"):
+        raise UsdcrowdError("place writes a USD stage: name it .usda, .usd or .usdc", file=args.output)
+    path, prim, offset = place_shot(args.shot, args.into, args.output, at=args.at, rotate=args.rotate,
+                                    name=args.name)
+    print(f"wrote {path}: {args.shot} placed in {args.into} as {prim} at {' '.join(f'{v:g}' for v in args.at)}, "
           f"turned {args.rotate:g} degrees")
+    if offset:
+        print(f"  ids     moved by {offset:+d}: the set already holds agents with the shot's ids (ground truth "
+              f"tracks stay one per person)")
     return 0

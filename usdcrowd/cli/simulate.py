@@ -27,6 +27,7 @@ def run(args) -> int:
 
     from ..errors import UsdcrowdError
     from ..pipeline import simulate_shot
+    from ..usd.cameras import cameras_in
 
     frames = None
     if args.frames is not None:
@@ -41,5 +42,9 @@ def run(args) -> int:
     print(f"wrote {r.shot}: {r.n_agents} agents x {r.n_frames} frames, seed {r.seed}")
     print(f"  crowd   {r.crowd}")
     print(f"  cameras {r.cameras}")
+    kept = [p for p in cameras_in(r.cameras) if p not in set(r.camera_paths)]
+    if kept:        # `frame`'s cameras are the user's work: kept, framing the crowd as it was
+        print(f"  kept    {len(kept)} camera(s) made by frame ({', '.join(p.rsplit('/', 1)[-1] for p in kept[:3])}"
+              f"{'...' if len(kept) > 3 else ''}): they frame the earlier crowd; run frame again to reframe")
     print(f"  picture {r.plot}")
     return 0

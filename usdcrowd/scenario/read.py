@@ -444,9 +444,10 @@ def _resolve(r: _Reader, seed, groups, agents):
     cols: dict[str, list[np.ndarray]] = {}
     for gi, g in enumerate(groups):
         # A shot stage already holds the clones a run made: they are read as
-        # authored agents, not made again.
+        # authored agents, not made again; one its user deactivated is gone, not made again either.
         have = {a.path for a in by_group[gi]}
-        clones = [AgentSpec(p, gi) for p in (clone_path(g.path, k) for k in range(g.clones)) if p not in have]
+        clones = [AgentSpec(p, gi) for p in (clone_path(g.path, k) for k in range(g.clones))
+                  if p not in have and not r.stage.GetPrimAtPath(p)]
         members = by_group[gi] + clones
         has_subgroups = any(h.parent == gi for h in groups)
         if not members and not has_subgroups:

@@ -28,6 +28,8 @@ import numpy as np
 
 from .. import schema
 from ..atomic import export_layer
+from ..errors import StageError
+from ..scenario.ranges import MAX_EXTENT
 
 # The shot's prim in the set takes this name unless one is given.
 DEFAULT_NAME = "Shot"
@@ -48,44 +50,43 @@ def place_shot(shot: str | os.PathLike, into: str | os.PathLike, out: str | os.P
 
     Returns
     -------
-    str
-        The path written.
+    path : str
+        The stage written.
+    prim : str
+        The prim that places the shot (``<set's default prim>/<name>``).
+    offset : int
+        What the shot's agent ids were moved by (:func:`id_offset`; 0 when the set holds none of them).
 
     Raises
     ------
     StageError
-        A shot without a default prim, or a set whose default prim is missing.
+        A shot or a set without a default prim, or --at too far from the origin.
     """
     from pxr import Gf, Sdf, Vt
 
-    from ..errors import StageError
     from ..scenario import open_stage, stage_frame
     from ..scenario.stageio import time_range
     from ..scenery import correction
 
     shot, into, out = os.fspath(shot), os.fspath(into), os.fspath(out)
     shot_stage, set_stage = open_stage(shot), open_stage(into)
-    shot_root = shot_stage.GetDefaultPrim()
-    if not shot_root:
-        raise StageError("has no defaultPrim: a shot is placed by its default prim", file=shot,
-                         attribute="defaultPrim")
-    set_root = set_stage.GetDefaultPrim()
-    if set_stage.GetRootLayer().defaultPrim and not set_root:
-        raise StageError(f"its defaultPrim {set_stage.GetRootLayer().defaultPrim!r} is not on the stage", file=into,
-                         attribute="defaultPrim")
-    parent = set_root.GetPath() if set_root else Sdf.Path.absoluteRootPath
+    shot_root, parent = _roots(shot_stage, shot, set_stage, into)
+    offset = id_offset(shot_stage, set_stage)
     name = name or _free_name(set_stage, parent, DEFAULT_NAME)
     if set_stage.GetPrimAtPath(parent.AppendChild(name)):
         raise StageError(f"the set already has a prim {name!r} here: give another --name", file=into,
                          prim=str(parent.AppendChild(name)))
     shot_frame, set_frame = stage_frame(shot_stage), stage_frame(set_stage)
-    time = time_range(shot_stage)
+    reach = float(np.abs(np.asarray(at, dtype=np.float64)).max()) * set_frame.meters_per_unit
+    if reach > MAX_EXTENT:
+        raise StageError(f"--at is {reach:.3g} m from the set's origin: a scene stays within "
+                         f"{MAX_EXTENT / 1000:g} km of it", file=into, attribute="--at")
+    time = _frames(time_range(shot_stage), set_stage)
 
     out_dir = os.path.dirname(os.path.abspath(out))
     layer = Sdf.Layer.CreateAnonymous(".usda")
     layer.subLayerPaths = [_relative(into, out_dir)]
-    if set_root:
-        layer.defaultPrim = set_root.GetName()
+    layer.defaultPrim = parent.name
     layer.pseudoRoot.SetInfo("upAxis", set_frame.up_axis)
     layer.pseudoRoot.SetInfo("metersPerUnit", set_frame.meters_per_unit)
     layer.startTimeCode, layer.endTimeCode = time.start, time.end
@@ -93,7 +94,7 @@ def place_shot(shot: str | os.PathLike, into: str | os.PathLike, out: str | os.P
     schema.author_fallbacks(layer)
     T = Sdf.ValueTypeNames
     with Sdf.ChangeBlock():
-        for p in (parent.GetPrefixes() if parent != Sdf.Path.absoluteRootPath else []):
+        for p in parent.GetPrefixes():
             Sdf.CreatePrimInLayer(layer, p).specifier = Sdf.SpecifierOver
         spec = Sdf.CreatePrimInLayer(layer, parent.AppendChild(name))
         spec.specifier, spec.typeName = Sdf.SpecifierDef, "Xform"
@@ -109,9 +110,139 @@ def place_shot(shot: str | os.PathLike, into: str | os.PathLike, out: str | os.P
             Sdf.AttributeSpec(spec, op, type_name).default = value
         order = Sdf.AttributeSpec(spec, "xformOpOrder", T.TokenArray, Sdf.VariabilityUniform)
         order.default = Vt.TokenArray(["xformOp:translate", f"xformOp:{up}", "xformOp:transform:units"])
+        lenses = convert_lenses(layer, shot_stage, shot_root.GetPath(), ref.path, set_frame)
+        if offset:
+            shift_ids(layer, shot_stage, shot_root.GetPath(), ref.path, offset)
     layer.customLayerData = {"usdcrowd": {"placed": {"shot": _relative(shot, out_dir), "prim": str(ref.path),
-                                                     "at": Gf.Vec3d(*map(float, at)), "rotate": float(rotate)}}}
-    return export_layer(layer, out)
+                                                     "at": Gf.Vec3d(*map(float, at)), "rotate": float(rotate),
+                                                     "frames": Gf.Vec2d(time_range(shot_stage).start,
+                                                                        time_range(shot_stage).end),
+                                                     "lensesConverted": lenses, "idOffset": offset}}}
+    return export_layer(layer, out), str(spec.path), offset
+
+
+def _roots(shot_stage, shot: str, set_stage, into: str):
+    """The shot's default prim and the set's (where the shot goes).
+
+    Raises
+    ------
+    StageError
+        Either has no default prim, or names one that is not there.
+    """
+    for stage, path, what in ((shot_stage, shot, "a shot is placed by its default prim"),
+                              (set_stage, into, "the shot goes under the set's default prim")):
+        named = stage.GetRootLayer().defaultPrim
+        if not named:
+            raise StageError(f"has no defaultPrim: {what} (set one in its root layer)", file=path,
+                             attribute="defaultPrim")
+        if not stage.GetDefaultPrim():
+            raise StageError(f"its defaultPrim {named!r} is not on the stage", file=path, attribute="defaultPrim")
+    return shot_stage.GetDefaultPrim(), set_stage.GetDefaultPrim().GetPath()
+
+
+def id_offset(shot_stage, set_stage) -> int:
+    """How far the shot's agent ids must move so that none is one the set already holds (0 when none
+    is): the next thousand above the set's highest id. Two characters with one id would share a track
+    in the ground truth (the same shot placed twice, or two shots both numbered from 100)."""
+    from ..schema import agent_prims
+
+    have = {i for _, i in agent_prims(set_stage)} - {None, -1}
+    mine = {i for _, i in agent_prims(shot_stage)} - {None, -1}
+    if not have & mine:
+        return 0
+    return 1000 * (max(have) // 1000 + 1) - 1000 * (min(mine) // 1000)
+
+
+def shift_ids(layer, shot_stage, shot_root, placed_root, offset: int) -> None:
+    """Author, over the placed shot, every agent id moved by ``offset`` (the schema's and Blender's
+    custom property) and every event's time-sampled member ids with them."""
+    from pxr import Sdf, Vt
+
+    from ..schema import EVENT, USER_PROPERTIES, agent_prims
+
+    def over(prim, name, value_of):
+        attr = prim.GetAttribute(name)
+        if not attr or not attr.HasAuthoredValue():
+            return
+        target = Sdf.Path(str(prim.GetPath()).replace(str(shot_root), str(placed_root), 1))
+        spec = Sdf.AttributeSpec(Sdf.CreatePrimInLayer(layer, target), name, attr.GetTypeName(),
+                                 attr.GetVariability(), attr.IsCustom())
+        for t in attr.GetTimeSamples():
+            layer.SetTimeSample(spec.path, t, value_of(attr.Get(t)))
+        if not attr.GetTimeSamples():
+            spec.default = value_of(attr.Get())
+
+    for prim, _ in agent_prims(shot_stage):
+        for name in ("crowd:agentId", f"{USER_PROPERTIES}agentId"):
+            over(prim, name, lambda v: int(v) + offset)
+    for prim in shot_stage.Traverse():
+        if prim.GetTypeName() == EVENT:
+            over(prim, "crowd:memberIds", lambda v: Vt.IntArray([int(i) + offset for i in (v or [])]))
+
+
+def _frames(shot_time, set_stage):
+    """The shot's frames, widened to the set's own when it has some (a set holding another shot)."""
+    from .. import model
+    from ..scenario.stageio import time_range
+
+    if not set_stage.GetRootLayer().HasStartTimeCode():
+        return shot_time
+    own = time_range(set_stage)
+    return model.TimeRange(min(own.start, shot_time.start), max(own.end, shot_time.end), shot_time.fps)
+
+
+# Camera attributes in scene units (lens values in tenths of one, USD's convention).
+LENS_ATTRIBUTES = ("focalLength", "horizontalAperture", "verticalAperture", "horizontalApertureOffset",
+                   "verticalApertureOffset", "clippingRange", "focusDistance")
+
+
+def convert_lenses(layer, shot_stage, shot_root, placed_root, set_frame) -> int:
+    """Author the lens of every camera of the shot in the set's units, under ``placed_root`` in ``layer``.
+
+    USD reads a camera's lens and clipping range in the units of the stage that composes it, and a
+    reference does not convert them: a metre shot's 35 mm lens (0.35) would be a 0.35 mm one in a
+    centimetre set, for Blender, usd-core and a flattened file. Only needed when the units differ.
+
+    Returns
+    -------
+    int
+        Cameras converted.
+    """
+    from pxr import Gf, Sdf, UsdGeom
+
+    from ..scenario import stage_frame
+    from ..scenery import authoring_meters_per_unit
+
+    frame = stage_frame(shot_stage)
+    n = 0
+    for prim in shot_stage.Traverse():
+        if not prim.IsA(UsdGeom.Camera) or not prim.GetPath().HasPrefix(shot_root):
+            continue
+        target = Sdf.Path(str(prim.GetPath()).replace(str(shot_root), str(placed_root), 1))
+        converted = False
+        for name in LENS_ATTRIBUTES:
+            attr = prim.GetAttribute(name)
+            if not attr or not attr.HasAuthoredValue():
+                continue
+            times = attr.GetTimeSamples() or [None]
+            values = []
+            for t in times:
+                ratio = authoring_meters_per_unit(attr, t if t is not None else 0.0, frame) / set_frame.meters_per_unit
+                v = attr.Get(t) if t is not None else attr.Get()
+                values.append((t, Gf.Vec2f(v[0] * ratio, v[1] * ratio) if name == "clippingRange" else v * ratio,
+                               ratio))
+            if all(abs(r - 1.0) < 1e-12 for _, _, r in values):
+                continue
+            spec = Sdf.CreatePrimInLayer(layer, target)
+            over = Sdf.AttributeSpec(spec, name, attr.GetTypeName())
+            for t, v, _ in values:
+                if t is None:
+                    over.default = v
+                else:
+                    layer.SetTimeSample(over.path, t, v)
+            converted = True
+        n += converted
+    return n
 
 
 def _free_name(stage, parent, base: str) -> str:

@@ -167,19 +167,17 @@ def write_shot(out_dir: str | os.PathLike, scenario_path: str, time: model.TimeR
     if before is not None and layer.ExportToString() == before:
         return final
     if before is not None:
-        _keep_previous_text(final, before)
+        _keep_previous_text(final)
     return export_layer(layer, final)
 
 
-def _keep_previous_text(final: str, exported: str) -> None:
-    """USD writes a layer's opinions, not its comments or hand formatting: when the user's text holds
-    more than USD would write of it, keep that text beside the shot's record before updating it."""
+def _keep_previous_text(final: str) -> None:
+    """USD writes a layer's opinions, not its comments or hand formatting: the text as it was is kept
+    beside the shot's record before it is updated (the latest one: never an older edit)."""
     from ..guard import STATE_DIR
 
     with open(final, encoding="utf-8", errors="replace") as f:
         text = f.read()
-    if text.strip() == exported.strip():
-        return
     # In the folder's own state directory (not an output the guard records), replaced atomically.
     folder = os.path.join(os.path.dirname(final), STATE_DIR)
     os.makedirs(folder, exist_ok=True)
