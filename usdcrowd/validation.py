@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import schema
+from .errors import UsdcrowdError
 from .scenario.namespace import stage_path
 from .scenario.samples import sample_values
 
@@ -464,7 +465,10 @@ def lens_unit_problems(stage, source: str) -> list[Problem]:
     from .scenario import stage_frame
     from .scenery import authoring_meters_per_unit
 
-    frame = stage_frame(stage)
+    try:
+        frame = stage_frame(stage)
+    except UsdcrowdError:
+        return []                           # the stage's own units are wrong: reported on their own
     out = []
     for prim in stage.Traverse():
         if not prim.IsA(UsdGeom.Camera):

@@ -748,9 +748,11 @@ _INTEREST_VALUES = ("interest", "radius", "visibility", "priorKnowledge", "decay
 def _interest_point(r: _Reader, prim) -> tuple:
     """(path, position, values of _INTEREST_VALUES) of an interest point, canonical metres."""
     values = [float(r.get(prim, n)) for n in _INTEREST_VALUES]
-    values[1] *= r.frame.meters_per_unit
+    m = r.world_matrix(prim)
+    # In the point's own space, as its position: a shot placed under a set's unit conversion keeps its size.
+    values[1] *= float(np.linalg.norm(m[0, :3]))
     r.check_extent(prim, "crowd:radius", values[1], "length")
-    return str(prim.GetPath()), r.world_matrix(prim)[3, :3], values
+    return str(prim.GetPath()), m[3, :3], values
 
 
 def _interest(r: _Reader, prims) -> model.InterestTable:
