@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import usdcrowd  # noqa: F401  (registers the schemas before any stage opens)
-from usdcrowd.resources import data_dir
+from usdcrowd.core.resources import data_dir
 
 sys.path.insert(0, str(Path(__file__).parent))
 
@@ -58,8 +58,8 @@ def walking_museum(tmp_path_factory):
     """The museum stage's agents walking straight for 12 frames, as a shot (read-only: share it)."""
     from frames_factory import straight_walk
 
-    import usdcrowd.resources as res
-    from usdcrowd.pipeline import author_shot
+    import usdcrowd.core.resources as res
+    from usdcrowd.jobs.pipeline import author_shot
 
     out = tmp_path_factory.mktemp("walking_museum")
     return author_shot(res.data_dir("stages") / "museum.usda", out, lambda sc: [straight_walk(sc.agents, sc.time)],
@@ -70,7 +70,7 @@ def walking_museum(tmp_path_factory):
 def gl():
     """A headless OpenGL context; the module is skipped where none can be made (no EGL, no moderngl)."""
     pytest.importorskip("moderngl")
-    from usdcrowd.errors import UsdcrowdError
+    from usdcrowd.core.errors import UsdcrowdError
     from usdcrowd.render.preview.context import headless_context
 
     try:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from usdcrowd import model
+from usdcrowd.core import model
 from usdcrowd.character.animation import advance_phase, classify
 
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from usdcrowd.model import (BEHAVIORS, CHARACTER_TYPES, CONDITIONS, FEAR_RESPONSES, LAYER_GENERATORS,
-                            LAYER_MEANINGS, PERSONALITIES, ROLES, VISIT_PROFILES, AgentTable,
-                            BehaviorField, GroupTable, InterestTable, Obstacles, Scenario, TimeRange, code)
+from usdcrowd.core.model import (BEHAVIORS, CHARACTER_TYPES, CONDITIONS, FEAR_RESPONSES, LAYER_GENERATORS,
+                                 LAYER_MEANINGS, PERSONALITIES, ROLES, VISIT_PROFILES, AgentTable, BehaviorField,
+                                 GroupTable, InterestTable, Obstacles, Scenario, TimeRange, code)
 
 
 def agents(start, *, group=None, leader=None, role="member", character="human", personality="civilian",

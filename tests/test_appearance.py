@@ -12,8 +12,8 @@ import pytest
 
 from usdcrowd.character import appearance
 from usdcrowd.character.body import REGIONS
-from usdcrowd.pipeline import simulate_shot
-from usdcrowd.resources import data_dir
+from usdcrowd.jobs.pipeline import simulate_shot
+from usdcrowd.core.resources import data_dir
 
 # Strong, distinct colours an agent is dressed in by the stage that wraps the shot.
 MARKED = {"top": (0.8, 0.05, 0.05), "trousers": (0.05, 0.05, 0.8), "skin": (0.5, 0.35, 0.25),
@@ -116,7 +116,7 @@ PLAIN_USD = textwrap.dedent('''
 
 def test_plain_usd_sees_each_vertex_in_its_regions_colour_and_material(dialogue_shot, tmp_path):
     """usd-core without usdcrowd: the flattened displayColor and the subsets' materials are the palette's."""
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     script = tmp_path / "plain.py"
     script.write_text(PLAIN_USD)
@@ -172,14 +172,14 @@ def _marked_stage(shot, tmp_path) -> str:
 
 def test_final_frames_wear_the_palette_and_keep_the_ground_truth(dialogue_shot, tmp_path):
     pytest.importorskip("mitsuba")
-    from usdcrowd.render.final import demo_outputs
+    from usdcrowd.render.demo import final_outputs
     from usdcrowd.render.final.exr import read_frame_exr
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     marked = _marked_stage(dialogue_shot, tmp_path)
     outs = {}
     for name, stage in (("plain", str(dialogue_shot)), ("marked", marked)):
-        demo_outputs(stage, tmp_path / name, frames=(FRAME,), resolution=(320, 180), spp=4)
+        final_outputs(stage, tmp_path / name, frames=(FRAME,), resolution=(320, 180), spp=4)
         _, ch = read_frame_exr(tmp_path / name / "exr" / f"frame.{int(FRAME):04d}.exr")
         outs[name] = ch
     # Ground truth does not depend on clothes.
@@ -208,9 +208,9 @@ def test_final_frames_wear_the_palette_and_keep_the_ground_truth(dialogue_shot, 
 
 def test_the_preview_wears_the_palette_too(dialogue_shot, tmp_path):
     pytest.importorskip("moderngl")
-    from usdcrowd.errors import UsdcrowdError
+    from usdcrowd.core.errors import UsdcrowdError
     from usdcrowd.render.preview import LodSettings, PreviewRenderer
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     scene = ShotScene(_marked_stage(dialogue_shot, tmp_path))
     try:
@@ -235,7 +235,7 @@ def test_the_preview_wears_the_palette_too(dialogue_shot, tmp_path):
 
 def test_an_agent_given_one_colour_wears_it_all_over(dialogue_shot, tmp_path):
     """A stage (or an older shot) that authors a single displayColor on a body: that colour everywhere."""
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     path = tmp_path / "one.usda"
     path.write_text(_over_body(dialogue_shot, MARKED_AGENT,
@@ -249,8 +249,8 @@ def test_an_agent_given_one_colour_wears_it_all_over(dialogue_shot, tmp_path):
 
 
 def test_a_palette_that_does_not_fit_the_body_is_a_one_line_error(dialogue_shot, tmp_path):
-    from usdcrowd.errors import StageError
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.core.errors import StageError
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     path = tmp_path / "bad.usda"
     path.write_text(_over_body(dialogue_shot, "/World/Crowd/Pair/B",
@@ -267,7 +267,7 @@ def test_mitsuba_reads_each_faces_roughness_from_its_material(dialogue_shot):
 
     from usdcrowd.render.final.build import AGENTS_KEY, build_scene
     from usdcrowd.render.final.variant import activate, choose_variant
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     activate(choose_variant())
     shot = ShotScene(dialogue_shot)
@@ -288,7 +288,7 @@ def test_mitsuba_reads_each_faces_roughness_from_its_material(dialogue_shot):
 
 
 def test_validate_names_a_palette_that_does_not_fit_the_body(dialogue_shot, tmp_path):
-    from usdcrowd.validation import validate
+    from usdcrowd.jobs.validation import validate
 
     assert not [p for p in validate(dialogue_shot) if p.severity == "error" and "displayColor" in p.attribute]
     path = tmp_path / "bad.usda"

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from usdcrowd import model
-from usdcrowd.errors import ScenarioError
+from usdcrowd.core import model
+from usdcrowd.core.errors import ScenarioError
 from usdcrowd.scenario import load_scenario
 
 TREE = '''

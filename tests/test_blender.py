@@ -53,7 +53,7 @@ def _blender(python: str, tmp_path, frames: list[int], *shots) -> dict:
 def test_blender_plays_a_shot_split_in_value_clips_as_the_one_layer_shot(blender_python, museum_path, tmp_path):
     from frames_factory import straight_walk
 
-    from usdcrowd.pipeline import author_shot
+    from usdcrowd.jobs.pipeline import author_shot
     from usdcrowd.scenario.crowd import read_crowd
 
     def walk(sc):
@@ -108,8 +108,8 @@ def test_lenses_mean_the_same_millimetres_in_blender_and_usdcrowd(blender_python
 
     from frames_factory import straight_walk
 
-    from usdcrowd.pipeline import author_shot
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.jobs.pipeline import author_shot
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     shot = author_shot(museum_path, tmp_path / "shot", lambda sc: [straight_walk(sc.agents, sc.time)],
                        frames=(1, 4), progress=False, camera_count=2)
@@ -171,7 +171,7 @@ def test_blender_keeps_groups_axes_and_units_of_a_y_up_centimetre_shot(blender_p
     from frames_factory import straight_walk
     from test_stage import Y_UP_CM
 
-    from usdcrowd.pipeline import author_shot
+    from usdcrowd.jobs.pipeline import author_shot
     from usdcrowd.scenario.crowd import read_crowd
 
     scenario = write_stage(Y_UP_CM, up="Y", mpu=0.01)
@@ -224,8 +224,8 @@ def test_blender_sees_the_two_heads_where_the_toric_camera_says(blender_python, 
 
     from usdcrowd.cameras.features import head_and_facing
     from usdcrowd.cli import main
-    from usdcrowd.render.scene import ShotScene
-    from usdcrowd.resources import data_dir
+    from usdcrowd.scenario.shot_scene import ShotScene
+    from usdcrowd.core.resources import data_dir
 
     shutil.copy(data_dir("stages") / "dialogue.usda", tmp_path / "dialogue.usda")
     shot = tmp_path / "shot"
@@ -388,8 +388,8 @@ def test_blender_dresses_each_agent_in_its_palette(blender_python, tmp_path):
 
     from usdcrowd.character import appearance
     from usdcrowd.character.body import REGIONS
-    from usdcrowd.pipeline import simulate_shot
-    from usdcrowd.resources import data_dir
+    from usdcrowd.jobs.pipeline import simulate_shot
+    from usdcrowd.core.resources import data_dir
 
     shot = simulate_shot(data_dir("stages") / "dialogue.usda", tmp_path / "shot", frames=(1, 4), progress=False).shot
     script = tmp_path / "palette.py"

@@ -41,7 +41,7 @@ bpy.ops.wm.usd_export(filepath=out, export_animation=True)
 
 def _agents(shot) -> dict[int, str]:
     """Original track id -> prim path of every agent ``inspect --agents`` lists."""
-    from usdcrowd.summary import agent_list
+    from usdcrowd.jobs.summary import agent_list
 
     return {a["id"]: a["path"] for a in agent_list(shot)}
 
@@ -67,7 +67,7 @@ def _keypoints(out: Path) -> dict[tuple[int, int], np.ndarray]:
 
 def _above_the_crowd(shot) -> str:
     """A point high enough over the crowd that a camera looking straight down sees everyone at every frame."""
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     scene = ShotScene(shot)
     heads = np.concatenate([scene.agents(t).joints_world[:, 2, 3, :3] for t in scene.time_codes])
@@ -100,7 +100,7 @@ def round_trip(tmp_path_factory):
 
 
 def _camera(shot, name: str) -> str:
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     (path,) = [p for p in ShotScene(shot).camera_paths if p.rsplit("/", 1)[-1] == name]
     return path
@@ -109,7 +109,7 @@ def _camera(shot, name: str) -> str:
 @pytest.mark.slow
 def test_the_shot_back_from_blender_renders_with_the_original_track_ids_and_boxes(round_trip, tmp_path):
     shot, back, deleted = round_trip
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     visible = ShotScene(shot).agents(1)
     survivors = {int(i) for i, seen in zip(visible.agent_ids, visible.visible) if seen} - {deleted}
@@ -164,7 +164,7 @@ def _without_our_schemas(shot, out: Path):
     ``userProperties:crowd:*`` verbatim writes it; returns its (open, unsaved) layer."""
     from pxr import Sdf, Usd
 
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     Usd.Stage.Open(str(shot)).Export(str(out))
     layer = Sdf.Layer.FindOrOpen(str(out))
@@ -180,8 +180,8 @@ def _without_our_schemas(shot, out: Path):
 def test_agents_that_carry_only_their_user_properties_keep_their_ids(walking_museum, tmp_path):
     """A tool that keeps ``userProperties:crowd:agentId`` as it is, and drops our schemas, still gives the
     agents usdcrowd knew: the same ids, the same joints."""
-    from usdcrowd.render.scene import ShotScene
-    from usdcrowd.summary import agent_list
+    from usdcrowd.scenario.shot_scene import ShotScene
+    from usdcrowd.jobs.summary import agent_list
 
     flat = tmp_path / "flat.usda"
     _without_our_schemas(walking_museum, flat).Save()
@@ -197,8 +197,8 @@ def test_validate_refuses_an_id_two_agents_carry_and_warns_of_an_agent_without_a
     agent. An agent exported without its animation is not drawn: a warning that names it."""
     from pxr import Sdf
 
-    from usdcrowd.render.scene import ShotScene
-    from usdcrowd.validation import validate
+    from usdcrowd.scenario.shot_scene import ShotScene
+    from usdcrowd.jobs.validation import validate
 
     flat = tmp_path / "flat.usda"
     layer = _without_our_schemas(walking_museum, flat)

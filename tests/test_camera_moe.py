@@ -13,7 +13,7 @@ from usdcrowd.cameras.moe import N_CAMERA, N_CHARACTER, WEIGHTS, CameraMoE, came
 from usdcrowd.cameras.moe_data import ASPECT, FOV_X, make_clip
 from usdcrowd.cameras.toric import toric_to_poses
 from usdcrowd.cli import main
-from usdcrowd.toric_filming import SETTLE_FRAMES
+from usdcrowd.jobs.toric_filming import SETTLE_FRAMES
 
 TOOLS = Path(__file__).resolve().parents[1] / "tools"
 
@@ -157,8 +157,8 @@ def test_frame_like_films_a_new_pair_like_a_reference_camera(tmp_path, capsys):
     """`usdcrowd frame --like`: the reference is a stage with a toric camera; the learned camera is added."""
     import shutil
 
-    from usdcrowd.render.scene import ShotScene
-    from usdcrowd.resources import data_dir
+    from usdcrowd.scenario.shot_scene import ShotScene
+    from usdcrowd.core.resources import data_dir
 
     shutil.copy(data_dir("stages") / "dialogue.usda", tmp_path / "dialogue.usda")
     shot = tmp_path / "shot"

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from usdcrowd import model
+from usdcrowd.core import model
 from usdcrowd.cameras import forces, framing, torques
 from usdcrowd.cameras.film import film
 from usdcrowd.cameras.frustum import frustums_intersect_2d
@@ -13,7 +13,7 @@ from usdcrowd.cameras.orientation import axes, integrate, level_from_forward, ma
 from usdcrowd.cameras.params import CameraParams
 from usdcrowd.cameras.placement import generated_agents, take_agents
 from usdcrowd.character.rig import quat_to_matrix
-from usdcrowd.view import look_at
+from usdcrowd.core.view import look_at
 
 FPS = 24.0
 INTERACTION = model.code(model.EVENT_KINDS, "interaction")

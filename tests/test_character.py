@@ -11,7 +11,7 @@ from usdcrowd.character import (BIND_SKEL, JOINTS, REST_LOCAL, advance_phase, ap
                                 skin_points, skinning_transforms, to_usd_quat_order)
 from usdcrowd.character import animate as animate_frames
 from usdcrowd.character.animation import EYE_HEIGHT, HEAD_TOP
-from usdcrowd.model import ANIM_CLASSES
+from usdcrowd.core.model import ANIM_CLASSES
 
 DT = 1.0 / 24.0
 IDLE, WALK, RUN, LEFT, RIGHT = range(5)
@@ -258,7 +258,7 @@ def test_look_at_rate_limited():
 
 
 def _switching_frames():
-    from usdcrowd.model import CrowdFrames
+    from usdcrowd.core.model import CrowdFrames
     cls, ph, speed = _switching_sequence()
     t, n = cls.shape
     heading = np.zeros((t, n), np.float32)

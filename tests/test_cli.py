@@ -128,7 +128,7 @@ def test_demo_runs_the_whole_chain(tmp_path, capsys):
         assert (shot / name).stat().st_size > 0, name
     assert "validate  shot: 0 errors" in stdout
     # One toric camera (seed 002) on the shot, filmed by the preview: two heads in each of its frames.
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     scene = ShotScene(shot / "shot.usda")
     toric = [p for p in scene.camera_paths if scene.camera(p, 1).toric]

@@ -69,7 +69,7 @@ def one_line_error(code: int, err: str, *words) -> None:
 
 # ------------------------------------------------------------------ 1. agents listed, missing ones suggested
 def test_inspect_agents_lists_every_agent_one_line_each_in_text_and_json(shot, capsys):
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     scene = ShotScene(shot)
     code, out, _ = run(capsys, "inspect", shot, "--agents")
@@ -143,7 +143,7 @@ def test_frame_films_visible_targets(made, tmp_path, capsys):
 def test_frame_like_takes_the_reference_toric_camera_not_its_first(made, tmp_path, capsys):
     from pxr import Usd
 
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     reference = copy_of(made, tmp_path / "reference")
     code, _, err = run(capsys, "frame", reference, "--behavior", "side-track", "--targets", "Teacher", STUDENT,
@@ -163,7 +163,7 @@ def test_frame_like_takes_the_reference_toric_camera_not_its_first(made, tmp_pat
 
 
 def test_frame_like_without_a_toric_camera_names_the_reference_cameras(made, tmp_path, capsys):
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     shot = copy_of(made, tmp_path / "shot")
     reference = made / "shot" / "shot.usda"             # no toric camera: the overview and CrowdCam
@@ -211,7 +211,7 @@ def test_cameras_counts_match_what_cameras_usda_holds(made, tmp_path, capsys):
 def test_static_cameras_hold_one_pose_and_are_not_called_animated(made, tmp_path, capsys):
     from pxr import Sdf, Usd, UsdGeom
 
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     shot = copy_of(made, tmp_path / "shot")
     code, _, err = run(capsys, "cameras", shot, "--count", "1", "--static", "2", "--no-progress")
@@ -244,7 +244,7 @@ def test_static_cameras_hold_one_pose_and_are_not_called_animated(made, tmp_path
 def test_features_writes_degrees_with_units_in_the_header_like_the_usd(made, tmp_path, capsys):
     from pxr import Usd
 
-    from usdcrowd.toric_filming import shot_features
+    from usdcrowd.jobs.toric_filming import shot_features
 
     shot = copy_of(made, tmp_path / "shot")
     assert run(capsys, "frame", shot, "--behavior", "relative-track", "--targets", "Teacher", STUDENT,
@@ -289,9 +289,9 @@ def test_metrics_labels_each_step_and_hides_bars_on_no_progress(shot, tmp_path, 
 def test_demo_prints_each_step_as_it_starts_with_labelled_progress(tmp_path, capsys, monkeypatch):
     """The slow renderers are stood in for (each finds its step's line already printed, and is asked for
     progress exactly when the demo is)."""
-    import usdcrowd.render.preview as preview
+    import usdcrowd.render.demo as demo
     import usdcrowd.render.sequence as sequence
-    from usdcrowd.errors import UsdcrowdError
+    from usdcrowd.core.errors import UsdcrowdError
 
     seen = {}
 
@@ -301,7 +301,7 @@ def test_demo_prints_each_step_as_it_starts_with_labelled_progress(tmp_path, cap
             raise UsdcrowdError("stood in for by the test")
         return call
 
-    monkeypatch.setattr(preview, "demo_outputs", stand_in("preview"))
+    monkeypatch.setattr(demo, "preview_outputs", stand_in("preview"))
     monkeypatch.setattr(sequence, "render_sequence", stand_in("render"))
     for progress in (True, False):
         seen.clear()

@@ -13,14 +13,14 @@ import pytest
 from pxr import Sdf, Usd, Vt
 
 from frames_factory import straight_walk
-from usdcrowd import model
+from usdcrowd.core import model
 from usdcrowd.atomic import output_dir
-from usdcrowd.errors import StageError
-from usdcrowd.pipeline import author_shot
+from usdcrowd.core.errors import StageError
+from usdcrowd.jobs.pipeline import author_shot
 from usdcrowd.scenario import StageFrame, load_scenario, open_stage
 from usdcrowd.scenario.crowd import read_crowd
 from usdcrowd.usd import clips, crowd_layer
-from usdcrowd.validation import validate
+from usdcrowd.jobs.validation import validate
 
 FRAMES = (1, 30)
 WINDOW = 7          # windows 1-7, 8-14, 15-21, 22-28, 29-30

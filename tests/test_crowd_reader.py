@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from usdcrowd import model
-from usdcrowd.resources import data_dir
+from usdcrowd.core import model
+from usdcrowd.core.resources import data_dir
 
 # Enough frames for class changes, blends between them and several simulation chunks.
 FRAMES = (1, 120)
@@ -19,7 +19,7 @@ def _wrap(a):
 @pytest.fixture(scope="module")
 def museum(tmp_path_factory):
     """The museum simulated and authored as a shot; the simulated frames kept; the shot read back."""
-    from usdcrowd.pipeline import author_shot
+    from usdcrowd.jobs.pipeline import author_shot
     from usdcrowd.scenario.crowd import read_crowd
     from usdcrowd.sim import simulate_chunks
     from usdcrowd.sim.simulation import concat_frames
@@ -135,7 +135,7 @@ def test_samples_follow_the_composed_value_over_the_crowd_layer(museum):
 def test_y_up_centimetre_shot_reads_in_canonical_metres(write_stage, tmp_path):
     from frames_factory import straight_walk
 
-    from usdcrowd.pipeline import author_shot
+    from usdcrowd.jobs.pipeline import author_shot
     from usdcrowd.scenario.crowd import read_crowd
 
     scenario = write_stage('''
@@ -165,7 +165,7 @@ def test_y_up_centimetre_shot_reads_in_canonical_metres(write_stage, tmp_path):
 
 
 def test_read_crowd_refuses_a_stage_without_animated_agents():
-    from usdcrowd.errors import StageError
+    from usdcrowd.core.errors import StageError
     from usdcrowd.scenario.crowd import read_crowd
 
     with pytest.raises(StageError, match="no animated agent"):

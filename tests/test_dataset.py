@@ -21,7 +21,7 @@ from usdcrowd.cli import main  # noqa: E402
 from usdcrowd.dataset import baseline, layout  # noqa: E402
 from usdcrowd.dataset.run import make_dataset  # noqa: E402
 from usdcrowd.dataset.spec import assign_splits, draw_plan, load_spec  # noqa: E402
-from usdcrowd.errors import UsdcrowdError  # noqa: E402
+from usdcrowd.core.errors import UsdcrowdError
 
 TINY = """
 [dataset]
@@ -412,7 +412,7 @@ def test_a_dcc_scenery_is_used_and_its_own_sun_set_to_the_time_of_day(tmp_path):
 def test_the_cards_crowd_density_is_people_within_two_metres_per_square_metre(tiny_dataset):
     """Recounted by brute force (every pair's distance) at the same frames, for every sequence."""
     from usdcrowd.dataset.scenario import DENSITY_BINS, DENSITY_RADIUS, densities, density_frames
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     _, root, _ = tiny_dataset
     for seq in sorted((root / "sequences").iterdir()):

@@ -108,7 +108,7 @@ def test_a_blender_town_in_either_convention_becomes_the_same_obstacles(towns):
 def test_the_towns_lights_and_camera_are_the_shots(towns):
     from pxr import Usd, UsdLux
 
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     for name, (_, scenario) in towns.items():
         stage = Usd.Stage.Open(str(scenario))
@@ -164,7 +164,7 @@ def Xform "World"
 
 def test_instanced_scenery_with_any_transform_ops_blocks_walking_and_is_drawn(write_stage, tmp_path):
     """Instanceable references (instance proxies) under translate, rotateXYZ, orient, scale and matrix ops."""
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
     from usdcrowd.scenario import load_scenario
 
     _dcc_box(tmp_path / "kiosk.usda", "Kiosk", "Z", 1, 2, (0, 0, 1))
@@ -208,7 +208,7 @@ def Xform "World"
 def test_the_town_is_rendered_through_its_own_camera_and_lit_by_its_sun(towns, tmp_path):
     pytest.importorskip("mitsuba")
     from usdcrowd.render.final.frame import FrameRenderer
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     _, scenario = towns["y_cm"]
     shot = tmp_path / "shot"
@@ -221,7 +221,7 @@ def test_the_town_is_rendered_through_its_own_camera_and_lit_by_its_sun(towns, t
     assert r.beauty.mean() > 0.01             # lit by the town's sun
     # The OpenGL preview draws it too, through the same camera.
     pytest.importorskip("moderngl")
-    from usdcrowd.errors import UsdcrowdError
+    from usdcrowd.core.errors import UsdcrowdError
     from usdcrowd.render.preview import PreviewRenderer
 
     try:
@@ -302,9 +302,9 @@ def test_a_scenery_without_default_prim_brings_every_root_prim(tmp_path, capsys)
     """Two root prims and no defaultPrim: the kiosk beside the town blocks walking and is drawn too."""
     from pxr import Usd
 
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
     from usdcrowd.scenario import load_scenario
-    from usdcrowd.scenery import dropped_root_problems
+    from usdcrowd.scenario.scenery import dropped_root_problems
 
     town = tmp_path / "town.usda"
     _town_layer(town, {"Town": [_box_mesh("Hall", (14, 9, 0), (4, 6, 5))],
@@ -332,7 +332,7 @@ def test_validate_reports_a_reference_that_drops_root_prims(write_stage, tmp_pat
     """A hand-written scenario naming one root of a file without defaultPrim loses the other: reported."""
     from pxr import Usd
 
-    from usdcrowd.scenery import dropped_root_problems
+    from usdcrowd.scenario.scenery import dropped_root_problems
 
     _town_layer(tmp_path / "town.usda", {"Town": [_box_mesh("Hall", (14, 9, 0), (4, 6, 5))],
                                          "Kiosk": [_box_mesh("Booth", (-6, -3, 0), (2, 1, 2.5))]})

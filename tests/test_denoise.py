@@ -104,7 +104,7 @@ def test_sample_passes_are_powers_of_two_and_squares_where_the_sampler_needs_the
 def test_a_missing_denoiser_is_one_clear_line(monkeypatch):
     import sys
 
-    from usdcrowd.errors import UsdcrowdError
+    from usdcrowd.core.errors import UsdcrowdError
     from usdcrowd.render.final.frame import require_denoiser
 
     monkeypatch.setitem(sys.modules, "pyoidn", None)

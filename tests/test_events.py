@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from usdcrowd import model
+from usdcrowd.core import model
 from usdcrowd.events import EventDetector, EventParams, detect_events, find_groups, find_interaction_pairs
 from usdcrowd.events.groups import fill_gaps
 

@@ -38,8 +38,8 @@ def clipped_shot(tmp_path_factory) -> Path:
     """The museum's agents walking for 20 frames, their samples in value clips of 6 frames."""
     from frames_factory import straight_walk
 
-    from usdcrowd.pipeline import author_shot
-    from usdcrowd.resources import data_dir
+    from usdcrowd.jobs.pipeline import author_shot
+    from usdcrowd.core.resources import data_dir
 
     def walk(sc):
         yield straight_walk(sc.agents, sc.time)
@@ -250,7 +250,7 @@ def test_a_usdz_package_of_the_layered_shot_is_read_through_its_inner_paths(clip
 
     from pxr import UsdUtils
 
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     package = tmp_path / "layered.usdz"
     assert UsdUtils.CreateNewUsdzPackage(str(clipped_shot), str(package))
@@ -293,7 +293,7 @@ def glb(shot, tmp_path_factory) -> tuple[Path, np.ndarray]:
 
 
 def test_gltf_joints_follow_the_agents_at_each_frame(glb, shot):
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     path, frames = glb
     doc, blob = read_glb(path)
@@ -321,7 +321,7 @@ def test_gltf_joints_follow_the_agents_at_each_frame(glb, shot):
 def test_gltf_skinned_body_matches_the_renderers_vertices(glb, shot):
     """Linear blend skinning by the spec (joint world @ inverse bind, weighted) gives the body the
     renderers draw, for each agent, at a frame in the middle."""
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     path, frames = glb
     doc, blob = read_glb(path)
@@ -350,8 +350,8 @@ def test_gltf_skinned_body_matches_the_renderers_vertices(glb, shot):
 
 
 def test_gltf_cameras_look_where_the_shot_cameras_look(glb, shot):
-    from usdcrowd.render.scene import ShotScene
-    from usdcrowd.view import fov
+    from usdcrowd.scenario.shot_scene import ShotScene
+    from usdcrowd.core.view import fov
 
     path, frames = glb
     doc, blob = read_glb(path)
@@ -377,7 +377,7 @@ def test_gltf_cameras_look_where_the_shot_cameras_look(glb, shot):
 def test_gltf_loads_in_trimesh_with_the_scenery_in_place(glb, shot):
     import trimesh
 
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     path, _ = glb
     scene = ShotScene(shot)
@@ -400,7 +400,7 @@ def test_gltf_loads_in_trimesh_with_the_scenery_in_place(glb, shot):
 def test_an_agent_hidden_at_some_frames_is_scaled_to_nothing_there(shot, tmp_path):
     from pxr import Sdf, UsdGeom
 
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     scene = ShotScene(shot)
     hidden = next(p for p, v in zip(scene.agent_paths, scene.agents(1).visible) if v)
@@ -521,7 +521,7 @@ def test_blender_imports_the_glb_with_the_agents_in_place(glb, shot, tmp_path):
     glTF's second 0 at its frame 0 and turns Y up back to Z up)."""
     from tool_venvs import tool_python
 
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     python = tool_python("bpy", ["bpy==5.0.1"], "USDCROWD_BPY_VENV")
     path, frames = glb

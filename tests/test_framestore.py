@@ -7,7 +7,7 @@ import os
 import numpy as np
 import pytest
 
-from usdcrowd.framestore import FrameStore, frame_blocks
+from usdcrowd.core.framestore import FrameStore, frame_blocks
 
 
 def test_frames_read_back_as_appended(rng, tmp_path):

@@ -17,7 +17,7 @@ from usdcrowd.groundtruth import frame_json, rle  # noqa: E402
 from usdcrowd.groundtruth.annotate import AgentMetadata, annotate_frame  # noqa: E402
 from usdcrowd.groundtruth.mot import read_mot  # noqa: E402
 from usdcrowd.render.final.exr import read_frame_exr  # noqa: E402
-from usdcrowd.render.scene import SCENERY_ID_BASE  # noqa: E402
+from usdcrowd.scenario.shot_scene import SCENERY_ID_BASE
 from usdcrowd.render.sequence import frame_files, render_sequence, settings_from_preset  # noqa: E402
 
 FRAMES = np.array([1.0, 3.0, 5.0])
@@ -139,7 +139,7 @@ def test_fully_hidden_agent_has_zero_visibility_and_occluded_keypoints(walking_m
     from pxr import Gf, Usd, UsdGeom
 
     from usdcrowd.render.final.frame import FrameRenderer
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     shot = ShotScene(walking_museum)
     poses = shot.agents(1)
@@ -169,7 +169,7 @@ def test_fully_hidden_agent_has_zero_visibility_and_occluded_keypoints(walking_m
 def test_metadata_reads_leaders_and_events(walking_museum):
     from pxr import Sdf, Usd
 
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     shot = ShotScene(walking_museum)
     student = next(p for p in shot.agent_paths if "/Students/" in p and not p.endswith("Teacher"))

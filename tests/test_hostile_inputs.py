@@ -11,7 +11,7 @@ import pytest
 from conftest import fails_if_hung
 
 from usdcrowd.cli import main
-from usdcrowd.resources import data_dir
+from usdcrowd.core.resources import data_dir
 
 COMMANDS = {
     "inspect": [], "validate": [], "simulate": ["-o", "{out}"], "preview": ["-o", "{out}/p.mp4"],
@@ -378,7 +378,7 @@ def test_frames_outside_the_shot_are_refused_by_preview_and_render(tmp_path, cap
 @pytest.fixture(scope="module")
 def clipped_shot(tmp_path_factory):
     """A 4-agent museum shot over 20 frames with its crowd split in 6-frame value clips."""
-    from usdcrowd.pipeline import simulate_shot
+    from usdcrowd.jobs.pipeline import simulate_shot
 
     tmp = tmp_path_factory.mktemp("clipped")
     scenario = tmp / "museum.usda"

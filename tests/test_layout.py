@@ -98,7 +98,7 @@ def test_plain_usd_moves_agents_and_cameras_with_their_parent(museum_shot, moved
 
 
 def test_usdcrowd_readers_see_the_moved_shot_where_usd_puts_it(museum_shot, moved_shot):
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
     from usdcrowd.scenario.crowd import read_crowd
 
     _, shot = museum_shot
@@ -123,7 +123,7 @@ def test_usdcrowd_readers_see_the_moved_shot_where_usd_puts_it(museum_shot, move
 
 
 def test_an_animated_parent_carries_the_crowd_frame_by_frame(museum_shot, tmp_path):
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
     from usdcrowd.scenario.crowd import read_crowd
 
     _, shot = museum_shot
@@ -163,7 +163,7 @@ def Xform "Set"
 def test_a_shot_referenced_into_a_y_up_centimetre_set_keeps_its_crowd_upright_and_life_size(museum_shot, tmp_path):
     """The usual corrective transform (Z-up metres into Y-up centimetres) puts crowd and cameras where the
     set's own geometry is, in usd-core and in usdcrowd's readers (canonical metres, Z up)."""
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     _, shot = museum_shot
     set_path = tmp_path / "set.usda"
@@ -211,7 +211,7 @@ def placed_shot(museum_shot, tmp_path_factory):
 
 
 def test_place_puts_crowd_and_cameras_where_the_set_says(museum_shot, placed_shot):
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
     from usdcrowd.scenario import stage_frame
     from usdcrowd.usd.place import placement_matrix
 
@@ -236,7 +236,7 @@ def test_a_placed_shot_keeps_its_materials_and_validates_clean(museum_shot, plac
     """Materials and prototypes live under the default prim: a referencing stage binds every body region,
     to the same roughness as the shot, and validate finds nothing (toric targets mapped too)."""
     from usdcrowd.cli import main
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     _, shot = museum_shot
     path, _, _ = placed_shot
@@ -280,7 +280,7 @@ def test_cameras_and_metrics_on_a_moved_stage_work_on_its_shot(museum_shot, move
     from pxr import Usd, UsdGeom
 
     from usdcrowd.cli import main
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     _, shot = museum_shot
     before = (shot / "cameras.usda").stat().st_mtime_ns
@@ -333,8 +333,8 @@ def test_your_edits_in_shot_usda_survive_simulate_and_cameras(tmp_path, capsys):
 
     from usdcrowd.cli import main
     from usdcrowd.groundtruth.mot import read_mot
-    from usdcrowd.render.scene import ShotScene
-    from usdcrowd.summary import agent_list
+    from usdcrowd.scenario.shot_scene import ShotScene
+    from usdcrowd.jobs.summary import agent_list
     from usdcrowd.usd.cameras import cameras_in
 
     scenario, shot = cli_museum_shot(tmp_path, agents=6, last_frame=24)
@@ -413,7 +413,7 @@ def test_blender_agrees_with_usdcrowd_on_moved_and_placed_shots(museum_shot, mov
     bodies come in with their five materials."""
     from tool_venvs import tool_python
 
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     from usdcrowd.cli import main
 
@@ -477,7 +477,7 @@ def test_the_preview_draws_a_moved_shot_as_the_shot(museum_shot, moved_shot, tmp
     """The OpenGL preview through the moved camera: the same ids on the same pixels, depths twice as far
     (the layer scales by 2)."""
     from usdcrowd.cli import main
-    from usdcrowd.shading import SCENERY_ID_BASE
+    from usdcrowd.core.shading import SCENERY_ID_BASE
 
     _, shot = museum_shot
     aovs = []
@@ -499,7 +499,7 @@ def test_events_are_authored_in_their_parents_space_and_read_back_in_the_world(w
     the move (it belongs to the shot's space)."""
     from pxr import Sdf, Usd
 
-    from usdcrowd import model
+    from usdcrowd.core import model
     from usdcrowd.scenario.events import read_events
     from usdcrowd.scenario.parent_space import ParentSpace
     from usdcrowd.scenario.stageio import StageFrame
@@ -560,9 +560,9 @@ def test_a_shot_placed_twice_keeps_one_track_per_person(museum_shot, tmp_path, c
     """The same shot placed again in a set that holds it: the second copy's ids (and its events' member ids)
     move past the set's, the stage plays the set's frames and the shot's, and it validates clean."""
     from usdcrowd.cli import main
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
     from usdcrowd.scenario.stageio import time_range
-    from usdcrowd.summary import agent_list
+    from usdcrowd.jobs.summary import agent_list
 
     _, shot = museum_shot
     (tmp_path / "set.usda").write_text(SET)
@@ -596,7 +596,7 @@ def test_a_placed_shots_lenses_are_in_the_sets_units_for_every_reader(museum_sho
     from pxr import Usd, UsdGeom
 
     from usdcrowd.cli import main
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     _, shot = museum_shot
     (tmp_path / "set.usda").write_text(SET)

@@ -34,7 +34,7 @@ def test_wheel_contains_the_data_folders(wheel):
 
 def test_installed_wheel_registers_its_own_schemas(wheel, tmp_path):
     zipfile.ZipFile(wheel).extractall(tmp_path)
-    code = ("import usdcrowd; from usdcrowd.resources import data_dir; from pxr import Usd; "
+    code = ("import usdcrowd; from usdcrowd.core.resources import data_dir; from pxr import Usd; "
             "s = Usd.Stage.CreateInMemory(); p = s.DefinePrim('/G', 'CrowdGroup'); "
             "print(data_dir('schemas')); print(p.IsA(Usd.Typed))")
     env = dict(os.environ, PYTHONPATH=str(tmp_path))

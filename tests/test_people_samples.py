@@ -9,7 +9,7 @@ import pytest
 
 from usdcrowd.render.final.frame import FrameRenderer, people_pixels
 from usdcrowd.render.final.pixel_samples import merge_samples, padded_count, sample_pixels
-from usdcrowd.shading import LIGHT_ID_BASE, SCENERY_ID_BASE
+from usdcrowd.core.shading import LIGHT_ID_BASE, SCENERY_ID_BASE
 
 W, H = 128, 72
 FRAME = 6

@@ -10,7 +10,7 @@ import pytest
 
 from usdcrowd.character import rig
 from usdcrowd.render.preview import instancing, lod
-from usdcrowd.render.scene import SCENERY_ID_BASE
+from usdcrowd.scenario.shot_scene import SCENERY_ID_BASE
 
 ROOT = Path(__file__).resolve().parents[1]
 FAILURES = Path(__file__).parent / "_failures"
@@ -169,7 +169,7 @@ def test_srgb_encoding_matches_colour_science(gl):
     """The fragment shader's display transform against colour-science's."""
     import colour
 
-    from usdcrowd.plots import srgb8
+    from usdcrowd.core.srgb import srgb8
     from usdcrowd.render.preview import shaders
 
     fs = shaders.VERSION + shaders.LIGHTING + """
@@ -185,7 +185,7 @@ def test_srgb_encoding_matches_colour_science(gl):
     got = np.frombuffer(fbo.read(components=3), np.uint8).reshape(256, 3)[:, 0].astype(int)
     want = np.round(colour.cctf_encoding(np.arange(256) / 255.0, function="sRGB") * 255).astype(int)
     assert np.abs(got - want).max() <= 1
-    # The pictures' own encoder (plots.srgb8) is colour-science's exactly.
+    # The one sRGB encoder (core.srgb.srgb8) is colour-science's exactly.
     sweep = np.linspace(-0.1, 1.1, 100_001)
     exact = np.round(colour.cctf_encoding(np.clip(sweep, 0, 1), function="sRGB") * 255)
     assert np.array_equal(srgb8(sweep), exact.astype(np.uint8))
@@ -344,7 +344,7 @@ def test_overlays_draw_over_colour_only(tiny_shot, gl):
     from usdcrowd.render.preview import PreviewRenderer
     from usdcrowd.render.preview.overlays import Overlays
 
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     scene = ShotScene(tiny_shot)
     plain = PreviewRenderer(scene, 320, 180, ctx=gl)
@@ -391,10 +391,10 @@ def test_cli_reports_a_wrong_camera_in_one_line(tiny_shot, tmp_path, capsys):
     assert main(["preview", str(tiny_shot), "-o", str(tmp_path / "y"), "--overlays", "sparkles"]) == 2
 
 
-def test_demo_outputs_write_a_video_and_a_contact_sheet(tiny_shot, tmp_path):
-    from usdcrowd.render.preview import demo_outputs
+def test_preview_outputs_write_a_video_and_a_contact_sheet(tiny_shot, tmp_path):
+    from usdcrowd.render.demo import preview_outputs
 
-    paths = demo_outputs(tiny_shot, tmp_path / "demo", camera="/World/Cam", resolution=(160, 90))
+    paths = preview_outputs(tiny_shot, tmp_path / "demo", camera="/World/Cam", resolution=(160, 90))
     assert set(paths) == {"mp4", "contact_sheet"}
     assert all(Path(p).stat().st_size > 0 for p in paths.values())
 
@@ -402,7 +402,7 @@ def test_demo_outputs_write_a_video_and_a_contact_sheet(tiny_shot, tmp_path):
 WINDOW_SCRIPT = """
 import sys, glfw
 import usdcrowd
-from usdcrowd.render.scene import ShotScene
+from usdcrowd.scenario.shot_scene import ShotScene
 from usdcrowd.render.preview.window import run_viewer
 scene = ShotScene(sys.argv[1])
 keys = ((2, glfw.KEY_SPACE), (3, glfw.KEY_RIGHT), (4, glfw.KEY_F), (5, glfw.KEY_W), (6, glfw.KEY_C))
@@ -432,7 +432,7 @@ def test_window_plays_under_a_virtual_display(tiny_shot, tmp_path):
 
 
 def test_no_display_is_one_clear_error(tiny_shot, monkeypatch):
-    from usdcrowd.errors import UsdcrowdError
+    from usdcrowd.core.errors import UsdcrowdError
     from usdcrowd.render.preview.context import window_context
 
     monkeypatch.delenv("DISPLAY", raising=False)

@@ -6,8 +6,8 @@ import json
 
 import pytest
 
-from usdcrowd.pipeline import simulate_shot
-from usdcrowd.resources import data_dir
+from usdcrowd.jobs.pipeline import simulate_shot
+from usdcrowd.core.resources import data_dir
 
 FRAMES = (1.0, 40.0, 80.0)
 SIZE = (320, 180)
@@ -27,16 +27,16 @@ def dialogue_both_ways(tmp_path_factory):
     """The dialogue shot rendered by Mitsuba (ground truth) and by the preview at full detail."""
     pytest.importorskip("mitsuba")
     pytest.importorskip("moderngl")
-    from usdcrowd.errors import UsdcrowdError
-    from usdcrowd.render.final import demo_outputs
+    from usdcrowd.core.errors import UsdcrowdError
+    from usdcrowd.render.demo import final_outputs
     from usdcrowd.render.preview import LodSettings, PreviewRenderer
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     out = tmp_path_factory.mktemp("dialogue")
     shot = simulate_shot(data_dir("stages") / "dialogue.usda", out / "shot", frames=(1, 80), progress=False)
     scene = ShotScene(shot.shot)
     camera = scene.camera_paths[0]
-    final = demo_outputs(shot.shot, out / "final", camera=camera, frames=FRAMES, resolution=SIZE, spp=4)
+    final = final_outputs(shot.shot, out / "final", camera=camera, frames=FRAMES, resolution=SIZE, spp=4)
     truth = {t: json.loads((out / "final" / "json" / f"frame.{int(t):04d}.json").read_text()) for t in FRAMES}
     try:
         preview = PreviewRenderer(scene, *SIZE, lod_settings=LodSettings(enabled=False))

@@ -15,7 +15,7 @@ pytest.importorskip("OpenEXR")
 
 from usdcrowd.render.final.exr import ID_TABLE, read_frame_exr  # noqa: E402
 from usdcrowd.render.final.frame import FrameRenderer  # noqa: E402
-from usdcrowd.render.scene import SCENERY_ID_BASE, ShotScene  # noqa: E402
+from usdcrowd.scenario.shot_scene import SCENERY_ID_BASE, ShotScene
 from usdcrowd.render.sequence import (frame_files, render_sequence, settings_from_preset,  # noqa: E402
                                       verify_frame, Manifest)
 
@@ -344,7 +344,7 @@ def test_variant_is_chosen_and_reported():
     v = choose_variant()
     assert v in ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")
     assert v in describe(v)
-    from usdcrowd.errors import UsdcrowdError
+    from usdcrowd.core.errors import UsdcrowdError
 
     with pytest.raises(UsdcrowdError, match="not available"):
         choose_variant("no_such_variant")
@@ -352,7 +352,7 @@ def test_variant_is_chosen_and_reported():
 
 def test_lights_follow_the_documented_radiometric_mapping():
     from usdcrowd.render.final.lights import emitted
-    from usdcrowd.render.scene import Light
+    from usdcrowd.scenario.shot_scene import Light
 
     lamp = Light("/L", "sphere", np.array([1.0, 0.5, 0.25]), 8.0, np.eye(4), radius=0.5)
     assert np.allclose(emitted(lamp), [8, 4, 2])
@@ -363,7 +363,7 @@ def test_lights_follow_the_documented_radiometric_mapping():
 
 
 def _sphere_lamp(to_world_3x3, centre, radius=0.25, intensity=5.0):
-    from usdcrowd.render.scene import Light
+    from usdcrowd.scenario.shot_scene import Light
 
     m = np.eye(4)
     m[:3, :3] = to_world_3x3
@@ -406,7 +406,7 @@ def test_a_sphere_light_is_analytic_and_lights_as_usdlux_means():
 
 def test_materials_map_preview_surface_inputs():
     from usdcrowd.render.final.materials import bsdf_dict
-    from usdcrowd.render.scene import Material
+    from usdcrowd.scenario.shot_scene import Material
 
     d = bsdf_dict(Material(np.array([0.2, 0.3, 0.4]), roughness=0.3, metallic=1.0, opacity=0.5))
     assert d["type"] == "mask" and d["opacity"]["value"] == [0.5] * 3
@@ -434,7 +434,7 @@ def test_display_transform_is_colour_science_srgb():
 
 
 def test_presets_are_read_and_overridden():
-    from usdcrowd.errors import UsdcrowdError
+    from usdcrowd.core.errors import UsdcrowdError
 
     s = settings_from_preset("preview", spp=3)
     assert s.spp == 3 and s.resolution == (320, 180) and not s.ground_truth
@@ -484,9 +484,9 @@ def test_a_users_mistake_found_on_a_ray_worker_is_one_line(tmp_path, capsys):
     from frames_factory import straight_walk
     from shot_damage import spoil_root_translation
 
-    import usdcrowd.resources as res
+    import usdcrowd.core.resources as res
     from usdcrowd.cli import main
-    from usdcrowd.pipeline import author_shot
+    from usdcrowd.jobs.pipeline import author_shot
 
     shot = tmp_path / "shot"
     author_shot(res.data_dir("stages") / "museum.usda", shot, lambda sc: [straight_walk(sc.agents, sc.time)],
@@ -582,7 +582,7 @@ def test_a_light_shape_carries_its_own_id_where_the_camera_sees_it(tmp_path):
 
     from usdcrowd.render.final.exr import read_frame_exr
     from usdcrowd.render.sequence import render_sequence, settings_from_preset
-    from usdcrowd.shading import LIGHT_ID_BASE
+    from usdcrowd.core.shading import LIGHT_ID_BASE
 
     stage = BOX_STAGE.replace('''    def DomeLight "Sky"''', '''    def SphereLight "Lamp"
     {
@@ -701,7 +701,7 @@ def test_an_unnormalised_sun_gives_its_discs_luminance_as_usdlux_says(tmp_path):
     ground pi sin^2(5 deg) = 0.0239 times as brightly unnormalised (Blender reads it so too)."""
     from conftest import HEADER
 
-    from usdcrowd.shading import distant_illuminance
+    from usdcrowd.core.shading import distant_illuminance
 
     def lit(normalize):
         path = tmp_path / f"sun{normalize}.usda"

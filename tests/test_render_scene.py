@@ -7,16 +7,16 @@ import pytest
 from pxr import Usd, UsdSkel
 
 from frames_factory import straight_walk
-from usdcrowd.errors import StageError
-from usdcrowd.pipeline import author_shot
-from usdcrowd.geometry import triangulate
-from usdcrowd.render.scene import SCENERY_ID_BASE, ShotScene, color_temperature_rgb
+from usdcrowd.core.errors import StageError
+from usdcrowd.jobs.pipeline import author_shot
+from usdcrowd.core.geometry import triangulate
+from usdcrowd.scenario.shot_scene import SCENERY_ID_BASE, ShotScene, color_temperature_rgb
 
 
 @pytest.fixture(scope="module")
 def museum_scene(tmp_path_factory):
     """The museum shot with straight-walking agents, opened for rendering."""
-    import usdcrowd.resources as res
+    import usdcrowd.core.resources as res
 
     out = tmp_path_factory.mktemp("shot")
     r = author_shot(res.data_dir("stages") / "museum.usda", out, lambda sc: [straight_walk(sc.agents, sc.time)],

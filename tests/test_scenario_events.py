@@ -7,8 +7,8 @@ import math
 import numpy as np
 from pxr import Sdf, Usd, UsdGeom
 
-from usdcrowd import model
-from usdcrowd.resources import data_dir
+from usdcrowd.core import model
+from usdcrowd.core.resources import data_dir
 from usdcrowd.scenario import load_scenario, open_stage
 from usdcrowd.scenario.events import read_camera_agents, read_events
 

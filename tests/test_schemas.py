@@ -11,7 +11,7 @@ import pytest
 from pxr import Sdf, Usd
 
 from usdcrowd import schema
-from usdcrowd.resources import data_dir
+from usdcrowd.core.resources import data_dir
 
 ROOT = Path(__file__).resolve().parents[1]
 TYPED = (schema.GROUP, schema.BEHAVIOR_LAYER, schema.INTEREST_POINT, schema.EVENT)

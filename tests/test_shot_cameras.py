@@ -11,11 +11,11 @@ import textwrap
 import numpy as np
 import pytest
 
-from usdcrowd import model
+from usdcrowd.core import model
 from usdcrowd.cameras.metrics import active_mask, coverage
 from usdcrowd.cli import main
-from usdcrowd.resources import data_dir
-from usdcrowd.view import CameraView, look_at
+from usdcrowd.core.resources import data_dir
+from usdcrowd.core.view import CameraView, look_at
 
 HARBOUR = data_dir("stages") / "harbour.usda"
 
@@ -233,7 +233,7 @@ def test_reading_a_shot_back_in_windows_gives_the_same_crowd_and_events(harbour_
 
     from pxr import Sdf
 
-    from usdcrowd import filming
+    from usdcrowd.jobs import filming
 
     shutil.copytree(harbour_shot.parent, tmp_path / "copy")
     shot = tmp_path / "copy" / "shot"
@@ -292,7 +292,7 @@ def test_frame_json_records_the_camera_state_and_each_agents_events(harbour_shot
 
 def test_harbour_camera_agents_move_smoothly_frame_their_event_and_stay_out_of_scenery(harbour_shot):
     """Section 6 of the steering-camera issue, measured on the shot with the renderer's own reader."""
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
     from usdcrowd.scenario import load_scenario
 
     scene = ShotScene(harbour_shot / "shot.usda")

@@ -9,7 +9,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 import sim_scenarios as S
-from usdcrowd.model import ANIM_CLASSES, PATH_METHODS, CrowdFrames
+from usdcrowd.core.model import ANIM_CLASSES, PATH_METHODS, CrowdFrames
 from usdcrowd.sim import SimSettings, Simulation, simulate, simulate_chunks
 from usdcrowd.sim import params as P
 from usdcrowd.sim.collision import polygon_signed_distance, wall_avoidance
@@ -17,7 +17,7 @@ from usdcrowd.sim.grid import WalkGrid, polygon_table
 from usdcrowd.sim.groups import Groups
 
 try:
-    from usdcrowd.errors import ScenarioError as Err
+    from usdcrowd.core.errors import ScenarioError as Err
 except ImportError:  # pragma: no cover
     Err = ValueError
 

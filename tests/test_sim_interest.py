@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import sim_scenarios as S
-from usdcrowd.model import BEHAVIORS
+from usdcrowd.core.model import BEHAVIORS
 from usdcrowd.sim import Simulation, simulate
 from usdcrowd.sim import params as P
 from usdcrowd.sim.distance_maps import DistanceMaps

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 import sim_scenarios as S
-from usdcrowd.model import BEHAVIORS, HEALTH_STATES, PATH_METHODS
+from usdcrowd.core.model import BEHAVIORS, HEALTH_STATES, PATH_METHODS
 from usdcrowd.sim import simulate
 from usdcrowd.sim import params as P
 from usdcrowd.sim.behavior_maps import MapLayer

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from usdcrowd.resources import data_dir
+from usdcrowd.core.resources import data_dir
 from usdcrowd.scenario import load_scenario
 from usdcrowd.sim import params as P
 from usdcrowd.sim.simulation import Simulation

@@ -6,7 +6,7 @@ import numpy as np
 
 from sim_scenarios import agents, groups, scenario
 from usdcrowd.events import detect_events
-from usdcrowd.model import EVENT_KINDS
+from usdcrowd.core.model import EVENT_KINDS
 from usdcrowd.sim import SimSettings, simulate
 from usdcrowd.sim import params as P
 

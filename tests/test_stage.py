@@ -11,10 +11,10 @@ from pxr import Sdf, Usd, UsdGeom, UsdSkel
 from frames_factory import straight_walk
 from usdcrowd.character import animation, body, rig
 from usdcrowd.character.root import apply_root_motion
-from usdcrowd.pipeline import author_shot
+from usdcrowd.jobs.pipeline import author_shot
 from usdcrowd.scenario import load_scenario
-from usdcrowd.tolerances import ROUND_TRIP_ATOL, SKINNING_ATOL
-from usdcrowd.validation import validate
+from usdcrowd.core.tolerances import ROUND_TRIP_ATOL, SKINNING_ATOL
+from usdcrowd.jobs.validation import validate
 
 
 def _walk(sc):
@@ -166,8 +166,8 @@ def test_y_up_centimetre_shot_places_characters_in_stage_units(write_stage, tmp_
 
 @pytest.mark.parametrize("agents", [30, 1600])    # 1600: written as parallel part layers
 def test_same_seed_gives_the_same_bytes(tmp_path, agents):
-    from usdcrowd.pipeline import simulate_shot
-    from usdcrowd.templates import new_scenario
+    from usdcrowd.jobs.pipeline import simulate_shot
+    from usdcrowd.jobs.templates import new_scenario
 
     scenario = tmp_path / "s.usda"
     new_scenario("museum", scenario, agents=agents, seed=5)
@@ -264,7 +264,7 @@ def test_plain_usd_core_sees_groups_as_transforms_in_shots_and_new_scenarios(wri
     import subprocess
     import sys
 
-    from usdcrowd.templates import new_scenario
+    from usdcrowd.jobs.templates import new_scenario
 
     shot = author_shot(write_stage(Y_UP_CM, up="Y", mpu=0.01), tmp_path / "shot", _walk, progress=False).shot
     scenario = tmp_path / "museum.usda"

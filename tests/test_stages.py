@@ -10,15 +10,15 @@ from pathlib import Path
 
 import numpy as np
 
-from usdcrowd.errors import UsdcrowdError
+from usdcrowd.core.errors import UsdcrowdError
 import pytest
 from PIL import Image
 
-from usdcrowd import model
-from usdcrowd.resources import data_dir
+from usdcrowd.core import model
+from usdcrowd.core.resources import data_dir
 from usdcrowd.scenario import load_scenario
-from usdcrowd.templates import new_scenario
-from usdcrowd.validation import validate
+from usdcrowd.jobs.templates import new_scenario
+from usdcrowd.jobs.validation import validate
 
 STAGES = sorted(data_dir("stages").glob("*.usda"))
 NAMES = [p.stem for p in STAGES]

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from usdcrowd.cameras.toric import ToricError, framing_angle, pose_to_toric, toric_to_pose
-from usdcrowd.view import CameraView
+from usdcrowd.core.view import CameraView
 
 FOV_X = np.radians(50.0)
 ASPECT = 16 / 9
@@ -89,7 +89,7 @@ def test_cinematic_features_give_back_the_framing_and_the_characters_orientation
     import json
 
     from usdcrowd.cameras.features import cinematic_features, write_features
-    from usdcrowd.view import look_at
+    from usdcrowd.core.view import look_at
 
     times = np.arange(1.0, 5.0)
     a, b = np.array([0.0, 0.0, 1.6]), np.array([2.0, 0.0, 1.6])
@@ -144,10 +144,10 @@ def test_features_of_a_shot_match_the_renderers_projection_and_the_cli_writes_th
     from frames_factory import straight_walk
 
     from usdcrowd.cameras.features import head_and_facing
-    from usdcrowd.toric_filming import shot_features
+    from usdcrowd.jobs.toric_filming import shot_features
     from usdcrowd.cli import main
-    from usdcrowd.pipeline import author_shot
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.jobs.pipeline import author_shot
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     shot = author_shot(museum_path, tmp_path / "shot", lambda sc: [straight_walk(sc.agents, sc.time)],
                        frames=(1, 6), progress=False, events=False).shot
@@ -172,7 +172,7 @@ def test_features_of_a_shot_match_the_renderers_projection_and_the_cli_writes_th
 
 def test_smoothing_keeps_steady_tracks_removes_jitter_and_turns_through_180_degrees(rng):
     from usdcrowd.cameras.smoothing import smooth_track
-    from usdcrowd.view import look_at
+    from usdcrowd.core.view import look_at
 
     t = np.arange(400)
     # A camera circling a point at constant speed, turning through +-180 degrees: the average of a steady

@@ -11,13 +11,13 @@ import textwrap
 import numpy as np
 import pytest
 
-from usdcrowd import model
+from usdcrowd.core import model
 from usdcrowd.cameras.behaviors import (BEHAVIORS, MIN_BETA, SHOT_SIZES, Behavior, behavior_track,
                                         clear_of_obstacles, fov_y)
 from usdcrowd.cameras.toric import toric_to_poses
 from usdcrowd.cli import main
-from usdcrowd.resources import data_dir
-from usdcrowd.view import CameraView
+from usdcrowd.core.resources import data_dir
+from usdcrowd.core.view import CameraView
 
 FPS = 24.0
 FOV_X = 2 * np.arctan(18 / 50)          # the default 50 mm lens on 36 mm
@@ -246,7 +246,7 @@ def _read_camera(shot, path: str) -> dict:
 
 
 def test_frame_adds_a_toric_camera_that_plain_usd_reads_and_whose_features_hold(dialogue_shot, capsys):
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
     from usdcrowd.cameras.features import head_and_facing
 
     before = ShotScene(dialogue_shot / "shot.usda")
@@ -287,7 +287,7 @@ def test_frame_switches_pairs_smoothly_and_cameras_keeps_it(dialogue_shot):
     assert np.linalg.norm(eye[-1] - eye[0]) > 3.0
     # Blended over a second: a quick move, not the jump of a camera that switches targets at once.
     from usdcrowd.cameras.behaviors import Behavior
-    from usdcrowd.toric_filming import PairSpan, frame_shot
+    from usdcrowd.jobs.toric_filming import PairSpan, frame_shot
 
     _, cut, _, _ = frame_shot(dialogue_shot / "shot.usda", Behavior("direct-track", "long"),
                               [PairSpan(1, "A", "B"), PairSpan(60, "C", "D")], name="Cut", transition=1e-3,
@@ -353,8 +353,8 @@ def test_the_final_renderers_ground_truth_reports_the_toric_intent_it_measures_o
 
 def test_auto_targets_pick_the_pair_the_scene_brings_together(dialogue_shot, capsys):
     """C and D walk closer together (0.8 m) than A and B stand (1.5 m), but A and B talk: a CrowdEvent of two."""
-    from usdcrowd.render.scene import ShotScene
-    from usdcrowd.toric_filming import auto_spans
+    from usdcrowd.scenario.shot_scene import ShotScene
+    from usdcrowd.jobs.toric_filming import auto_spans
 
     spans = auto_spans(ShotScene(dialogue_shot / "shot.usda"), span=2.0)
     assert [(s.a, s.b) for s in spans] == [("/World/Crowd/Pair/A", "/World/Crowd/Pair/B")]
@@ -368,7 +368,7 @@ def test_auto_targets_pick_the_pair_the_scene_brings_together(dialogue_shot, cap
 def test_validate_reports_a_toric_camera_whose_target_is_not_an_agent(dialogue_shot, tmp_path):
     import shutil
 
-    from usdcrowd.validation import validate
+    from usdcrowd.jobs.validation import validate
 
     shutil.copytree(dialogue_shot.parent, tmp_path / "copy")      # the shot refers to ../dialogue.usda
     shot = tmp_path / "copy" / "shot"
@@ -387,8 +387,8 @@ def test_features_follow_a_zooming_camera_frame_by_frame(dialogue_shot, tmp_path
 
     from pxr import Sdf
 
-    from usdcrowd.toric_filming import shot_features
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.jobs.toric_filming import shot_features
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     shutil.copytree(dialogue_shot.parent, tmp_path / "copy")
     shot = tmp_path / "copy" / "shot"

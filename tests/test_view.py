@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from usdcrowd.view import CameraView, camera_record, look_at
+from usdcrowd.core.view import CameraView, camera_record, look_at
 
 PKG = Path(__file__).resolve().parent.parent / "usdcrowd"
 
@@ -72,19 +72,20 @@ def _imports(path: Path) -> list[str]:
 
 
 def test_groundtruth_and_the_pure_core_do_not_import_render():
-    files = list((PKG / "groundtruth").glob("*.py")) + [PKG / f for f in ("model.py", "view.py", "shading.py",
-                                                                         "poses.py")]
+    core = [PKG / "core" / f for f in ("model.py", "view.py", "shading.py")] + [PKG / "character" / "poses.py"]
+    files = list((PKG / "groundtruth").glob("*.py")) + core
     for f in files:
         bad = [m for m in _imports(f) if m.startswith("usdcrowd.render")]
         assert not bad, f"{f.name} imports {bad}"
-    for f in ("model.py", "view.py", "shading.py", "poses.py"):
-        assert not [m for m in _imports(PKG / f) if m.startswith("pxr")], f
+    for f in core:
+        assert not [m for m in _imports(f) if m.startswith("pxr")], f
 
 
 def test_old_import_paths_still_work():
-    code = ("import sys; import usdcrowd.groundtruth.annotate, usdcrowd.view, usdcrowd.poses, usdcrowd.shading;"
+    code = ("import sys; import usdcrowd.groundtruth.annotate, usdcrowd.core.view, usdcrowd.character.poses,"
+            " usdcrowd.core.shading;"
             "assert not [m for m in sys.modules if m.startswith('usdcrowd.render')], 'render imported';"
-            "from usdcrowd.render.scene import CameraView, AgentPoses, Material, Light, SCENERY_ID_BASE;"
+            "from usdcrowd.scenario.shot_scene import CameraView, AgentPoses, Material, Light, SCENERY_ID_BASE;"
             "from usdcrowd.render.final.camera import camera_record;"
-            "import usdcrowd.view as v; assert CameraView is v.CameraView and camera_record is v.camera_record")
+            "import usdcrowd.core.view as v; assert CameraView is v.CameraView and camera_record is v.camera_record")
     subprocess.run([sys.executable, "-c", code], check=True)

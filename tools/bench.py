@@ -50,9 +50,9 @@ def author_once(agents: int, frames: int, events: bool = False) -> dict:
     import usdcrowd  # noqa: F401
     from frames_factory import straight_walk
 
-    from usdcrowd import model
-    from usdcrowd.pipeline import author_shot
-    from usdcrowd.templates import new_scenario
+    from usdcrowd.core import model
+    from usdcrowd.jobs.pipeline import author_shot
+    from usdcrowd.jobs.templates import new_scenario
 
     with tempfile.TemporaryDirectory() as tmp:
         scenario = Path(tmp) / "scenario.usda"

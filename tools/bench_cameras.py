@@ -24,7 +24,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
-from usdcrowd import model  # noqa: E402
+from usdcrowd.core import model
 from usdcrowd.cameras.placement import crowd_extent, generated_agents  # noqa: E402
 from usdcrowd.cameras.steering import CameraAgents  # noqa: E402
 from usdcrowd.events import EventDetector  # noqa: E402

@@ -23,7 +23,7 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
 from usdcrowd.events import EventDetector, EventParams, find_groups  # noqa: E402
-from usdcrowd.model import CrowdFrames  # noqa: E402
+from usdcrowd.core.model import CrowdFrames
 
 FPS = 24.0
 FRAMES = 96

@@ -63,7 +63,7 @@ def run(frames: int = 8, workdir: str | os.PathLike | None = None, scenes=SCENES
     """Print and return frames per second for each scene, camera and setting."""
     import usdcrowd  # noqa: F401
     from usdcrowd.render.preview import LodSettings, PreviewRenderer
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     workdir = Path(workdir or Path(tempfile.gettempdir()) / "usdcrowd_bench_preview")
     workdir.mkdir(parents=True, exist_ok=True)

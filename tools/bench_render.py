@@ -98,7 +98,7 @@ def make_shot(out_dir: Path) -> str:
 
 def bench_variant(shot: str, variant: str, frames: int) -> dict:
     from usdcrowd.render.final.frame import FrameRenderer
-    from usdcrowd.render.scene import ShotScene
+    from usdcrowd.scenario.shot_scene import ShotScene
 
     scene = ShotScene(shot)
     t0 = time.perf_counter()

@@ -27,8 +27,8 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
-from usdcrowd.model import (BEHAVIORS, LAYER_GENERATORS, LAYER_MEANINGS, ROLES, AgentTable, BehaviorField,  # noqa: E402
-                            GroupTable, InterestTable, Obstacles, Scenario, TimeRange, code)
+from usdcrowd.core.model import (BEHAVIORS, LAYER_GENERATORS, LAYER_MEANINGS, ROLES, AgentTable, BehaviorField,
+                                 GroupTable, InterestTable, Obstacles, Scenario, TimeRange, code)
 from usdcrowd.sim import SimSettings, Simulation  # noqa: E402
 
 SIDE = 200.0  # m

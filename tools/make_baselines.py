@@ -34,8 +34,8 @@ def museum_test_shot(out_dir) -> str:
     sys.path.insert(0, str(ROOT / "tests"))
     from frames_factory import straight_walk
 
-    import usdcrowd.resources as res
-    from usdcrowd.pipeline import author_shot
+    import usdcrowd.core.resources as res
+    from usdcrowd.jobs.pipeline import author_shot
 
     r = author_shot(res.data_dir("stages") / "museum.usda", out_dir,
                     lambda sc: [straight_walk(sc.agents, sc.time)], frames=(1, 12), progress=False)

@@ -127,7 +127,7 @@ def make_tiny_shot(out_dir) -> Path:
     from frames_factory import straight_walk
 
     import usdcrowd  # noqa: F401  (registers the schemas)
-    from usdcrowd.pipeline import author_shot
+    from usdcrowd.jobs.pipeline import author_shot
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)

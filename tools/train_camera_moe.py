@@ -104,7 +104,7 @@ def retarget_errors(weights: Path, test) -> list[dict]:
     from usdcrowd.cameras.behaviors import BEHAVIORS
     from usdcrowd.cameras.moe import CameraMoE, camera_angles, turned
     from usdcrowd.cameras.moe_data import refilm
-    from usdcrowd.toric_filming import SETTLE_FRAMES
+    from usdcrowd.jobs.toric_filming import SETTLE_FRAMES
 
     model = CameraMoE(weights)
     orbit = BEHAVIORS.index("orbit")

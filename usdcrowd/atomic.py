@@ -162,7 +162,7 @@ def output_dir(path: str | os.PathLike, what: str | None = None) -> Path:
         created, or cannot be written to.
     """
     from . import guard
-    from .errors import UsdcrowdError
+    from .core.errors import UsdcrowdError
 
     out = Path(path)
     if out.exists() and not out.is_dir():

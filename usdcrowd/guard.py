@@ -35,7 +35,7 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .errors import UsdcrowdError
+from .core.errors import UsdcrowdError
 
 # The temporary names usdcrowd writes under before a rename: ".<stem>.partial-<8 hex><suffix>".
 PARTIAL_NAME = re.compile(r"^\..+\.partial-[0-9a-f]{8}(\.[^/]*)?$")

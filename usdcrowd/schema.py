@@ -8,7 +8,7 @@ calls :func:`register`.
 
 from __future__ import annotations
 
-from .resources import data_dir
+from .core.resources import data_dir
 
 # Schema type names as they appear in .usda files.
 GROUP = "CrowdGroup"

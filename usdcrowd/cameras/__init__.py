@@ -9,7 +9,7 @@ Pure numpy/scipy on arrays (no USD, no renderer). Where things are:
 - ``framing``: the constant-angle arcs and Bezier range of viewpoints;
 - ``frustum``: points in frusta, the 2D frustum intersection test;
 - ``orientation``: quaternions of camera frames, levelling, integration;
-- ``film``: a whole shot through the agents, to :class:`~usdcrowd.model.CameraTrack`;
+- ``film``: a whole shot through the agents, to :class:`~usdcrowd.core.model.CameraTrack`;
 - ``placement``: rings, static cameras, generated camera agents;
 - ``overview``: one camera that frames the whole crowd;
 - ``metrics``: seed 000's activity metric and viewed ratio (Algorithm 7).

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import model
+from ..core import model
 from .params import CameraParams
 from .placement import crowd_extent
 from .steering import CameraAgents

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .. import model
+from ..core import model
 from .frustum import half_tangents, points_in_frustum
 
 CHEST_HEIGHT = 1.1

@@ -171,7 +171,7 @@ class CameraMoE:
     """
 
     def __init__(self, path: str | Path = WEIGHTS):
-        from ..errors import UsdcrowdError
+        from ..core.errors import UsdcrowdError
 
         try:
             data = np.load(path, allow_pickle=False)

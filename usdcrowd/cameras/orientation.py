@@ -53,7 +53,7 @@ def level_from_forward(forward: np.ndarray) -> np.ndarray:
     The camera's right axis stays horizontal (a camera on a tripod or crane
     head pans and tilts, it does not roll). Straight-down views keep +Y up.
     """
-    from ..view import look_at
+    from ..core.view import look_at
 
     f = np.asarray(forward, dtype=np.float64)
     flat = f.reshape(-1, 3)

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import model
-from ..view import look_at
+from ..core import model
+from ..core.view import look_at
 
 NAME = "CrowdCam"
 # A 35 mm full-frame 16:9 crop with a 28 mm lens.
@@ -24,12 +24,12 @@ ELEVATION_DEG = 35.0
 def crowd_summary(positions, visible: np.ndarray, block: int = 256) -> tuple[np.ndarray, np.ndarray]:
     """(t, 3) centroid and (t,) largest distance from it of the visible crowd per frame (everyone if nobody is).
 
-    ``positions`` is a (t, n, 3) array or a :class:`usdcrowd.framestore.FrameStore`,
+    ``positions`` is a (t, n, 3) array or a :class:`usdcrowd.core.framestore.FrameStore`,
     read ``block`` frames at a time.
     """
     vis = np.asarray(visible, bool)
     vis = vis if vis.any() else np.ones_like(vis)
-    from ..framestore import frame_blocks
+    from ..core.framestore import frame_blocks
 
     centres, spreads = [], []
     for frames in frame_blocks(positions, size=block):

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import model
-from ..view import look_at
+from ..core import model
+from ..core.view import look_at
 
 # A 35 mm lens on a full-frame 16:9 crop (the lens of generated cameras).
 FOCAL_LENGTH = 35.0

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .. import model
+from ..core import model
 from . import forces, torques
 from .frustum import half_tangents
 from .orientation import axes, integrate, level_from_forward, matrix_to_quat

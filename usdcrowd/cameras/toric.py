@@ -8,7 +8,7 @@ at (0, 0). The field of view ``fov_x`` is horizontal, in radians, and
 ``aspect`` is width / height, so the top edge is at ``tan(fov_x / 2) / aspect``.
 Cameras look down their -Z axis with +Y up (USD), and poses are row-vector
 camera-to-world matrices whose rows are right, up, back and the eye
-(:func:`usdcrowd.view.look_at`).
+(:func:`usdcrowd.core.view.look_at`).
 
 Two screen positions fix the angle ``alpha`` between the rays to the two
 targets A and B; every camera that sees A and B under that angle lies on a

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..model import ANIM_CLASSES, CrowdFrames
+from ..core.model import ANIM_CLASSES, CrowdFrames
 from .rig import (EYE_HEIGHT, HEAD_TOP, PELVIS_HEIGHT, REST_TRANSLATIONS, quat_conjugate,
                   quat_from_axis_angle, quat_multiply, quat_rotate, quat_slerp, wrap_angle)
 

@@ -1,7 +1,7 @@
 """The ``usdcrowd`` command line.
 
 Each command lives in its own module with ``add_parser(subparsers)`` and
-``run(args) -> int``. A user's mistake (a :class:`~usdcrowd.errors.UsdcrowdError`)
+``run(args) -> int``. A user's mistake (a :class:`~usdcrowd.core.errors.UsdcrowdError`)
 prints one line and exits 2; a bug still shows its traceback.
 """
 
@@ -13,7 +13,7 @@ import os
 import sys
 
 from .. import __version__
-from ..errors import UsdcrowdError
+from ..core.errors import UsdcrowdError
 from ..interrupts import Terminated, terminate_as_exception
 from . import (cameras, dataset, demo, export, features, frame, inspect_cmd, metrics, new, place, preview,
                render, simulate, validate)

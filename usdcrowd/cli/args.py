@@ -143,8 +143,8 @@ def _resolution(spec: str) -> tuple[int, int]:
 
 
 def add_limits(parser: argparse.ArgumentParser) -> None:
-    """--max-agents, --max-frames, --max-image-pixels: raise the resource bounds (usdcrowd.limits)."""
-    from ..limits import DEFAULT
+    """--max-agents, --max-frames, --max-image-pixels: raise the resource bounds (usdcrowd.core.limits)."""
+    from ..core.limits import DEFAULT
 
     parser.add_argument("--max-agents", type=int_at_least(1), default=DEFAULT.max_agents, metavar="N",
                         help=f"refuse scenarios with more agents (default {DEFAULT.max_agents:,})")
@@ -156,7 +156,7 @@ def add_limits(parser: argparse.ArgumentParser) -> None:
 
 def limits_of(args):
     """The Limits the options of :func:`add_limits` ask for."""
-    from ..limits import Limits
+    from ..core.limits import Limits
 
     return Limits(args.max_agents, args.max_frames, args.max_image_pixels)
 

@@ -6,10 +6,10 @@ from .args import add_force, add_limits, add_progress, add_seed, int_at_least, l
 
 
 def camera_count(text: str) -> int:
-    """An argparse type: a number of cameras, 0 to :data:`~usdcrowd.filming.MAX_CAMERAS`."""
+    """An argparse type: a number of cameras, 0 to :data:`~usdcrowd.jobs.filming.MAX_CAMERAS`."""
     import argparse
 
-    from ..filming import MAX_CAMERAS
+    from ..jobs.filming import MAX_CAMERAS
 
     value = int_at_least(0)(text)
     if value > MAX_CAMERAS:
@@ -18,7 +18,7 @@ def camera_count(text: str) -> int:
 
 
 def add_parser(sub):
-    from ..filming import MAX_CAMERAS
+    from ..jobs.filming import MAX_CAMERAS
 
     p = sub.add_parser("cameras", help="re-run the camera agents on an existing shot (replaces cameras.usda)",
                        description="Film an existing shot again with seed 000's steering camera agents, "
@@ -42,7 +42,7 @@ def run(args) -> int:
 
     from .. import guard
     from ..usd.shot import find_shot
-    from ..filming import refilm_shot
+    from ..jobs.filming import refilm_shot
     from ..usd.cameras import CAMERAS, cameras_in
 
     # A stage over the shot, or a set placing it: its cameras are the shot's, authored in its space.

@@ -10,7 +10,7 @@ from .cameras import camera_count
 
 
 def add_parser(sub):
-    from ..filming import MAX_CAMERAS
+    from ..jobs.filming import MAX_CAMERAS
 
     p = sub.add_parser("demo", help="run every part that exists on a small scene, end to end",
                        description="New scenario from the museum template, validate it, simulate it, "
@@ -33,10 +33,10 @@ def _starts(step: int, name: str, what: str) -> None:
 
 
 def run(args) -> int:
-    from ..pipeline import simulate_shot
-    from ..summary import format_summary, summarize
-    from ..templates import new_scenario
-    from ..validation import validate
+    from ..jobs.pipeline import simulate_shot
+    from ..jobs.summary import format_summary, summarize
+    from ..jobs.templates import new_scenario
+    from ..jobs.validation import validate
 
     from ..atomic import output_dir
 
@@ -86,21 +86,21 @@ def _final(r, out: Path, progress: bool) -> dict:
     """Eight path-traced frames across the shot with their ground truth (EXR, MOT, COCO)."""
     import numpy as np
 
-    from ..errors import UsdcrowdError
+    from ..core.errors import UsdcrowdError
 
     frames = np.unique(np.linspace(1, r.n_frames, 8).round())
     _starts(7, "render", f"{len(frames)} frames with ground truth (Mitsuba, 480x270, 32 spp)")
     try:
-        from ..render.final import demo_outputs
+        from ..render.demo import final_outputs
         from ..render.sequence import render_sequence, settings_from_preset
 
         size, spp = (480, 270), 32
-        # The frames first, with the renderer's labelled progress bar; demo_outputs then finds them
+        # The frames first, with the renderer's labelled progress bar; final_outputs then finds them
         # done (the same settings) and writes the ground truth files.
         render_sequence(r.shot, out / "render", camera=r.camera, frames=frames, executor="inline",
                         settings=settings_from_preset("groundtruth", resolution=size, spp=spp), progress=progress,
                         sequence_files=False)
-        paths = demo_outputs(r.shot, out / "render", camera=r.camera, frames=frames, resolution=size, spp=spp)
+        paths = final_outputs(r.shot, out / "render", camera=r.camera, frames=frames, resolution=size, spp=spp)
     except UsdcrowdError as exc:          # no Mitsuba here: say so, the rest of the demo stands
         print(f"[7] render    skipped: {exc}")
         return {}
@@ -112,8 +112,8 @@ def _final(r, out: Path, progress: bool) -> dict:
 def _toric(r, progress: bool) -> str | None:
     """A toric camera (seed 002) orbiting the two characters the scene brings together, smoothed."""
     from ..cameras.behaviors import Behavior
-    from ..errors import UsdcrowdError
-    from ..toric_filming import frame_shot
+    from ..core.errors import UsdcrowdError
+    from ..jobs.toric_filming import frame_shot
 
     _starts(5, "frame", "a toric camera orbiting the pair the scene brings together")
     try:
@@ -132,22 +132,22 @@ def _preview(r, out: Path, progress: bool, toric: str | None = None) -> dict:
     """The OpenGL preview of the shot, from the crowd camera, every other frame (and the toric camera's)."""
     import numpy as np
 
-    from ..errors import UsdcrowdError
+    from ..core.errors import UsdcrowdError
 
     _starts(6, "preview", "OpenGL, every other frame, and a gallery of every camera")
     try:
-        from ..render.preview import demo_outputs
+        from ..render.demo import preview_outputs
 
         from ..render.preview.output import camera_gallery
 
         frames = np.arange(1, r.n_frames + 1, 2, dtype=np.float64)
         # The first camera agent, if any: the preview shows what it chose to film.
         camera = next((p for p in r.camera_paths if "/Agent" in p), r.camera)
-        paths = demo_outputs(r.shot, out / "preview", camera=camera, frames=frames, progress=progress)
+        paths = preview_outputs(r.shot, out / "preview", camera=camera, frames=frames, progress=progress)
         gallery = camera_gallery(r.shot, out / "preview" / "gallery.png", r.camera_paths,
                                  np.unique(np.linspace(1, r.n_frames, 5).round()), resolution=(320, 180),
                                  progress=progress)
-        toric_paths = (demo_outputs(r.shot, out / "preview" / "toric", camera=toric, frames=frames,
+        toric_paths = (preview_outputs(r.shot, out / "preview" / "toric", camera=toric, frames=frames,
                                     progress=progress) if toric else None)
     except UsdcrowdError as exc:          # no OpenGL here: say so, the rest of the demo stands
         print(f"[6] preview   skipped: {exc}")

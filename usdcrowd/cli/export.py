@@ -37,7 +37,7 @@ def check_outputs(args) -> dict[str, str]:
     UsdcrowdError
         None asked for, or an extension the format does not have (so no two outputs share a path).
     """
-    from ..errors import UsdcrowdError
+    from ..core.errors import UsdcrowdError
 
     named = {name: getattr(args, name) for name in OUTPUTS if getattr(args, name) is not None}
     if not named:
@@ -53,7 +53,7 @@ def check_outputs(args) -> dict[str, str]:
 def run(args) -> int:
     from ..atomic import export_layer
     from ..exchange.flatten import flatten_shot, write_usdz
-    from ..render.scene import ShotScene
+    from ..scenario.shot_scene import ShotScene
 
     named = check_outputs(args)
     scene = ShotScene(args.shot)
@@ -77,7 +77,7 @@ def run(args) -> int:
 
 def _write_gltf(scene, times, path: str, progress: bool) -> dict:
     """The GLB, or a one-line error when pygltflib (usdcrowd[preview]) is missing."""
-    from ..errors import UsdcrowdError
+    from ..core.errors import UsdcrowdError
 
     try:
         import pygltflib  # noqa: F401

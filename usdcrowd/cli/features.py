@@ -31,7 +31,7 @@ def run(args) -> int:
 
     from ..atomic import output_dir
     from ..cameras.features import write_features
-    from ..toric_filming import shot_features
+    from ..jobs.toric_filming import shot_features
 
     width, height = args.resolution or (1920, 1080)
     features, about = shot_features(args.shot, args.camera, args.a, args.b, args.frames, width, height)

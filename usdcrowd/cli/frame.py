@@ -78,8 +78,8 @@ def run(args) -> int:
     from .. import guard
     from ..usd.shot import find_shot
     from ..cameras.behaviors import Behavior
-    from ..errors import UsdcrowdError
-    from ..toric_filming import PairSpan, frame_shot
+    from ..core.errors import UsdcrowdError
+    from ..jobs.toric_filming import PairSpan, frame_shot
 
     if not 1.0 <= args.focal_length <= 2000.0:
         raise UsdcrowdError(f"--focal-length {args.focal_length:g} mm is not a lens (1 to 2000 mm)")
@@ -105,7 +105,7 @@ def run(args) -> int:
     args.shot = find_shot(args.shot)
     guard.edit_in_place(Path(args.shot).parent / CAMERAS)
     if args.like:
-        from ..toric_filming import frame_like, read_reference
+        from ..jobs.toric_filming import frame_like, read_reference
 
         reference = read_reference(args.like, args.camera, tuple(args.like_targets) if args.like_targets else None,
                                    progress=args.progress)

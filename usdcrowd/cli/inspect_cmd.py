@@ -42,7 +42,7 @@ def add_parser(sub):
 
 
 def run(args) -> int:
-    from ..summary import agent_list, format_agents, format_summary, summarize
+    from ..jobs.summary import agent_list, format_agents, format_summary, summarize
 
     _check_options(args)
     if args.image is not None:
@@ -61,7 +61,7 @@ def run(args) -> int:
 
 def _check_options(args) -> None:
     """The picture's options go with --image, and --image with none of the summary's."""
-    from ..errors import UsdcrowdError
+    from ..core.errors import UsdcrowdError
 
     if args.image is None:
         named = [name for name, value in (("--frame", args.frame), ("--camera", args.camera),
@@ -80,7 +80,7 @@ def write_image(args) -> int:
     """Draw ``args.stage`` at ``args.frame`` with the OpenGL preview and write the colour as ``args.image``."""
     from ..render.preview import PreviewRenderer
     from ..render.preview.output import write_png
-    from ..render.scene import ShotScene
+    from ..scenario.shot_scene import ShotScene
 
     scene = ShotScene(args.stage)
     time = frame_of(scene, args.frame)
@@ -104,7 +104,7 @@ def frame_of(scene, frame: float | None) -> float:
     StageError
         ``frame`` outside a time range the stage authors (a typo would draw held values).
     """
-    from ..errors import StageError
+    from ..core.errors import StageError
 
     stage = scene.stage
     time = float(stage.GetStartTimeCode() if frame is None else frame)
@@ -173,7 +173,7 @@ def three_quarter_view(lo, hi, width: int, height: int, time: float = 0.0):
     -------
     CameraView
     """
-    from ..view import CameraView, look_at
+    from ..core.view import CameraView, look_at
 
     lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
     centre = (lo + hi) / 2.0

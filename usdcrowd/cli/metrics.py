@@ -6,7 +6,7 @@ from .args import add_force, add_limits, add_progress, add_seed, int_list, limit
 
 
 def add_parser(sub):
-    from ..filming import MAX_CAMERAS
+    from ..jobs.filming import MAX_CAMERAS
 
     p = sub.add_parser("metrics", help="seed 000's evaluation: autonomous vs static cameras on a shot",
                        description="Film the shot with N autonomous camera agents and N static cameras for "
@@ -25,7 +25,7 @@ def add_parser(sub):
 
 
 def run(args) -> int:
-    from ..filming import evaluate_shot
+    from ..jobs.filming import evaluate_shot
 
     results = evaluate_shot(args.shot, args.output, counts=args.counts, seed=args.seed, progress=args.progress,
                             limits=limits_of(args))

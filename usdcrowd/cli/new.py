@@ -6,7 +6,7 @@ from .args import add_force, add_limits, add_seed, int_at_least, limits_of
 
 
 def add_parser(sub):
-    from ..templates import list_templates
+    from ..jobs.templates import list_templates
 
     p = sub.add_parser("new", help="write a scenario stage from an example template",
                        description="Write a scenario stage from one of the example scenes in stages/.")
@@ -23,8 +23,8 @@ def add_parser(sub):
 
 
 def run(args) -> int:
-    from ..errors import UsdcrowdError
-    from ..templates import new_scenario
+    from ..core.errors import UsdcrowdError
+    from ..jobs.templates import new_scenario
 
     limit = limits_of(args).max_agents
     if args.agents is not None and args.agents > limit:

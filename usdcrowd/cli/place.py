@@ -32,7 +32,7 @@ def run(args) -> int:
 
     from pxr import Tf
 
-    from ..errors import UsdcrowdError
+    from ..core.errors import UsdcrowdError
     from ..usd.place import place_shot
 
     if args.name is not None and (not args.name or Tf.MakeValidIdentifier(args.name) != args.name):

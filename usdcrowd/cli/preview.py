@@ -35,7 +35,7 @@ def add_parser(sub):
 
 
 def parse_overlays(spec: str) -> tuple[str, ...]:
-    from ..errors import UsdcrowdError
+    from ..core.errors import UsdcrowdError
 
     names = [s.strip() for s in (spec or "").split(",") if s.strip()]
     if names == ["all"]:
@@ -51,7 +51,7 @@ def run(args) -> int:
 
     from ..render.preview import LodSettings, PreviewRenderer
     from ..render.preview.output import write_sequence
-    from ..render.scene import ShotScene
+    from ..scenario.shot_scene import ShotScene
 
     overlay_names = parse_overlays(args.overlays)
     scene = ShotScene(args.stage)
@@ -77,7 +77,7 @@ def run(args) -> int:
     out = Path(args.output)
     to_video = out.suffix.lower() in (".mp4", ".m4v", ".mov")
     if not to_video and out.suffix and not out.is_dir():
-        from ..errors import UsdcrowdError
+        from ..core.errors import UsdcrowdError
 
         raise UsdcrowdError(f"preview writes an MP4 (.mp4, .m4v, .mov) or a folder of PNG frames, not "
                             f"{out.suffix!r}: name a video or a folder", file=args.output)

@@ -59,7 +59,7 @@ def add_parser(sub):
 
 
 def run(args) -> int:
-    from ..errors import UsdcrowdError
+    from ..core.errors import UsdcrowdError
     from ..render.final.variant import describe
     from ..render.sequence import render_sequence, resolve_variant, settings_from_preset
 

@@ -25,8 +25,8 @@ def add_parser(sub):
 def run(args) -> int:
     import numpy as np
 
-    from ..errors import UsdcrowdError
-    from ..pipeline import simulate_shot
+    from ..core.errors import UsdcrowdError
+    from ..jobs.pipeline import simulate_shot
     from ..usd.cameras import cameras_in
 
     frames = None

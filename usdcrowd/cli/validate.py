@@ -16,7 +16,7 @@ def add_parser(sub):
 
 
 def run(args) -> int:
-    from ..validation import validate
+    from ..jobs.validation import validate
 
     problems = validate(args.stage, limits=limits_of(args))
     for p in problems:

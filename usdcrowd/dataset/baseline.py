@@ -129,7 +129,7 @@ def evaluate(root, split: str, trackers: list[str]) -> dict:
     try:
         import trackeval
     except ImportError:
-        from ..errors import UsdcrowdError
+        from ..core.errors import UsdcrowdError
 
         raise UsdcrowdError("evaluating needs TrackEval: pip install 'usdcrowd[dataset]'") from None
     root = Path(root)

@@ -93,7 +93,7 @@ def write_split_coco(path: Path, videos: list[dict]) -> str:
     from ..groundtruth import coco
 
     if coco._mask_utils() is None:
-        from ..errors import UsdcrowdError
+        from ..core.errors import UsdcrowdError
 
         raise UsdcrowdError("datasets write COCO's compressed RLE with pycocotools: "
                             "pip install 'usdcrowd[dataset]'")

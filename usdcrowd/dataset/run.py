@@ -34,7 +34,7 @@ import numpy as np
 
 from .. import guard
 from ..atomic import atomic_path, clean_partials, file_sha256, output_dir
-from ..errors import UsdcrowdError
+from ..core.errors import UsdcrowdError
 from . import layout
 from .spec import DatasetSpec, assign_splits, draw_plan, load_spec
 
@@ -86,7 +86,7 @@ def render_task(shot: str, camera: str, settings_dict: dict, times: list, out_di
     key = (shot, camera, json.dumps(settings_dict, sort_keys=True))
     if key not in _CACHE:
         from ..groundtruth.annotate import AgentMetadata
-        from ..render.scene import ShotScene
+        from ..scenario.shot_scene import ShotScene
 
         _CACHE.clear()                        # one scene per worker at a time: bounded memory
         settings = RenderSettings(**settings_dict)

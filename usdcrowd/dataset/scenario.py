@@ -17,7 +17,7 @@ import numpy as np
 
 from .. import guard
 from ..atomic import atomic_path
-from ..errors import UsdcrowdError
+from ..core.errors import UsdcrowdError
 
 PLAN = "plan.json"
 # Static cameras aim here above the crowd's centre (metres): chest height.
@@ -120,7 +120,7 @@ def write_scenario(plan: dict, spec, out_dir: Path) -> str:
     from pxr import Gf, Usd, UsdGeom, UsdLux
 
     from ..scenario.stageio import stage_frame
-    from ..templates import agent_range, new_scenario
+    from ..jobs.templates import agent_range, new_scenario
 
     path = out_dir / "scenario.usda"
     scenery = spec.scenery_path(plan["scenery"]) if plan["scenery"] else None
@@ -165,8 +165,8 @@ def write_scenario(plan: dict, spec, out_dir: Path) -> str:
 
 def _static_track(scene, index: int, cam: dict, times: np.ndarray, aspect: float):
     """A fixed camera looking at the crowd's centre from the plan's azimuth, distance and height."""
-    from .. import model
-    from ..view import look_at
+    from ..core import model
+    from ..core.view import look_at
 
     t_mid = float(times[len(times) // 2])
     poses = scene.agents(t_mid)
@@ -196,9 +196,9 @@ def prepare_sequence(plan: dict, spec, seq_dir: str | os.PathLike) -> PreparedSe
         Also written to ``seq_dir/plan.json`` with the plan, last (it marks the sequence as prepared).
     """
     from ..cameras.behaviors import Behavior
-    from ..pipeline import simulate_shot
-    from ..render.scene import ShotScene
-    from ..toric_filming import frame_shot
+    from ..jobs.pipeline import simulate_shot
+    from ..scenario.shot_scene import ShotScene
+    from ..jobs.toric_filming import frame_shot
     from ..scenario.parent_space import ParentSpace
     from ..usd.cameras import add_camera
 

@@ -59,7 +59,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import UsdcrowdError
+from ..core.errors import UsdcrowdError
 
 SPLITS = ("train", "val", "test")
 BEHAVIORS = ("orbit", "direct-track", "relative-track", "side-track")
@@ -222,7 +222,7 @@ def _check_meaning(spec: DatasetSpec, path: str) -> None:
     """Values that parse but cannot be made: one line each, naming the key."""
     from ..character.appearance import PALETTES
     from ..render.sequence import load_presets
-    from ..templates import list_templates
+    from ..jobs.templates import list_templates
 
     def fail(where, what):
         raise UsdcrowdError(what, file=path, attribute=where)
@@ -246,7 +246,7 @@ def _check_meaning(spec: DatasetSpec, path: str) -> None:
             fail("scene.sceneries", f"no such scenery file {s!r} (paths are relative to the spec)")
     if spec.agents[0] < 1:
         fail("scene.agents", f"expected at least 1 agent, got {spec.agents[0]}")
-    from ..limits import DEFAULT
+    from ..core.limits import DEFAULT
 
     if spec.agents[1] > DEFAULT.max_agents:
         fail("scene.agents", f"expected at most {DEFAULT.max_agents:,} agents, got {spec.agents[1]:,}")

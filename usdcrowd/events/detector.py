@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..model import EVENT_KINDS, HEALTH_STATES, CrowdFrames, Event, EventTable, code
+from ..core.model import EVENT_KINDS, HEALTH_STATES, CrowdFrames, Event, EventTable, code
 from .groups import GroupRecord, GroupTracker
 from .interactions import InteractionRecord, InteractionTracker
 from .params import EventParams

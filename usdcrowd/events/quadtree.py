@@ -32,7 +32,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from ..model import CHARACTER_TYPES
+from ..core.model import CHARACTER_TYPES
 from .params import EventParams
 
 # Agents slower than this have no direction of motion.
@@ -231,7 +231,7 @@ def find_groups(xy: np.ndarray, velocity: np.ndarray, character_type: np.ndarray
     velocity : (m, 2) float
         Planar velocities, m/s.
     character_type : (m,) int
-        Codes into :data:`usdcrowd.model.CHARACTER_TYPES`.
+        Codes into :data:`usdcrowd.core.model.CHARACTER_TYPES`.
     params : EventParams, optional
 
     Returns

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import model
-from ..framestore import frame_blocks
+from ..core import model
+from ..core.framestore import frame_blocks
 
 # Members are within this many layer radii of the origin.
 REACH = 2.0

@@ -8,6 +8,6 @@
 - :mod:`.glb`: the binary buffer of a GLB, its views and accessors;
 - :mod:`.document`: the glTF document's nodes and animation keys;
 - :mod:`.skins`: the crowd as skins keyed at each frame;
-- :mod:`.gltf`: the whole :class:`~usdcrowd.render.scene.ShotScene` (crowd,
+- :mod:`.gltf`: the whole :class:`~usdcrowd.scenario.shot_scene.ShotScene` (crowd,
   cameras, scenery) as glTF 2.0, written to a GLB.
 """

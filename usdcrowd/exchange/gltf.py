@@ -1,6 +1,6 @@
 """A shot as binary glTF 2.0: skinned characters, animated cameras and scenery, Y up, metres.
 
-What goes in, read through :class:`~usdcrowd.render.scene.ShotScene` (what the
+What goes in, read through :class:`~usdcrowd.scenario.shot_scene.ShotScene` (what the
 renderers draw, so the GLB shows the same people in the same places):
 
 - one node per agent under ``crowd`` (its USD path as name, id and colour
@@ -58,7 +58,7 @@ class CameraTrack:
 
 def sample_cameras(scene, times: np.ndarray) -> list[CameraTrack]:
     """Every camera of ``scene`` at ``times`` (glTF axes)."""
-    from ..view import fov
+    from ..core.view import fov
 
     tracks = []
     for path in scene.camera_paths:
@@ -157,7 +157,7 @@ def _add_scenery(doc: Document, scene, times: np.ndarray) -> int:
     StageError
         An animated piece whose transform has shear.
     """
-    from ..errors import StageError
+    from ..core.errors import StageError
 
     children = []
     materials: dict[tuple, int] = {}

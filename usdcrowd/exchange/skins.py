@@ -2,7 +2,7 @@
 
 Every agent's body mesh shares the body's positions, normals, joints,
 weights and triangles; its colours (COLOR_0, linear RGB) are its own. The
-joints' values come from :meth:`ShotScene.agents <usdcrowd.render.scene.ShotScene.agents>`,
+joints' values come from :meth:`ShotScene.agents <usdcrowd.scenario.shot_scene.ShotScene.agents>`,
 what the renderers draw.
 """
 
@@ -98,7 +98,7 @@ def _joint_locals(joints_world: np.ndarray) -> np.ndarray:
 
 def _fail_shear(scene, local: np.ndarray, time: float, exc: ValueError):
     """Name the first agent whose joints glTF cannot hold."""
-    from ..errors import StageError
+    from ..core.errors import StageError
 
     for row, path in enumerate(scene.agent_paths):
         try:
@@ -127,7 +127,7 @@ def _add_body(doc: Document, scene) -> _Body:
     import trimesh
     from pygltflib import Material, PbrMetallicRoughness
 
-    from ..shading import Material as UsdMaterial
+    from ..core.shading import Material as UsdMaterial
 
     body = scene.body
     points = points_to_gltf(body.points)

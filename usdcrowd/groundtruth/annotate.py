@@ -29,9 +29,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..cameras.features import frame_intent
-from ..model import EVENT_KINDS, EventTable
-from ..shading import is_agent_id
-from ..view import camera_record
+from ..core.model import EVENT_KINDS, EventTable
+from ..core.shading import is_agent_id
+from ..core.view import camera_record
 from . import rle
 
 # Joints are inside the body: a surface up to this much nearer still counts as the body itself.

@@ -70,12 +70,10 @@ def to_display(rgb: np.ndarray, working_space: str = RENDER_SPACE, exposure: flo
     -------
     (h, w, 3) uint8
     """
-    import colour
+    from ..core.srgb import srgb8
 
     linear = np.nan_to_num(np.asarray(rgb, dtype=np.float64), nan=0.0, posinf=0.0, neginf=0.0) * 2.0 ** exposure
-    linear = convert(linear, working_space, "sRGB").astype(np.float64)
-    encoded = colour.cctf_encoding(np.clip(linear, 0.0, 1.0), function="sRGB")
-    return np.round(encoded * 255.0).astype(np.uint8)
+    return srgb8(convert(linear, working_space, "sRGB"))
 
 
 def write_png(rgb: np.ndarray, path, working_space: str = RENDER_SPACE, exposure: float = 0.0) -> str:
@@ -102,7 +100,7 @@ def write_mp4(frames_rgb8: list, path, fps: float = 24.0) -> str:
     import os
 
     from ..atomic import atomic_path
-    from ..errors import UsdcrowdError
+    from ..core.errors import UsdcrowdError
 
     try:
         import imageio.v2 as imageio

@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from ..atomic import atomic_path, clean_partials, file_sha256, output_dir
-from ..errors import UsdcrowdError
+from ..core.errors import UsdcrowdError
 
 MANIFEST = "manifest.json"
 AOV_NAMES = ("depth", "normal", "position", "albedo", "id")
@@ -75,7 +75,7 @@ class RenderSettings:
 
 def load_presets() -> dict[str, dict]:
     """The presets of ``render/presets.toml`` (name -> values)."""
-    from ..resources import data_dir
+    from ..core.resources import data_dir
 
     with open(data_dir("render") / "presets.toml", "rb") as f:
         return tomllib.load(f)
@@ -295,7 +295,7 @@ def _worker_init(shot_path, camera, settings_dict, threads):
     first frame's task, so it reaches the user as itself: raised in a process
     pool's initializer it would only break the pool.
     """
-    from ..errors import UsdcrowdError
+    from ..core.errors import UsdcrowdError
 
     try:
         _build_worker(shot_path, camera, settings_dict, threads)
@@ -325,7 +325,7 @@ def _build_worker(shot_path, camera, settings_dict, threads):
     import usdcrowd  # noqa: F401  (registers the schemas)
 
     from ..groundtruth.annotate import AgentMetadata
-    from .scene import ShotScene
+    from ..scenario.shot_scene import ShotScene
 
     settings = RenderSettings(**settings_dict)
     shot = ShotScene(shot_path)
@@ -485,7 +485,7 @@ def render_sequence(shot_path, out_dir, camera: str | None = None, frames=None,
     """
     from tqdm import tqdm
 
-    from .scene import ShotScene
+    from ..scenario.shot_scene import ShotScene
 
     settings = replace(settings) if settings else settings_from_preset("groundtruth")    # the caller's, unchanged
     out = Path(out_dir)

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import model
+from ..core import model
 from ..character import appearance
 
 # Distributions of the "random" tokens, per character type (schema docs).

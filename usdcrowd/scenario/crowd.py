@@ -1,4 +1,4 @@
-"""A shot's crowd layer read back into :class:`usdcrowd.model.CrowdFrames`.
+"""A shot's crowd layer read back into :class:`usdcrowd.core.model.CrowdFrames`.
 
 The crowd layer (see :mod:`usdcrowd.usd.crowd_layer`) holds each agent's
 skeleton animation, with its world placement in the root joint, and its state
@@ -16,8 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import model, schema
-from ..errors import StageError
+from ..core import model
+from .. import schema
+from ..core.errors import StageError
 from .samples import sample_values
 from .stageio import open_stage, stage_frame, time_range
 

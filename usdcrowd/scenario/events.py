@@ -2,8 +2,8 @@
 
 Every part that needs events (ground truth, the preview's markers, ``inspect``,
 the cameras) or camera agents reads them here, in canonical units (Z up,
-metres), as :class:`usdcrowd.model.EventTable` and
-:class:`usdcrowd.model.CameraAgentTable`.
+metres), as :class:`usdcrowd.core.model.EventTable` and
+:class:`usdcrowd.core.model.CameraAgentTable`.
 """
 
 from __future__ import annotations
@@ -12,8 +12,9 @@ import math
 
 import numpy as np
 
-from .. import model, schema
-from ..errors import ScenarioError
+from ..core import model
+from .. import schema
+from ..core.errors import ScenarioError
 from .stageio import stage_frame, time_range
 
 def layer_generator(layer) -> str | None:
@@ -198,8 +199,8 @@ def read_camera_agents(stage, time: float | None = None) -> model.CameraAgentTab
     """
     from pxr import Usd, UsdGeom
 
-    from ..scenery import camera_lens
-    from ..view import lens_problem
+    from .stageio import camera_frame, camera_lens
+    from ..core.view import lens_problem
     from .ranges import range_problem
 
     frame = stage_frame(stage)
@@ -210,11 +211,10 @@ def read_camera_agents(stage, time: float | None = None) -> model.CameraAgentTab
         if not (prim.IsA(UsdGeom.Camera) and prim.HasAPI(schema.CAMERA_AGENT_API)):
             continue
         cam = UsdGeom.Camera(prim)
-        m = np.array(cache.GetLocalToWorldTransform(prim), dtype=np.float64) @ frame.to_canonical
+        m = camera_frame(cache.GetLocalToWorldTransform(prim), frame)
         if not np.isfinite(m).all():
             raise ScenarioError("not a finite value", file=stage.GetRootLayer().identifier,
                                 prim=str(prim.GetPath()), attribute=_bad_op(prim, t))
-        m[:3, :3] /= np.linalg.norm(m[:3, :3], axis=1, keepdims=True)
 
         def fail(message, attribute):
             raise ScenarioError(message, file=stage.GetRootLayer().identifier, prim=str(prim.GetPath()),

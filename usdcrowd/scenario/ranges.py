@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 
-from ..shading import SCENERY_ID_BASE
+from ..core.shading import SCENERY_ID_BASE
 
 # Body heights (crowd:height, crowd:heightRange), metres: from an ant to a giraffe.
 HEIGHT_RANGE = (0.001, 10.0)

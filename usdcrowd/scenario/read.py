@@ -1,9 +1,9 @@
-"""Read a scenario stage once into a :class:`usdcrowd.model.Scenario`.
+"""Read a scenario stage once into a :class:`usdcrowd.core.model.Scenario`.
 
 Groups, agents (authored and cloned), behavior layers (images sampled),
 interest points and scenery obstacles are read, checked and converted into
 canonical units (Z up, metres). Every problem is a one-line
-:class:`~usdcrowd.errors.ScenarioError` naming the file, prim and attribute:
+:class:`~usdcrowd.core.errors.ScenarioError` naming the file, prim and attribute:
 :func:`load_scenario` raises the first, :func:`scenario_errors` (what
 ``usdcrowd validate`` reports) collects them all.
 """
@@ -16,10 +16,11 @@ import os
 
 import numpy as np
 
-from .. import model, schema
-from ..errors import ScenarioError, StageError, UsdcrowdError
-from ..limits import DEFAULT as DEFAULT_LIMITS
-from ..limits import MAX_PRIM_DEPTH, Limits
+from ..core import model
+from .. import schema
+from ..core.errors import ScenarioError, StageError, UsdcrowdError
+from ..core.limits import DEFAULT as DEFAULT_LIMITS
+from ..core.limits import MAX_PRIM_DEPTH, Limits
 from .attributes import FALLBACKS, INHERITED, AgentSpec, GroupSpec, inherited_values, resolve_group_members
 from .events import read_camera_agents, read_events
 from .ranges import MAX_AGENT_ID, MAX_SEED, extent_problem, range_problem
@@ -569,7 +570,7 @@ def _obstacles(r: _Reader, prims):
     """
     from scipy.spatial import ConvexHull
 
-    from ..geometry import mesh_of
+    from ..core.geometry import mesh_of
 
     paths, polys, heights, ground = [], [], [], []
 

@@ -13,9 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import model
-from ..errors import StageError, usd_error_text
-from ..tolerances import UNIT_RTOL
+from ..core import model
+from ..core.errors import StageError, usd_error_text
+from ..core.tolerances import UNIT_RTOL
 
 # A stage without an authored time range is read as this one.
 DEFAULT_TIME = model.TimeRange(1.0, 240.0, 24.0)
@@ -332,3 +332,71 @@ def _clip_assets(layer) -> list[str]:
         return []
     _, assets, _ = UsdUtils.ExtractExternalReferences(layer.realPath)
     return [a for a in assets if Sdf.FileFormat.FindByExtension(os.path.splitext(a)[1].lstrip(".") or "-")]
+
+
+# ------------------------------------------------------------------ units of the layer that authored a value
+def correction(source: StageFrame, target: StageFrame) -> np.ndarray:
+    """(4, 4) row-vector matrix taking ``source`` stage coordinates into ``target`` ones."""
+    return source.to_canonical @ target.from_canonical
+
+
+def layer_frame(layer) -> StageFrame:
+    """Up axis and units a layer declares (USD's fallbacks, Y and centimetres, where it declares none)."""
+    from pxr import UsdGeom
+
+    info = layer.pseudoRoot
+    up = str(info.GetInfo("upAxis")) if info.HasInfo("upAxis") else str(UsdGeom.GetFallbackUpAxis())
+    mpu = float(info.GetInfo("metersPerUnit")) if info.HasInfo("metersPerUnit") else 0.01
+    return StageFrame(up, mpu)
+
+
+def authoring_meters_per_unit(attr, time, stage_frame: StageFrame) -> float:
+    """metersPerUnit of the layer that holds ``attr``'s strongest value (the stage's if it declares none).
+
+    Lens and clipping values are in scene units of the file that wrote them:
+    a camera referenced from a centimetre DCC file into a metre stage keeps
+    its centimetres.
+    """
+    from pxr import Usd
+
+    t = time if isinstance(time, Usd.TimeCode) else Usd.TimeCode(time)
+    for spec in attr.GetPropertyStack(t):
+        if spec.HasDefaultValue() or spec.layer.GetNumTimeSamplesForPath(spec.path):
+            if spec.layer.pseudoRoot.HasInfo("metersPerUnit"):
+                return float(spec.layer.pseudoRoot.GetInfo("metersPerUnit"))
+            break
+    return stage_frame.meters_per_unit
+
+
+def lens_mm(attr, time, stage_frame: StageFrame) -> float | None:
+    """A UsdGeom.Camera lens value in millimetres (USD: tenths of the authoring layer's scene unit)."""
+    from ..core.view import mm_per_lens_unit
+
+    value = attr.Get(time)
+    if value is None:
+        return None
+    return float(value) * mm_per_lens_unit(authoring_meters_per_unit(attr, time, stage_frame))
+
+
+def camera_lens(cam, time, stage_frame: StageFrame) -> tuple[float, float, float, float, float]:
+    """A UsdGeom.Camera's (focal, horizontal, vertical aperture) in millimetres and (near, far) in metres.
+
+    Each value in the units of the layer that authored it (:func:`lens_mm`,
+    :func:`authoring_meters_per_unit`): what the renderers, the camera-agent
+    reader and ``inspect`` all use.
+    """
+    clip = cam.GetClippingRangeAttr()
+    near, far = (float(v) * authoring_meters_per_unit(clip, time, stage_frame) for v in clip.Get(time))
+    focal, h_ap, v_ap = (lens_mm(a, time, stage_frame) for a in (
+        cam.GetFocalLengthAttr(), cam.GetHorizontalApertureAttr(), cam.GetVerticalApertureAttr()))
+    return focal, h_ap, v_ap, near, far
+
+
+def camera_frame(local_to_world: np.ndarray, frame: StageFrame) -> np.ndarray:
+    """(4, 4) camera-to-world in canonical metres, rows of unit length, from a camera prim's
+    local-to-world ((4, 4), stage units): lenses do not scale with units or a parent's scale.
+    Not finite values stay as they are, for the caller to report."""
+    m = np.asarray(local_to_world, dtype=np.float64) @ frame.to_canonical
+    with np.errstate(invalid="ignore", divide="ignore"):
+        m[:3, :3] /= np.linalg.norm(m[:3, :3], axis=1, keepdims=True)
+    return m

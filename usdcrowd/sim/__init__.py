@@ -1,4 +1,4 @@
-"""Crowd simulation: a :class:`~usdcrowd.model.Scenario` in, :class:`~usdcrowd.model.CrowdFrames` out.
+"""Crowd simulation: a :class:`~usdcrowd.core.model.Scenario` in, :class:`~usdcrowd.core.model.CrowdFrames` out.
 
 Pure numpy/scipy, no USD. Seeds: co-field dynamics, time-to-impact
 collision avoidance, flocking, invisible leaders with memory and interest
@@ -30,7 +30,7 @@ from __future__ import annotations
 
 from typing import Iterator
 
-from ..model import CrowdFrames, Scenario
+from ..core.model import CrowdFrames, Scenario
 from .simulation import SimSettings, Simulation, concat_frames
 
 __all__ = ["SimSettings", "Simulation", "simulate", "simulate_chunks"]
@@ -52,7 +52,7 @@ def simulate_chunks(scenario: Scenario, settings: SimSettings | None = None) -> 
 
     Raises
     ------
-    usdcrowd.errors.ScenarioError
+    usdcrowd.core.errors.ScenarioError
         On values the simulation cannot use (negative speed, empty group...).
     """
     sim = Simulation(scenario, settings)

@@ -28,8 +28,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..model import (BEHAVIORS, CHARACTER_TYPES, FEAR_RESPONSES, HEALTH_STATES, PERSONALITIES,
-                     BehaviorField, Scenario, code)
+from ..core.model import (BEHAVIORS, CHARACTER_TYPES, FEAR_RESPONSES, HEALTH_STATES, PERSONALITIES, BehaviorField,
+                          Scenario, code)
 from . import params as P
 from .distance_maps import DistanceMaps, sample_grid
 from .grid import field_is, generator_is

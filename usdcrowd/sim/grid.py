@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
-from ..model import Obstacles, Scenario, code, LAYER_MEANINGS, LAYER_GENERATORS
+from ..core.model import Obstacles, Scenario, code, LAYER_MEANINGS, LAYER_GENERATORS
 from . import params as P
 
 

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..model import AgentTable, GroupTable, ROLES, CONDITIONS, code
+from ..core.model import AgentTable, GroupTable, ROLES, CONDITIONS, code
 from . import params as P
 from .grid import WalkGrid
 from .steering import arrive, cohesion, alignment

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..model import Scenario, VISIT_PROFILES
+from ..core.model import Scenario, VISIT_PROFILES
 from . import params as P
 from .distance_maps import DistanceMaps
 

@@ -1,7 +1,7 @@
 """Every tunable constant of the crowd simulation, in one place, with its unit.
 
 Per-character-type tables are tuples indexed by the codes of
-:data:`usdcrowd.model.CHARACTER_TYPES` (human, herbivore, ant, bird).
+:data:`usdcrowd.core.model.CHARACTER_TYPES` (human, herbivore, ant, bird).
 """
 
 from __future__ import annotations

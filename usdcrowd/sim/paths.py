@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
-from ..model import BehaviorField, CHARACTER_TYPES, PATH_METHODS, Scenario, code
+from ..core.model import BehaviorField, CHARACTER_TYPES, PATH_METHODS, Scenario, code
 from . import params as P
 from .steering import unit
 

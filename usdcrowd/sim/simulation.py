@@ -33,7 +33,7 @@ from typing import Iterator
 
 import numpy as np
 
-from ..model import (BEHAVIORS, CHARACTER_TYPES, HEALTH_STATES, ROLES, CrowdFrames, Scenario, code)
+from ..core.model import BEHAVIORS, CHARACTER_TYPES, HEALTH_STATES, ROLES, CrowdFrames, Scenario, code
 from . import params as P
 from .behavior_maps import Reactions
 from .collision import (agent_avoidance, project_out_of_walls, resolve_overlaps, room_for_piles, separate_spawns,

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..model import AgentTable, GroupTable
+from ..core.model import AgentTable, GroupTable
 from . import params as P
 
 # Eye height a trader looks at, metres.

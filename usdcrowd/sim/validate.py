@@ -10,10 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..model import Scenario
+from ..core.model import Scenario
 
 try:  # the project's error type when present
-    from ..errors import ScenarioError as _Error
+    from ..core.errors import ScenarioError as _Error
 except ImportError:  # pragma: no cover
     _Error = ValueError
 

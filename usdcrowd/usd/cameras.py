@@ -20,10 +20,11 @@ import os
 
 import numpy as np
 
-from .. import __version__, model, schema
+from .. import __version__, schema
+from ..core import model
 from ..atomic import export_layer
 from ..scenario.stageio import StageFrame
-from ..view import mm_per_lens_unit
+from ..core.view import mm_per_lens_unit
 from ..scenario.parent_space import in_parent
 
 CAMERAS = "cameras.usda"
@@ -177,7 +178,7 @@ def add_camera(cameras_path: str | os.PathLike, track: model.CameraTrack, toric:
     """
     from pxr import Sdf
 
-    from ..scenery import layer_frame
+    from ..scenario.stageio import layer_frame
 
     final = os.fspath(cameras_path)
     layer = Sdf.Layer.OpenAsAnonymous(final)

@@ -30,7 +30,8 @@ import os
 
 import numpy as np
 
-from .. import __version__, model
+from .. import __version__
+from ..core import model
 from ..atomic import export_layer
 from ..character import appearance
 from ..character import body as body_mod

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import model
+from ..core import model
 from ..scenario.stageio import StageFrame
 from ..scenario.parent_space import points_in_parent, scale_of
 

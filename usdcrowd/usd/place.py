@@ -28,7 +28,7 @@ import numpy as np
 
 from .. import schema
 from ..atomic import export_layer
-from ..errors import StageError
+from ..core.errors import StageError
 from ..scenario.ranges import MAX_EXTENT
 
 # The shot's prim in the set takes this name unless one is given.
@@ -66,7 +66,7 @@ def place_shot(shot: str | os.PathLike, into: str | os.PathLike, out: str | os.P
 
     from ..scenario import open_stage, stage_frame
     from ..scenario.stageio import time_range
-    from ..scenery import correction
+    from ..scenario.stageio import correction
 
     shot, into, out = os.fspath(shot), os.fspath(into), os.fspath(out)
     shot_stage, set_stage = open_stage(shot), open_stage(into)
@@ -182,7 +182,7 @@ def shift_ids(layer, shot_stage, shot_root, placed_root, offset: int) -> None:
 
 def _frames(shot_time, set_stage):
     """The shot's frames, widened to the set's own when it has some (a set holding another shot)."""
-    from .. import model
+    from ..core import model
     from ..scenario.stageio import time_range
 
     if not set_stage.GetRootLayer().HasStartTimeCode():
@@ -211,7 +211,7 @@ def convert_lenses(layer, shot_stage, shot_root, placed_root, set_frame) -> int:
     from pxr import Gf, Sdf, UsdGeom
 
     from ..scenario import stage_frame
-    from ..scenery import authoring_meters_per_unit
+    from ..scenario.stageio import authoring_meters_per_unit
 
     frame = stage_frame(shot_stage)
     n = 0
@@ -261,7 +261,7 @@ def _relative(target: str, start_dir: str) -> str:
 
 def placement_matrix(shot_frame, set_frame, at=(0.0, 0.0, 0.0), rotate: float = 0.0) -> np.ndarray:
     """(4, 4) float64: shot stage units to set stage units, as :func:`place_shot` composes its ops."""
-    from ..scenery import correction
+    from ..scenario.stageio import correction
 
     c, s = np.cos(np.radians(rotate)), np.sin(np.radians(rotate))
     r = np.eye(4)

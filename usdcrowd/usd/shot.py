@@ -17,7 +17,8 @@ from __future__ import annotations
 
 import os
 
-from .. import __version__, model, schema
+from .. import __version__, schema
+from ..core import model
 from ..atomic import export_layer
 from ..scenario.stageio import StageFrame
 from .cameras import CAMERAS
@@ -98,7 +99,7 @@ def find_shot(path: str | os.PathLike) -> str:
     StageError
         The stage is not a shot and uses none, or uses several.
     """
-    from ..errors import StageError
+    from ..core.errors import StageError
     from ..scenario import open_stage
 
     path = os.fspath(path)

@@ -19,9 +19,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...shading import SCENERY_ID_BASE
-from ...view import CameraView
-from ..scene import ShotScene
+from ...core.shading import SCENERY_ID_BASE
+from ...core.view import CameraView
+from ...scenario.shot_scene import ShotScene
 from .camera import sensor_dict
 from .integrator import integrator_dict
 from .lights import emitters, has_shape, is_uniform_sky, light_id

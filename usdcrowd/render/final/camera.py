@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...view import CameraView, camera_record  # noqa: F401  (camera_record: re-exported)
+from ...core.view import CameraView, camera_record
 
 # Mitsuba camera space -> USD camera space (row vectors): x and z flip.
 _MITSUBA_TO_USD = np.diag([-1.0, 1.0, -1.0, 1.0])

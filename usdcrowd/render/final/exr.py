@@ -26,7 +26,7 @@ import os
 import numpy as np
 
 from ...atomic import atomic_path
-from ...errors import UsdcrowdError
+from ...core.errors import UsdcrowdError
 
 BEAUTY = ("R", "G", "B")
 RAW_BEAUTY = ("raw.R", "raw.G", "raw.B")        # the path-traced beauty, where R, G, B hold it denoised

@@ -27,10 +27,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...poses import AgentPoses
-from ...shading import SCENERY_ID_BASE, is_agent_id
-from ...view import CameraView
-from ..scene import ShotScene
+from ...character.poses import AgentPoses
+from ...core.shading import SCENERY_ID_BASE, is_agent_id
+from ...core.view import CameraView
+from ...scenario.shot_scene import ShotScene
 from . import variant as _variant
 from .build import AGENTS_KEY, SENSOR_KEY, BuiltScene, agent_vertices, build_scene, posed_scenery
 from .camera import SAMPLERS, pixel_rays, sensor_to_world
@@ -149,7 +149,7 @@ def people_pixels(ids: np.ndarray, margin: int = PEOPLE_MARGIN) -> np.ndarray:
 
 def require_denoiser():
     """Intel Open Image Denoise's Python binding, or a one-line error saying how to install it."""
-    from ...errors import UsdcrowdError
+    from ...core.errors import UsdcrowdError
 
     try:
         import pyoidn

@@ -14,7 +14,7 @@ times the colour-temperature tint (both from :class:`ShotScene.Light`):
 - DistantLight: irradiance on a surface facing the light ``E = I * c``
   with ``inputs:normalize`` on; unnormalised, UsdLux makes ``I`` the disc's
   luminance, so ``E`` is that times the disc's size factor (read once, in
-  :func:`usdcrowd.shading.distant_illuminance`).
+  :func:`usdcrowd.core.shading.distant_illuminance`).
   With ``inputs:angle`` (its angular diameter, 0.53 degrees for the sun by
   default) it is a disc of that angular size far away (``area`` emitter on
   a 16-gon of the disc's area DISTANT_DISC_DISTANCE metres off, radiance
@@ -36,8 +36,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...shading import LIGHT_ID_BASE
-from ..scene import Light
+from ...core.shading import LIGHT_ID_BASE
+from ...scenario.shot_scene import Light
 from .meshes import GTID_ATTRIBUTE, id_texture, make_mesh
 
 # Far enough that the sun's direction varies by 0.06 degrees across a 10 m scene, near enough for float32.

@@ -1,4 +1,4 @@
-"""UsdPreviewSurface (as :class:`~usdcrowd.render.scene.Material`) -> Mitsuba BSDFs.
+"""UsdPreviewSurface (as :class:`~usdcrowd.scenario.shot_scene.Material`) -> Mitsuba BSDFs.
 
 Mapping, input by input:
 
@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...shading import Material
+from ...core.shading import Material
 
 # Clothing of the characters: matte fabric.
 AGENT_ROUGHNESS = 0.75

@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...core.geometry import face_normals
+
 GTID_ATTRIBUTE = "face_gtid"
 
 
@@ -134,9 +136,7 @@ def flat_or_smooth(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray 
     """
     if normals is None or len(faces) == 0:
         return None
-    tri = vertices[faces]
-    fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-12)
+    fn = face_normals(vertices, faces)
     vn = normals[faces]
     vn = vn / np.maximum(np.linalg.norm(vn, axis=2, keepdims=True), 1e-12)
     cos = np.einsum("fk,fvk->fv", fn, vn)

@@ -18,7 +18,7 @@ import os
 import subprocess
 import sys
 
-from ...errors import UsdcrowdError
+from ...core.errors import UsdcrowdError
 
 ENV = "USDCROWD_MITSUBA_VARIANT"
 PREFERENCE = ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import os
 
-from ...errors import UsdcrowdError
+from ...core.errors import UsdcrowdError
 
 # OpenGL 4.3 is the floor: the per-instance bone matrices live in a shader
 # storage buffer. Mesa's llvmpipe offers 4.5 core.

@@ -23,6 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...core.geometry import face_normals, vertex_normals
+
 N_JOINTS = 3
 # Palette rows a preview body can show (character.body.REGIONS has five).
 MAX_REGIONS = 5
@@ -88,18 +90,6 @@ def dense_weights(joint_indices: np.ndarray, joint_weights: np.ndarray, n_joints
     return (w / np.maximum(w.sum(1, keepdims=True), 1e-12)).astype(np.float32)
 
 
-def vertex_normals(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Area-weighted vertex normals, (v, 3) float32 (zero-area vertices get +Z)."""
-    p = np.asarray(points, dtype=np.float64)
-    fn = np.cross(p[faces[:, 1]] - p[faces[:, 0]], p[faces[:, 2]] - p[faces[:, 0]])  # |fn| = 2 area
-    n = np.zeros_like(p)
-    for k in range(3):
-        np.add.at(n, faces[:, k], fn)
-    length = np.linalg.norm(n, axis=1, keepdims=True)
-    n = np.where(length > 1e-12, n / np.maximum(length, 1e-12), [0.0, 0.0, 1.0])
-    return n.astype(np.float32)
-
-
 def cluster_mesh(points: np.ndarray, faces: np.ndarray, weights: np.ndarray, cell: float):
     """Simplify a mesh by vertex clustering on a regular grid (Lindstrom 2000).
 
@@ -134,7 +124,7 @@ def cluster_mesh(points: np.ndarray, faces: np.ndarray, weights: np.ndarray, cel
     w /= count[:, None]
 
     # Plane quadrics of the faces, area weighted, summed into each corner's cluster.
-    fn = np.cross(p[faces[:, 1]] - p[faces[:, 0]], p[faces[:, 2]] - p[faces[:, 0]])
+    fn = face_normals(p, faces, unit=False)
     area = 0.5 * np.linalg.norm(fn, axis=1)
     unit = fn / np.maximum(2.0 * area, 1e-12)[:, None]
     d = -np.einsum("fk,fk->f", unit, p[faces[:, 0]])

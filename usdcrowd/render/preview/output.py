@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ...atomic import atomic_path, output_dir
-from ...errors import UsdcrowdError
+from ...core.errors import UsdcrowdError
 
 _PIP_HINT = "install usdcrowd[preview] (pip install 'usdcrowd[preview]')"
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ... import model
+from ...core import model
 from . import shaders
 
 # Linear RGBA colours of the annotations.

@@ -24,9 +24,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...poses import AgentPoses
-from ...view import CameraView
-from ..scene import ShotScene
+from ...character.poses import AgentPoses
+from ...core.geometry import face_normals, vertex_normals
+from ...core.view import CameraView
+from ...scenario.shot_scene import ShotScene
 from . import impostors, instancing, lod, shaders, shadows
 from .context import headless_context
 
@@ -78,7 +79,7 @@ def boxes_from_ids(ids: np.ndarray, include_scenery: bool = False) -> dict[int, 
         box covers columns x0 .. x1 - 1), so ``(x1 - x0) * (y1 - y0)`` is its
         area and IoU needs no +1.
     """
-    from ...shading import SCENERY_ID_BASE
+    from ...core.shading import SCENERY_ID_BASE
 
     ids = np.asarray(ids)
     ys, xs = np.nonzero(ids)
@@ -186,9 +187,8 @@ def _flat_mesh(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray | No
     stay round).
     """
     v = np.asarray(vertices, dtype=np.float64)
-    fn = np.cross(v[faces[:, 1]] - v[faces[:, 0]], v[faces[:, 2]] - v[faces[:, 0]])
-    fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-12)
-    vn = normals if normals is not None and len(normals) == len(v) else instancing.vertex_normals(v, faces)
+    fn = face_normals(v, faces)
+    vn = normals if normals is not None and len(normals) == len(v) else vertex_normals(v, faces)
     corner_n = np.asarray(vn, dtype=np.float64)[faces]                         # (f, 3, 3)
     corner_n /= np.maximum(np.linalg.norm(corner_n, axis=-1, keepdims=True), 1e-12)
     smooth = np.einsum("fkc,fc->fk", corner_n, fn) > np.cos(np.radians(crease_deg))
@@ -345,7 +345,7 @@ class PreviewRenderer:
         self.shadow_fbo = ctx.framebuffer(depth_attachment=self.shadow_tex)
         self.shadow_fbo.clear(depth=1.0)      # without shadows the map stays empty: all lit
 
-        from ...plots import srgb8
+        from ...core.srgb import srgb8
 
         # Background: the sky's colour through the same display transform.
         sky = self.lights.sky * self.exposure if self.lights.sky.any() else np.array([0.5, 0.55, 0.6])

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...view import look_at
+from ...core.view import look_at
 
 
 def light_basis(sun_dir: np.ndarray) -> np.ndarray:

@@ -25,7 +25,7 @@ import time as _time
 
 import numpy as np
 
-from ...view import CameraView, look_at
+from ...core.view import CameraView, look_at
 
 SCRUB_PX = 14           # height of the scrub strip, pixels
 

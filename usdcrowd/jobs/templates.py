@@ -8,11 +8,11 @@ from pathlib import Path
 
 import numpy as np
 
-from . import schema
-from . import guard
-from .atomic import atomic_path
-from .errors import UsdcrowdError
-from .resources import data_dir
+from .. import schema
+from .. import guard
+from ..atomic import atomic_path
+from ..core.errors import UsdcrowdError
+from ..core.resources import data_dir
 
 
 def list_templates() -> list[str]:
@@ -83,7 +83,7 @@ def new_scenario(template: str, out: str | os.PathLike, agents: int | None = Non
     the new stage so its relative asset paths keep working. With ``scenery``
     (a USD file from a DCC tool, any up axis and units) the template's own
     scenery is replaced by a reference to it at ``/World/Scenery``, with the
-    transform its axes and units need (:func:`usdcrowd.scenery.place_scenery`),
+    transform its axes and units need (:func:`usdcrowd.scenario.scenery.place_scenery`),
     one child per root prim of the file; when it brings lights, the template's
     are dropped.
 
@@ -153,7 +153,7 @@ def _replace_scenery(layer, scenery, out: Path) -> list[str]:
 
     Returns the names of the scenery's root prims, each referenced under the template's Scenery.
     """
-    from .scenery import place_scenery
+    from ..scenario.scenery import place_scenery
 
     root = f"/{layer.defaultPrim}" if layer.defaultPrim else "/World"
     parent = layer.GetPrimAtPath(root)

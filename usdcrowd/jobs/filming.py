@@ -16,9 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import model
-from .errors import StageError, UsdcrowdError
-from .framestore import FrameStore
+from ..core import model
+from ..core.errors import StageError, UsdcrowdError
+from ..core.framestore import FrameStore
 
 # Cameras one command may film (of each kind for metrics): each is a (frames, 4, 4) track and a
 # steering agent, so a typing mistake (a million) would allocate without bound.
@@ -55,15 +55,15 @@ def load_shot(shot_path: str | os.PathLike, seed: int | None = None, progress: b
     StageError
         If the shot names no scenario, or its crowd layer holds no agents.
     """
-    from .events import EventDetector
-    from .events.scenario import layer_events
-    from .scenario import load_scenario, open_stage, stage_frame
+    from ..events import EventDetector
+    from ..events.scenario import layer_events
+    from ..scenario import load_scenario, open_stage, stage_frame
     from .pipeline import frame_progress
-    from .scenario.events import layer_generator, read_events
-    from .scenario.parent_space import ParentSpace
-    from .scenario.stageio import time_range
+    from ..scenario.events import layer_generator, read_events
+    from ..scenario.parent_space import ParentSpace
+    from ..scenario.stageio import time_range
 
-    from .usd.shot import find_shot
+    from ..usd.shot import find_shot
 
     shot_path = find_shot(shot_path)       # a stage over the shot or a set placing it: the shot itself
     stage = open_stage(shot_path)
@@ -112,7 +112,7 @@ READ_WINDOW = 512
 
 def _crowd_windows(stage, scenario: model.Scenario, rows: dict[str, int], shot_path: str):
     """The shot's crowd in consecutive windows of frames (memory bounded in the shot's length), scenario rows."""
-    from .scenario.crowd import read_crowd
+    from ..scenario.crowd import read_crowd
 
     t = scenario.time
     window = min(READ_WINDOW, max(48, READ_AGENT_FRAMES // max(1, len(rows))))
@@ -168,8 +168,8 @@ def refilm_shot(shot_path: str | os.PathLike, count: int | None = None, static: 
     layer has none.
     """
     from .pipeline import film_cameras
-    from .usd.cameras import write_camera_tracks
-    from .usd.events import author_events
+    from ..usd.cameras import write_camera_tracks
+    from ..usd.events import author_events
 
     check_camera_count((count or 0) + static, "--count and --static")
     sc = load_shot(shot_path, progress=progress, limits=limits)
@@ -203,9 +203,9 @@ def evaluate_shot(shot_path: str | os.PathLike, out_dir: str | os.PathLike, coun
     """
     from tqdm import tqdm
 
-    from .atomic import atomic_path, output_dir
-    from .cameras.metrics import active_mask, coverage
-    from .cameras.overview import crowd_summary
+    from ..atomic import atomic_path, output_dir
+    from ..cameras.metrics import active_mask, coverage
+    from ..cameras.overview import crowd_summary
     from .pipeline import film_cameras
     from .plots import coverage_plot
 

@@ -20,13 +20,13 @@ from functools import cached_property
 import numpy as np
 
 from ..character import rig
-from ..geometry import MeshData, mesh_of
+from ..core.geometry import MeshData, mesh_of
 # The shared types live in the pure core; imported here for renderers and old imports.
-from ..poses import AgentPoses
-from ..shading import SCENERY_ID_BASE, Light, Material, distant_illuminance
-from ..scenario.stageio import unpacked
-from ..scenery import camera_lens
-from ..view import CameraView
+from ..character.poses import AgentPoses
+from ..core.shading import SCENERY_ID_BASE, Light, Material, distant_illuminance
+from .stageio import unpacked
+from .stageio import camera_frame, camera_lens
+from ..core.view import CameraView
 
 __all__ = ["SCENERY_ID_BASE", "AgentPoses", "CameraView", "Light", "Material", "SceneryItem", "ShotScene",
            "color_temperature_rgb"]
@@ -61,8 +61,8 @@ class ShotScene:
     """
 
     def __init__(self, path: str | os.PathLike, stage=None):
-        from ..scenario import open_stage, stage_frame
-        from ..scenario.stageio import time_range
+        from . import open_stage, stage_frame
+        from .stageio import time_range
 
         self.path = os.fspath(path)
         self.stage = stage or open_stage(self.path)
@@ -126,7 +126,7 @@ class ShotScene:
         ------
         StageError
         """
-        from ..errors import StageError
+        from ..core.errors import StageError
 
         times = np.asarray(times, dtype=np.float64)
         if len(self.time_codes) == 0 or len(times) == 0:
@@ -152,7 +152,7 @@ class ShotScene:
         """
         from pxr import UsdGeom
 
-        from ..errors import StageError
+        from ..core.errors import StageError
 
         if path is None:
             if not self._camera_prims:
@@ -164,9 +164,7 @@ class ShotScene:
                 found = ", ".join(self.camera_paths) or "none"
                 raise StageError(f"not a camera (cameras: {found})", file=self.path, prim=path)
         cam = UsdGeom.Camera(prim)
-        m = self._world(prim, time)
-        # Remove scale from the camera's frame: lenses do not scale with units.
-        m[:3, :3] /= np.linalg.norm(m[:3, :3], axis=1, keepdims=True)
+        m = camera_frame(self._xf(time).GetLocalToWorldTransform(prim), self.frame)
         # In the units of the layers that authored them (a camera referenced from a centimetre file).
         focal, h_ap, v_ap, near, far = camera_lens(cam, time, self.frame)
         _check_lens(prim, time, focal=focal, horizontalAperture=h_ap, verticalAperture=v_ap,
@@ -272,7 +270,7 @@ class ShotScene:
         StageError
             No such agent, or more than one with that name.
         """
-        from ..errors import StageError
+        from ..core.errors import StageError
 
         hits = [i for i, p in enumerate(self.agent_paths) if p == name or p.rsplit("/", 1)[-1] == name]
         if len(hits) != 1:
@@ -318,7 +316,7 @@ class ShotScene:
 
     def _fail_pose(self, row: int, i: int, t: float, rot, trans, scale) -> None:
         """A damaged animation (NaN or inf) is one line naming its layer, prim, attribute and time."""
-        from ..errors import StageError
+        from ..core.errors import StageError
 
         agent = self._agent_rigs[row]
         for values, query in ((rot[i], agent.rotations), (trans[i], agent.translations), (scale[i], agent.scales)):
@@ -428,7 +426,7 @@ def _rig_rows(names, prim, attribute: str) -> np.ndarray:
     StageError
         A joint of the rig is not in the list.
     """
-    from ..errors import StageError
+    from ..core.errors import StageError
 
     names = [str(n) for n in names]
     missing = [j for j in rig.JOINTS if j not in names]
@@ -481,7 +479,7 @@ def _to_rig_index(names: list[str], prim) -> np.ndarray:
     StageError
         A name is not one of the rig's joints.
     """
-    from ..errors import StageError
+    from ..core.errors import StageError
 
     unknown = [n for n in names if n not in rig.JOINTS]
     if unknown:
@@ -497,7 +495,7 @@ def _check_bind_pose(skeleton) -> None:
     ------
     StageError
     """
-    from ..errors import StageError
+    from ..core.errors import StageError
 
     binds = skeleton.GetBindTransformsAttr().Get()
     if binds is None:
@@ -548,7 +546,7 @@ def _colours_per_vertex(agent: _AgentRig, n_points: int) -> np.ndarray:
     """
     from pxr import UsdGeom
 
-    from ..errors import StageError
+    from ..core.errors import StageError
 
     pv = UsdGeom.PrimvarsAPI(agent.body).GetPrimvar("displayColor") if agent.body is not None else None
     colours = pv.ComputeFlattened() if pv and pv.HasValue() else None
@@ -572,7 +570,7 @@ def _palette_of(agent: _AgentRig, rows: int) -> np.ndarray:
     from pxr import Gf
 
     from ..character.appearance import fit_problem
-    from ..errors import StageError
+    from ..core.errors import StageError
 
     c = agent.prim.GetAttribute("crowd:color").Get() or Gf.Vec3f(0.6, 0.6, 0.6)
     dc = agent.body.GetAttribute("primvars:displayColor").Get() if agent.body is not None else None
@@ -591,7 +589,7 @@ def _body_dress(mesh, n_points: int, faces: np.ndarray):
     """
     from pxr import UsdGeom
 
-    from ..errors import StageError
+    from ..core.errors import StageError
 
     pv = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("displayColor")
     regions = np.zeros(n_points, np.int32)
@@ -613,9 +611,9 @@ def _body_dress(mesh, n_points: int, faces: np.ndarray):
 
 def _check_lens(prim, time, *, focal, horizontalAperture, verticalAperture, near, far, matrix) -> None:
     """A camera no renderer can use is the user's mistake: one line naming the layer, the camera and the attribute."""
-    from ..errors import StageError
+    from ..core.errors import StageError
 
-    from ..view import lens_problem
+    from ..core.view import lens_problem
 
     def fail(attribute, message):
         raise StageError.at(prim, attribute, f"{message} at time {float(time):g}")
@@ -631,7 +629,7 @@ def _check_lens(prim, time, *, focal, horizontalAperture, verticalAperture, near
 
 def _lens_focus(cam, time, frame) -> tuple[float, float]:
     """(fStop, focusDistance in metres) of a UsdGeom.Camera; (0, 0) where unusable (a pinhole)."""
-    from ..scenery import authoring_meters_per_unit
+    from .stageio import authoring_meters_per_unit
 
     f_stop = cam.GetFStopAttr().Get(time)
     attr = cam.GetFocusDistanceAttr()
@@ -727,8 +725,8 @@ def color_temperature_rgb(kelvin: float) -> np.ndarray:
 def _light_of(prim, to_world: np.ndarray, mpu: float, up_axis: str = "Z") -> Light | None:
     from pxr import UsdLux
 
-    from ..errors import StageError
-    from ..scenario.lights import light_problems
+    from ..core.errors import StageError
+    from .lights import light_problems
 
     for attribute, problem in light_problems(prim)[:1]:        # what `usdcrowd validate` reports
         raise StageError.at(prim, attribute, problem)

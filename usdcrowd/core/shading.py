@@ -1,6 +1,6 @@
 """Surfaces and lights as numpy, shared by both renderers and the ground truth.
 
-Pure core (no ``pxr``, no renderer). :class:`usdcrowd.render.scene.ShotScene`
+Pure core (no ``pxr``, no renderer). :class:`usdcrowd.scenario.shot_scene.ShotScene`
 fills these from a stage's UsdPreviewSurface materials and UsdLux lights.
 """
 

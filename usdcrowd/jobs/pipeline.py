@@ -13,8 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from . import model
-from .framestore import FrameStore
+from ..core import model
+from ..core.framestore import FrameStore
 
 
 PLOT_MAX_AGENTS = 3000
@@ -69,14 +69,14 @@ def simulate_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike, 
     events : bool
         Detect events (False: only the authored ones; camera agents then
         scout unless they track those).
-    limits : usdcrowd.limits.Limits, optional
+    limits : usdcrowd.core.limits.Limits, optional
         Largest agent count, frame count and image accepted (default: the defaults).
     clip_frames : int, optional
         Frames per value-clip window of the crowd layer (default: sized to
         the crowd, see :mod:`usdcrowd.usd.clips`).
     """
     def crowd(scenario):
-        from .sim import SimSettings, simulate_chunks
+        from ..sim import SimSettings, simulate_chunks
 
         return simulate_chunks(scenario, SimSettings(chunk_frames=chunk_frames))
 
@@ -97,21 +97,21 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     """
     from pxr import Sdf, UsdLux
 
-    from .atomic import output_dir, restored_on_failure
-    from .errors import ScenarioError
-    from .events import EventDetector
-    from .events.scenario import layer_events
-    from .limits import DEFAULT
+    from ..atomic import output_dir, restored_on_failure
+    from ..core.errors import ScenarioError
+    from ..events import EventDetector
+    from ..events.scenario import layer_events
+    from ..core.limits import DEFAULT
     from .plots import trajectory_map
-    from .scenario import load_scenario, open_stage, stage_frame
-    from .scenario.events import read_events
-    from .scenario.parent_space import ParentSpace
-    from . import guard
-    from .usd import CAMERAS, CROWD, SHOT, CrowdLayerWriter, write_shot
-    from .usd.cameras import write_camera_tracks
-    from .usd.crowd_layer import write_group_properties
-    from .usd.events import author_events
-    from .usd.shot import earlier_shot
+    from ..scenario import load_scenario, open_stage, stage_frame
+    from ..scenario.events import read_events
+    from ..scenario.parent_space import ParentSpace
+    from .. import guard
+    from ..usd import CAMERAS, CROWD, SHOT, CrowdLayerWriter, write_shot
+    from ..usd.cameras import write_camera_tracks
+    from ..usd.crowd_layer import write_group_properties
+    from ..usd.events import author_events
+    from ..usd.shot import earlier_shot
     from .validation import refuse_errors
 
     scenario_path = os.fspath(scenario_path)
@@ -225,9 +225,9 @@ def film_cameras(scenario: model.Scenario, positions, events: model.EventTable, 
         The crowd's centroid and spread per frame (:func:`cameras.overview.crowd_summary`),
         when already known.
     """
-    from .cameras import film, generated_agents, overview_track, static_cameras
-    from .cameras.overview import crowd_summary
-    from .cameras.placement import concat_agents, crowd_extent, take_agents
+    from ..cameras import film, generated_agents, overview_track, static_cameras
+    from ..cameras.overview import crowd_summary
+    from ..cameras.placement import concat_agents, crowd_extent, take_agents
 
     root = f"/{default_prim}" if default_prim else ""
     times = scenario.time.codes
@@ -257,7 +257,7 @@ def film_cameras(scenario: model.Scenario, positions, events: model.EventTable, 
 
 def _author_frames(writer, chunks, scenario, plotted, stride, progress, collected, detector) -> None:
     """Author (and animate) every chunk; collect what the cameras, the events and the picture need."""
-    from .cameras.overview import crowd_summary
+    from ..cameras.overview import crowd_summary
 
     done = 0
     with frame_progress(scenario.time.n_frames, "simulate", progress) as bar:

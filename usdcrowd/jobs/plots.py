@@ -11,25 +11,14 @@ import os
 
 import numpy as np
 
-from . import model
-from .atomic import atomic_path
+from ..atomic import atomic_path
+from ..core import model
+from ..core.srgb import srgb8
 
 _BACKGROUND = (250, 249, 246)
 _OBSTACLE = (150, 150, 155)
 _INTEREST = (200, 120, 0)
 _TEXT = (40, 40, 40)
-
-
-def srgb8(linear: np.ndarray) -> np.ndarray:
-    """Linear RGB in [0, 1] to 8-bit sRGB with the IEC 61966-2-1 encoding.
-
-    Written out rather than taken from colour-science: importing colour costs
-    1.4 s, which every ``simulate`` paid for a few thousand colours here
-    (tests/test_preview.py checks this against colour.cctf_encoding).
-    """
-    c = np.clip(np.asarray(linear, dtype=np.float64), 0.0, 1.0)
-    encoded = np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1.0 / 2.4) - 0.055)
-    return np.round(encoded * 255).astype(np.uint8)
 
 
 def trajectory_map(scenario: model.Scenario, positions: np.ndarray, out_png: str | os.PathLike,

@@ -17,65 +17,8 @@ import os
 
 import numpy as np
 
-from .errors import StageError
-from .scenario.stageio import StageFrame
-
-
-def correction(source: StageFrame, target: StageFrame) -> np.ndarray:
-    """(4, 4) row-vector matrix taking ``source`` stage coordinates into ``target`` ones."""
-    return source.to_canonical @ target.from_canonical
-
-
-def layer_frame(layer) -> StageFrame:
-    """Up axis and units a layer declares (USD's fallbacks, Y and centimetres, where it declares none)."""
-    from pxr import UsdGeom
-
-    info = layer.pseudoRoot
-    up = str(info.GetInfo("upAxis")) if info.HasInfo("upAxis") else str(UsdGeom.GetFallbackUpAxis())
-    mpu = float(info.GetInfo("metersPerUnit")) if info.HasInfo("metersPerUnit") else 0.01
-    return StageFrame(up, mpu)
-
-
-def authoring_meters_per_unit(attr, time, stage_frame: StageFrame) -> float:
-    """metersPerUnit of the layer that holds ``attr``'s strongest value (the stage's if it declares none).
-
-    Lens and clipping values are in scene units of the file that wrote them:
-    a camera referenced from a centimetre DCC file into a metre stage keeps
-    its centimetres.
-    """
-    from pxr import Usd
-
-    t = time if isinstance(time, Usd.TimeCode) else Usd.TimeCode(time)
-    for spec in attr.GetPropertyStack(t):
-        if spec.HasDefaultValue() or spec.layer.GetNumTimeSamplesForPath(spec.path):
-            if spec.layer.pseudoRoot.HasInfo("metersPerUnit"):
-                return float(spec.layer.pseudoRoot.GetInfo("metersPerUnit"))
-            break
-    return stage_frame.meters_per_unit
-
-
-def lens_mm(attr, time, stage_frame: StageFrame) -> float | None:
-    """A UsdGeom.Camera lens value in millimetres (USD: tenths of the authoring layer's scene unit)."""
-    from .view import mm_per_lens_unit
-
-    value = attr.Get(time)
-    if value is None:
-        return None
-    return float(value) * mm_per_lens_unit(authoring_meters_per_unit(attr, time, stage_frame))
-
-
-def camera_lens(cam, time, stage_frame: StageFrame) -> tuple[float, float, float, float, float]:
-    """A UsdGeom.Camera's (focal, horizontal, vertical aperture) in millimetres and (near, far) in metres.
-
-    Each value in the units of the layer that authored it (:func:`lens_mm`,
-    :func:`authoring_meters_per_unit`): what the renderers, the camera-agent
-    reader and ``inspect`` all use.
-    """
-    clip = cam.GetClippingRangeAttr()
-    near, far = (float(v) * authoring_meters_per_unit(clip, time, stage_frame) for v in clip.Get(time))
-    focal, h_ap, v_ap = (lens_mm(a, time, stage_frame) for a in (
-        cam.GetFocalLengthAttr(), cam.GetHorizontalApertureAttr(), cam.GetVerticalApertureAttr()))
-    return focal, h_ap, v_ap, near, far
+from ..core.errors import StageError
+from .stageio import StageFrame, correction, layer_frame
 
 
 def scenery_roots(stage) -> list:
@@ -117,7 +60,7 @@ def place_scenery(layer, scenery: str | os.PathLike, at: str, relative_to: str |
     """
     from pxr import Gf, Sdf, Usd, UsdLux, Vt
 
-    from .scenario.stageio import open_stage
+    from .stageio import open_stage
 
     scenery = os.fspath(scenery)
     stage = open_stage(scenery)             # every layer it needs exists and is readable

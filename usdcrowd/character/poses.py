@@ -1,6 +1,6 @@
 """Posed agents at one time code, as numpy: what renderers skin and annotators project.
 
-Pure core (no ``pxr``, no renderer). :meth:`usdcrowd.render.scene.ShotScene.agents`
+Pure core (no ``pxr``, no renderer). :meth:`usdcrowd.scenario.shot_scene.ShotScene.agents`
 fills :class:`AgentPoses` from a shot's skeletons.
 """
 
@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .character import rig
+from . import rig
 
 
 @dataclass

@@ -12,10 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import schema
-from .errors import UsdcrowdError
-from .scenario.namespace import stage_path
-from .scenario.samples import sample_values
+from .. import schema
+from ..core.errors import UsdcrowdError
+from ..scenario.namespace import stage_path
+from ..scenario.samples import sample_values
 
 # USD validators that judge packaging for delivery formats, not stages in a
 # working folder: a .usdc sublayer is exactly what the design asks for.
@@ -47,7 +47,7 @@ def usd_problems(stage, source: str) -> list[Problem]:
     """Findings of pxr.UsdValidation's registered validators."""
     from pxr import UsdValidation
 
-    from .scenario.stageio import _captured_stderr
+    from ..scenario.stageio import _captured_stderr
 
     reg = UsdValidation.ValidationRegistry()
     validators = [v for v in reg.GetOrLoadAllValidators() if str(v.GetMetadata().name) not in _SKIPPED_VALIDATORS]
@@ -123,7 +123,7 @@ def _non_finite(prim) -> list[tuple[str, str]]:
 
 def _lens_problems(prim) -> list[tuple[str, str]]:
     """Lens values no renderer can use, at the default time and every authored sample."""
-    from .view import lens_problem
+    from ..core.view import lens_problem
 
     out = []
     for name in ("focalLength", "horizontalAperture", "verticalAperture", "clippingRange"):
@@ -146,8 +146,8 @@ def schema_problems(stage, source: str) -> list[Problem]:
     """Crowd-schema rules: allowed tokens, documented ranges, relationships, assets, ids."""
     from pxr import UsdGeom
 
-    from .scenario.lights import light_problems
-    from .scenario.ranges import range_problem
+    from ..scenario.lights import light_problems
+    from ..scenario.ranges import range_problem
 
     out: list[Problem] = []
     ids: dict[int, str] = {}
@@ -264,7 +264,7 @@ def _dim_sun_problem(prim) -> str | None:
     luminance)."""
     from pxr import UsdLux
 
-    from .shading import distant_illuminance
+    from ..core.shading import distant_illuminance
 
     light = UsdLux.DistantLight(prim)
     angle, normalize = light.GetAngleAttr().Get(), light.GetNormalizeAttr().Get()
@@ -283,7 +283,7 @@ def _palette_problem(body) -> str | None:
     pv = UsdGeom.PrimvarsAPI(body).GetPrimvar("displayColor")
     if not pv or not pv.IsIndexed() or not pv.HasAuthoredValue():
         return None
-    from .character.appearance import fit_problem
+    from ..character.appearance import fit_problem
 
     values, indices = pv.Get(), pv.GetIndices()
     problem = fit_problem(len(values), (max(indices) + 1) if len(indices) else 1) if values is not None else None
@@ -296,7 +296,7 @@ def _palette_problem(body) -> str | None:
 
 def frame_problems(stage) -> list[Problem]:
     """Sublayers, and references without their correcting transform, in other units or axes than the stage."""
-    from .scenery import frame_problems as found
+    from ..scenario.scenery import frame_problems as found
 
     return [Problem(f, prim, "", message, "usdcrowd") for f, prim, message in found(stage)]
 
@@ -305,7 +305,7 @@ def clip_problems(stage) -> list[Problem]:
     """Value-clip layers that cannot be read (USD opens them only when a value is asked for)."""
     from pxr import Sdf, Tf
 
-    from .scenario.stageio import _captured_stderr, _clip_assets
+    from ..scenario.stageio import _captured_stderr, _clip_assets
 
     out = []
     for layer in stage.GetUsedLayers():
@@ -326,7 +326,7 @@ def clip_problems(stage) -> list[Problem]:
 
 def scenario_problems(stage, source: str, limits=None) -> list[Problem]:
     """The problems the scenario reader finds (empty groups, missing images, bad units...), all of them."""
-    from .scenario.read import scenario_errors
+    from ..scenario.read import scenario_errors
 
     if not any(p.GetTypeName() == schema.GROUP or schema.is_agent(p) for p in stage.Traverse()):
         return []
@@ -362,7 +362,7 @@ def _characters_without_ids(stage, agents: list) -> list[tuple]:
     says who they are: they get no ground truth)."""
     from pxr import UsdSkel
 
-    from .character import rig
+    from ..character import rig
 
     inside = tuple(str(prim.GetPath()) + "/" for prim, _ in agents)
     lost = [p for p in stage.Traverse() if p.IsA(UsdSkel.Animation)
@@ -378,7 +378,7 @@ def _characters_without_ids(stage, agents: list) -> list[tuple]:
 def _lost_by_round_trip(stage, carried: list) -> list[tuple]:
     """(prim, attribute, message, "warning") for what agents known by custom properties no longer have:
     their groups, per-frame states, leaders, and (when exported without it) their animation."""
-    from .render.scene import skeleton_and_animation
+    from ..scenario.shot_scene import skeleton_and_animation
 
     out = []
     groups = sorted({schema.agent_group(p) for p in carried} - {str(p.GetPath()) for p in stage.Traverse()
@@ -407,7 +407,7 @@ def _lost_by_round_trip(stage, carried: list) -> list[tuple]:
 def _carried_id_problems(agents: list) -> list[tuple]:
     """(prim, "crowd:agentId", message, "error") for carried ids that are no track id or repeat another agent's
     (Blender's duplicate copies an object's custom properties)."""
-    from .scenario.ranges import range_problem
+    from ..scenario.ranges import range_problem
 
     out, seen = [], {}
     for prim, aid in agents:
@@ -425,7 +425,7 @@ def _carried_id_problems(agents: list) -> list[tuple]:
 def dropped_root_problems(stage) -> list[Problem]:
     """Warnings for a scenery file without a defaultPrim referenced for only some of its root prims (a
     warning: scenarios written before every root was brought in still simulate)."""
-    from .scenery import dropped_root_problems as found
+    from ..scenario.scenery import dropped_root_problems as found
 
     return [Problem(f, prim, "", message, "usdcrowd", "warning") for f, prim, message in found(stage)]
 
@@ -462,8 +462,8 @@ def lens_unit_problems(stage, source: str) -> list[Problem]:
     and a flattened copy read it that many times too long or short."""
     from pxr import UsdGeom
 
-    from .scenario import stage_frame
-    from .scenery import authoring_meters_per_unit
+    from ..scenario import stage_frame
+    from ..scenario.stageio import authoring_meters_per_unit
 
     try:
         frame = stage_frame(stage)
@@ -518,7 +518,7 @@ def stage_problems(stage, source: str) -> list[Problem]:
 def refuse_errors(stage, source: str) -> None:
     """Raise the first error :func:`stage_problems` finds, so a command (``simulate``) refuses what
     ``validate`` reports as an error; the scenario reader raises its own."""
-    from .errors import ScenarioError
+    from ..core.errors import ScenarioError
 
     # usdcrowd's own words first: they name the prim and the attribute.
     for p in sorted(stage_problems(stage, source), key=lambda p: (p.source != "usdcrowd", p.prim, p.attribute)):
@@ -528,7 +528,7 @@ def refuse_errors(stage, source: str) -> None:
 
 def validate(path: str | os.PathLike, stage=None, limits=None) -> list[Problem]:
     """Every problem found in a stage; errors first. Empty means valid."""
-    from .scenario import open_stage
+    from ..scenario import open_stage
 
     source = os.fspath(path)
     stage = stage or open_stage(source)

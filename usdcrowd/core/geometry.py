@@ -125,3 +125,22 @@ def mesh_of(prim) -> MeshData | None:
         return None
     return MeshData(np.asarray(t.vertices, dtype=np.float32), np.asarray(t.faces, dtype=np.int32),
                     np.asarray(t.vertex_normals, dtype=np.float32))
+
+
+def face_normals(points: np.ndarray, faces: np.ndarray, unit: bool = True) -> np.ndarray:
+    """(f, 3) float64 normals of triangles ``faces`` ((f, 3) int) over ``points`` ((v, 3) float),
+    counter-clockwise; of length twice the triangle's area when ``unit`` is False."""
+    p = np.asarray(points, dtype=np.float64)
+    fn = np.cross(p[faces[:, 1]] - p[faces[:, 0]], p[faces[:, 2]] - p[faces[:, 0]])
+    return fn / np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-12) if unit else fn
+
+
+def vertex_normals(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Area-weighted vertex normals, (v, 3) float32 (zero-area vertices get +Z)."""
+    fn = face_normals(points, faces, unit=False)
+    n = np.zeros((len(points), 3))
+    for k in range(3):
+        np.add.at(n, faces[:, k], fn)
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    n = np.where(length > 1e-12, n / np.maximum(length, 1e-12), [0.0, 0.0, 1.0])
+    return n.astype(np.float32)

@@ -20,12 +20,13 @@ from pathlib import Path
 
 import numpy as np
 
-from . import model, schema
-from .errors import StageError
-from .usd.cameras import CAMERAS as CAMERAS_LAYER
+from ..core import model
+from .. import schema
+from ..core.errors import StageError
+from ..usd.cameras import CAMERAS as CAMERAS_LAYER
 
 if TYPE_CHECKING:
-    from .cameras.features import CinematicFeatures
+    from ..cameras.features import CinematicFeatures
 
 FOCAL_LENGTH = 50.0        # mm: a 40 degree horizontal field on 36 mm, within the seed's 30-45 degrees
 APERTURE = 36.0            # mm, horizontal
@@ -86,8 +87,8 @@ def shot_features(shot, camera: str | None, agent_a: str, agent_b: str, times=No
     about : dict
         Camera and agent paths, field of view and aspect (for the JSON).
     """
-    from .cameras.features import cinematic_features, head_and_facing
-    from .render.scene import ShotScene
+    from ..cameras.features import cinematic_features, head_and_facing
+    from ..scenario.shot_scene import ShotScene
 
     scene = shot if isinstance(shot, ShotScene) else ShotScene(shot)
     paths = scene.agent_paths
@@ -205,7 +206,7 @@ def target_signals(scene, spans: list[PairSpan], times, transition: float = TRAN
 
     Only the agents named in ``spans`` are posed.
     """
-    from .cameras.features import head_and_facing
+    from ..cameras.features import head_and_facing
     from .pipeline import frame_progress
 
     rows = check_spans(scene, spans)
@@ -270,8 +271,8 @@ def auto_spans(scene, span: float = 5.0, step: float = 0.5, reach: float = 4.0, 
     from scipy.spatial import cKDTree
 
     from .pipeline import frame_progress
-    from .scenario.events import read_events
-    from .scenario.stageio import time_range
+    from ..scenario.events import read_events
+    from ..scenario.stageio import time_range
 
     times = scene.time_codes
     fps = float(scene.fps)
@@ -328,7 +329,7 @@ def _blend_angle(a: np.ndarray, b: np.ndarray, w: np.ndarray) -> np.ndarray:
 
 def shot_obstacles(scene):
     """The scenery footprints of the scenario a shot refers to (none if it names no scenario)."""
-    from .scenario import load_scenario
+    from ..scenario import load_scenario
 
     ref = dict(scene.stage.GetRootLayer().customLayerData.get("usdcrowd", {})).get("scenario")
     if not ref:
@@ -377,9 +378,9 @@ def frame_shot(shot_path: str | os.PathLike, behavior, spans: list[PairSpan] | s
         The toric coordinates authored (of the smoothed track when smoothed).
     signals : TargetSignals
     """
-    from .cameras.behaviors import behavior_track
-    from .cameras.smoothing import smooth_track
-    from .render.scene import ShotScene
+    from ..cameras.behaviors import behavior_track
+    from ..cameras.smoothing import smooth_track
+    from ..scenario.shot_scene import ShotScene
 
     scene = ShotScene(shot_path)
     times = scene.time_codes
@@ -415,8 +416,8 @@ def _camera_path(scene, prim_name: str) -> str:
 
 def _track_features(m: np.ndarray, signals: TargetSignals, fov_x: float, aspect: float):
     """A BehaviorTrack of given poses: their toric coordinates (NaN where a head is behind the camera)."""
-    from .cameras.behaviors import BehaviorTrack
-    from .cameras.toric import ToricError, pose_to_toric
+    from ..cameras.behaviors import BehaviorTrack
+    from ..cameras.toric import ToricError, pose_to_toric
 
     toric = np.full((len(m), 6), np.nan)
     for i in range(len(m)):
@@ -437,8 +438,8 @@ def _camera_track(path: str, times, m: np.ndarray, focal_length: float, aspect: 
 
 def _author(scene, track, result, signals: TargetSignals, behavior: str, shot_size: str, smooth: bool,
             extra: dict | None = None) -> str:
-    from .scenario.parent_space import ParentSpace
-    from .usd.cameras import add_camera
+    from ..scenario.parent_space import ParentSpace
+    from ..usd.cameras import add_camera
 
     intent = {"behavior": behavior, "shot_size": shot_size, "smoothed": smooth,
               "target_a": signals.target_a, "target_b": signals.target_b,
@@ -476,11 +477,11 @@ def read_reference(shot_path, camera: str | None = None, targets: tuple[str, str
         No such camera, no toric camera to take, no targets to take, or no
         frame that frames both heads.
     """
-    from .cameras.features import head_and_facing
-    from .cameras.moe import camera_features, character_features
-    from .cameras.toric import ToricError, pose_to_toric
+    from ..cameras.features import head_and_facing
+    from ..cameras.moe import camera_features, character_features
+    from ..cameras.toric import ToricError, pose_to_toric
     from .pipeline import frame_progress
-    from .render.scene import ShotScene
+    from ..scenario.shot_scene import ShotScene
 
     scene = ShotScene(shot_path)
     times = scene.time_codes
@@ -540,7 +541,7 @@ def toric_camera(scene) -> str:
 
 def _shot_size_of(heads_a: np.ndarray, cams: np.ndarray, times, fov_x: float, aspect: float) -> str:
     """The shot size whose span is nearest (in ratio) the one the camera's distance to A gives."""
-    from .cameras.behaviors import SHOT_SIZES, fov_y
+    from ..cameras.behaviors import SHOT_SIZES, fov_y
 
     idx = np.linspace(0, len(heads_a) - 1, len(cams)).round().astype(int)
     dist = np.linalg.norm(cams[:, 3, :3] - heads_a[idx], axis=1).mean()
@@ -564,11 +565,11 @@ def frame_like(shot_path, reference: Reference, spans: list[PairSpan] | str, nam
     path, track, features, signals, weights
         As :func:`frame_shot`, and the (m,) expert weights.
     """
-    from .cameras.behaviors import clear_of_obstacles
-    from .cameras.moe import CameraMoE, character_features, toric_of_features
-    from .cameras.smoothing import smooth_track
-    from .cameras.toric import toric_to_poses
-    from .render.scene import ShotScene
+    from ..cameras.behaviors import clear_of_obstacles
+    from ..cameras.moe import CameraMoE, character_features, toric_of_features
+    from ..cameras.smoothing import smooth_track
+    from ..cameras.toric import toric_to_poses
+    from ..scenario.shot_scene import ShotScene
 
     model = model or CameraMoE()
     scene = ShotScene(shot_path)

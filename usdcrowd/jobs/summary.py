@@ -12,19 +12,20 @@ from collections import Counter
 
 import numpy as np
 
-from . import model, schema
+from ..core import model
+from .. import schema
 
 
 def summarize(path: str | os.PathLike, stage=None, limits=None) -> dict:
     """Collect the summary of a stage as plain JSON-able data."""
     from pxr import Usd, UsdGeom, UsdLux
 
-    from .scenery import camera_lens
+    from ..scenario.stageio import camera_lens
 
-    from .scenario import load_scenario, open_stage, stage_frame
-    from .scenario.events import read_events
-    from .scenario.read import stored_seed
-    from .scenario.stageio import time_range
+    from ..scenario import load_scenario, open_stage, stage_frame
+    from ..scenario.events import read_events
+    from ..scenario.read import stored_seed
+    from ..scenario.stageio import time_range
 
     path = os.fspath(path)
     stage = stage or open_stage(path)
@@ -143,7 +144,7 @@ def agent_list(path: str | os.PathLike, limits=None) -> list[dict]:
     """Every agent of a stage (scenario or shot): name, prim path, id, group, visible and role, in the
     scenario's order (what ``inspect --agents`` lists); for a shot back from a DCC tool, its agents known by
     their custom properties, in stage order; empty for a stage without a crowd."""
-    from .scenario import load_scenario, open_stage
+    from ..scenario import load_scenario, open_stage
 
     path = os.fspath(path)
     stage = open_stage(path)

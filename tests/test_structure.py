@@ -1,0 +1,103 @@
+"""The package's shape: the import graph (imports inside functions counted) has no cycle, and every
+arrow runs down the documented order of packages (README, "Layout")."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+PACKAGE = Path(__file__).resolve().parents[1] / "usdcrowd"
+
+# Lowest first: a package may import its own floor and those below, never one above.
+FLOORS = [
+    {"core", "_moved"},
+    {"character", "schema", "interrupts"},
+    {"guard", "atomic"},
+    {"sim", "events", "scenario"},
+    {"cameras", "usd", "groundtruth", "exchange"},
+    {"render"},
+    {"jobs"},
+    {"dataset"},
+    {"cli"},
+    {"__main__"},
+]
+
+
+def _module(path: Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _unit(module: str) -> str | None:
+    """The package (or top-level module) of ``usdcrowd.x.y``: ``x``; None for usdcrowd itself."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else None
+
+
+def import_graph() -> dict[str, set[str]]:
+    """``{unit: units it imports}``, from every import statement of every module."""
+    modules = {_module(p): p for p in PACKAGE.rglob("*.py")}
+    graph: dict[str, set[str]] = {}
+    for name, path in modules.items():
+        package = name if path.name == "__init__.py" else name.rsplit(".", 1)[0]
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom):
+                base = package.split(".")[:len(package.split(".")) - node.level + 1] if node.level else []
+                target = ".".join(base + ([node.module] if node.module else [])) if node.level else node.module
+                targets = [f"{target}.{a.name}" for a in node.names] + [target]
+            elif isinstance(node, ast.Import):
+                targets = [a.name for a in node.names]
+            else:
+                continue
+            for t in targets:
+                if not t or not t.startswith("usdcrowd"):
+                    continue
+                while t not in modules and "." in t:
+                    t = t.rsplit(".", 1)[0]
+                a, b = _unit(name), _unit(t)
+                if a and b and a != b:
+                    graph.setdefault(a, set()).add(b)
+    return graph
+
+
+def test_every_package_has_a_floor():
+    units = {_unit(_module(p)) for p in PACKAGE.rglob("*.py")} - {None}
+    placed = set().union(*FLOORS)
+    assert units <= placed, f"not on a floor of tests/test_structure.py: {sorted(units - placed)}"
+
+
+def test_imports_run_down_the_floors_and_never_in_a_circle():
+    floor = {unit: k for k, units in enumerate(FLOORS) for unit in units}
+    graph = import_graph()
+    upward = sorted(f"{a} -> {b}" for a, bs in graph.items() for b in bs if floor[b] > floor[a])
+    assert not upward, upward
+    # Within a floor: no circle (a depth-first search that meets a package on its own path).
+    state: dict[str, int] = {}
+
+    def visit(unit, path):
+        state[unit] = 1
+        for nxt in graph.get(unit, ()):
+            assert state.get(nxt) != 1, " -> ".join(path + [nxt])
+            if nxt not in state:
+                visit(nxt, path + [nxt])
+        state[unit] = 2
+
+    for unit in graph:
+        if unit not in state:
+            visit(unit, [unit])
+
+
+def test_modules_that_moved_still_import_by_their_old_names_with_a_warning():
+    import importlib
+    import sys
+    import warnings
+
+    from usdcrowd._moved import MOVED
+
+    for old, new in MOVED.items():
+        sys.modules.pop(old, None)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            module = importlib.import_module(old)
+        assert module is importlib.import_module(new), old
+        assert any(issubclass(w.category, DeprecationWarning) and new in str(w.message) for w in caught), old
