@@ -1,4 +1,5 @@
-"""Every console example in the README, run in order as a new user would type it (parsed from the README).
+"""Every console example in the README and the documentation's pages, run in order as a new user would type
+it: the README's tour first, then the pages in the site's order (mkdocs.yml), each command once.
 
 Each ``$ usdcrowd ...`` line must exit 0, and the first line it prints must
 have the shape the README shows (numbers may differ: they are masked). The
@@ -17,7 +18,21 @@ import pytest
 
 from usdcrowd.cli import main
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+
+
+def pages() -> list[Path]:
+    """The README, then every page of the site in its navigation's order."""
+    import yaml
+
+    def walk(nav):
+        for item in nav:
+            value = next(iter(item.values())) if isinstance(item, dict) else item
+            yield from walk(value) if isinstance(value, list) else [value]
+
+    nav = yaml.safe_load((ROOT / "mkdocs.yml").read_text())["nav"]
+    return [README] + [ROOT / "docs" / page for page in walk(nav)]
 # Appended to the commands that render (the last option given wins in argparse).
 QUICK = {"preview": ["--frames", "1:2", "--resolution", "64x36"],
          "render": ["--frames", "1:2", "--resolution", "64x36", "--preset", "preview", "--spp", "1"]}
@@ -50,7 +65,12 @@ def test_the_readme_has_the_tour():
 def test_every_console_example_in_the_readme_runs_as_shown(tmp_path, monkeypatch, capsys):
     pytest.importorskip("mitsuba")
     monkeypatch.chdir(tmp_path)
-    for line, shown in console_examples(README.read_text()):
+    done = set()
+    examples = [e for page in pages() for e in console_examples(page.read_text())]
+    for line, shown in examples:
+        if line in done:                    # a guide repeating the tour's command
+            continue
+        done.add(line)
         command, _, pipe = line.partition("|")
         argv = shlex.split(command)
         assert argv[0] == "usdcrowd", line

@@ -1,6 +1,6 @@
 """Benchmark of usdcrowd.sim against JuPedSim on the same scene.
 
-Scene (as in DESIGN.md): a 200 m x 200 m square, agents spread over it on a
+Scene: a 200 m x 200 m square, agents spread over it on a
 jittered lattice, half heading for a waypoint near the west edge and half
 for one near the east edge (JuPedSim: a journey shuttling between the two).
 usdcrowd runs with every force on: steering, time-to-impact avoidance of

@@ -1,6 +1,6 @@
 """From a scenario stage to a shot: read, simulate, animate, author.
 
-This is the one place that strings the stages of DESIGN.md's data flow
+This is the one place that strings the stages of the data flow (docs/architecture.md)
 together; the CLI's ``simulate`` and ``demo`` call it.
 """
 
