@@ -97,46 +97,25 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     """
     from pxr import Sdf, UsdLux
 
-    from ..atomic import output_dir, restored_on_failure
-    from ..core.errors import ScenarioError
+    from ..atomic import restored_on_failure
     from ..events import EventDetector
     from ..events.scenario import layer_events
-    from ..core.limits import DEFAULT
-    from .plots import trajectory_map
-    from ..scenario import load_scenario, open_stage, stage_frame
-    from ..scenario.events import read_events
+    from ..scenario import stage_frame
     from ..scenario.parent_space import ParentSpace
-    from .. import guard
-    from ..usd import CAMERAS, CROWD, SHOT, CrowdLayerWriter, write_shot
+    from ..usd import CAMERAS, CROWD, CrowdLayerWriter, write_shot
     from ..usd.cameras import write_camera_tracks
     from ..usd.crowd_layer import write_group_properties
     from ..usd.events import author_events
-    from ..usd.shot import earlier_shot
-    from .validation import refuse_errors
+    from .plots import trajectory_map
 
     scenario_path = os.fspath(scenario_path)
     out_dir = Path(out_dir)
-    stage = open_stage(scenario_path)
-    limits = limits or DEFAULT
-    scenario = load_scenario(scenario_path, seed=seed, stage=stage, limits=limits)
-    refuse_errors(stage, scenario_path)          # and whatever else `usdcrowd validate` reports as an error
-    if frames is not None:
-        scenario.time = model.TimeRange(float(frames[0]), float(frames[1]), scenario.time.fps)
-        if scenario.time.n_frames > limits.max_frames:
-            raise ScenarioError(f"{scenario.time.n_frames:,} frames: more than the {limits.max_frames:,} accepted "
-                                f"(raise it with --max-frames)", attribute="--frames")
-        # The authored events, sampled (and clamped) over the frames simulated.
-        scenario.events = read_events(stage, {p: i for i, p in enumerate(scenario.agents.path)}, scenario.time,
-                                      agent_ids=scenario.agents.agent_id)
+    stage, scenario = _read_scenario(scenario_path, seed, frames, limits)
     sframe = stage_frame(stage)
     default_prim = stage.GetDefaultPrim().GetName() if stage.GetDefaultPrim() else ""
     authored = {p for p in scenario.agents.path if stage.GetPrimAtPath(p)}
     has_lights = any(p.HasAPI(UsdLux.LightAPI) for p in stage.Traverse())
-    output_dir(out_dir, "shot")
-    if earlier_shot(out_dir / SHOT) is not None:
-        guard.merge_into(out_dir / SHOT)            # an earlier shot's: the user's edits in it are kept
-    for name in (SHOT, CROWD, CAMERAS, "trajectories.png", "crowd.clips"):
-        guard.check_write(out_dir / name)           # before the work, not when the shot is finally written
+    _claim_shot_folder(out_dir)
     scenario_ref = os.path.relpath(os.path.abspath(scenario_path), out_dir.resolve())
 
     # Positions for the cameras wait on disk, not in memory (they grow with the shot).
@@ -191,6 +170,44 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     camera = tracks[0].path
     return ShotResult(shot, crowd, cameras, camera, plot, len(scenario.agents), scenario.time.n_frames,
                       scenario.seed, [t.path for t in tracks], n_events)
+
+
+def _read_scenario(scenario_path: str, seed, frames, limits):
+    """The scenario stage and its model, refused when `validate` reports an error, over ``frames``."""
+    from ..core.errors import ScenarioError
+    from ..core.limits import DEFAULT
+    from ..scenario import load_scenario, open_stage
+    from ..scenario.events import read_events
+    from .validation import refuse_errors
+
+    stage = open_stage(scenario_path)
+    limits = limits or DEFAULT
+    scenario = load_scenario(scenario_path, seed=seed, stage=stage, limits=limits)
+    refuse_errors(stage, scenario_path)          # and whatever else `usdcrowd validate` reports as an error
+    if frames is not None:
+        scenario.time = model.TimeRange(float(frames[0]), float(frames[1]), scenario.time.fps)
+        if scenario.time.n_frames > limits.max_frames:
+            raise ScenarioError(f"{scenario.time.n_frames:,} frames: more than the {limits.max_frames:,} accepted "
+                                f"(raise it with --max-frames)", attribute="--frames")
+        # The authored events, sampled (and clamped) over the frames simulated.
+        scenario.events = read_events(stage, {p: i for i, p in enumerate(scenario.agents.path)}, scenario.time,
+                                      agent_ids=scenario.agents.agent_id)
+    return stage, scenario
+
+
+def _claim_shot_folder(out_dir: Path) -> None:
+    """The shot folder, checked before any work (not when the shot is finally written): an earlier
+    shot's shot.usda is the user's layer, merged; any other layer usdcrowd did not write is refused."""
+    from .. import guard
+    from ..atomic import output_dir
+    from ..usd import CAMERAS, CROWD, SHOT
+    from ..usd.shot import earlier_shot
+
+    output_dir(out_dir, "shot")
+    if earlier_shot(out_dir / SHOT) is not None:
+        guard.merge_into(out_dir / SHOT)
+    for name in (SHOT, CROWD, CAMERAS, "trajectories.png", "crowd.clips"):
+        guard.check_write(out_dir / name)
 
 
 @dataclass

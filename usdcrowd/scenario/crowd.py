@@ -166,12 +166,9 @@ def read_crowd(shot, frames=None) -> tuple[model.CrowdFrames, CrowdInfo]:
     ValueError
         When ``frames`` is not within the stage's time range.
     """
-    from pxr import Usd, UsdGeom
+    from pxr import Usd
 
-    from ..character.animation import BLEND_FRAMES
-    from ..character.rig import wrap_angle
-    from ..character.root import blend_weight, frames_since_change, recover_root_motion
-    from .parent_space import ParentSpace
+    from ..character.root import recover_root_motion
 
     stage = shot if isinstance(shot, Usd.Stage) else open_stage(os.fspath(shot))
     source = stage.GetRootLayer().identifier
@@ -180,13 +177,42 @@ def read_crowd(shot, frames=None) -> tuple[model.CrowdFrames, CrowdInfo]:
         raise StageError("no animated agent (a shot stage has a SkelAnimation per agent)", file=source)
     shot_time = time_range(stage)
     codes = _frames(frames, shot_time)
-    n = len(agents)
+    anim_class, since, begin, first = _class_history(agents, codes, shot_time)
+    window = shot_time.start + np.arange(int(round(codes[0] - shot_time.start)) - first + begin,
+                                         int(round(codes[-1] - shot_time.start)) + 1, dtype=np.float64)
+    rot, trans, scale = _skeletons(agents, window)
+    position, heading = recover_root_motion(rot[:, :, 0], trans, rot[:, :, 1], scale,
+                                            anim_class[begin:], since[begin:])
+    position, heading = _to_world(stage, agents, window, position, heading, source)
+    velocity = np.zeros(position.shape[:2] + (2,))
+    if len(window) > 1:
+        velocity[1:] = np.diff(position[..., :2], axis=0) * shot_time.fps
+        velocity[0] = velocity[1]
+    keep = slice(first - begin, None)
+    out = _frames_of(agents, codes, position[keep], heading[keep], velocity[keep], anim_class[first:])
+    return out, _info(agents, codes, shot_time)
 
-    # Blends between animation classes carry their key pose forward, so each
-    # agent is read from one of its unblended frames at or before the frame
-    # before the first one wanted (for the velocity). The class history comes
-    # from a short look-back, longer only while some agent blends all through
-    # it, so reading a window of a long shot costs the window, not the shot.
+
+def _class_history(agents, codes: np.ndarray, shot_time: model.TimeRange):
+    """Each agent's animation class from far enough back to start reading at an unblended frame.
+
+    Blends between animation classes carry their key pose forward, so each agent is read from one of
+    its unblended frames at or before the frame before the first one wanted (for the velocity). The
+    class history comes from a short look-back, longer only while some agent blends all through it,
+    so reading a window of a long shot costs the window, not the shot.
+
+    Returns
+    -------
+    anim_class, since : (h, n) int
+        Classes and frames since each changed, over the history read.
+    begin : int
+        Row of the history where reading the skeletons starts.
+    first : int
+        Row of the history of the first frame wanted.
+    """
+    from ..character.animation import BLEND_FRAMES
+    from ..character.root import blend_weight, frames_since_change
+
     first_abs = int(round(codes[0] - shot_time.start))
     want_abs = max(first_abs - 1, 0)
     end_abs = int(round(codes[-1] - shot_time.start))
@@ -203,10 +229,13 @@ def read_crowd(shot, frames=None) -> tuple[model.CrowdFrames, CrowdInfo]:
         if h0 == 0 or settled.any(axis=0).all():
             break
         lookback *= 4
-    first = first_abs - h0
-    begin = lo + int(min(np.flatnonzero(settled[:, a])[-1] for a in range(n)))
-    window = history[begin:]
+    begin = lo + int(min(np.flatnonzero(settled[:, a])[-1] for a in range(len(agents))))
+    return anim_class, since, begin, first_abs - h0
 
+
+def _skeletons(agents, window: np.ndarray):
+    """Root and torso rotations ((t, n, 2, 4) w-first), root translations (t, n, 3) and scales (n,)."""
+    n = len(agents)
     rot = np.empty((len(window), n, 2, 4))
     trans = np.empty((len(window), n, 3))
     scale = np.empty(n)
@@ -218,11 +247,15 @@ def read_crowd(shot, frames=None) -> tuple[model.CrowdFrames, CrowdInfo]:
         trans[:, a] = t[:, 0]
         s = anim.GetAttribute("scales").Get(float(window[0]))
         scale[a] = float(s[0][0]) if s else 1.0
-    position, heading = recover_root_motion(rot[:, :, 0], trans, rot[:, :, 1], scale,
-                                            anim_class[begin:], since[begin:])
+    return rot, trans, scale
 
-    # Skeleton space to canonical world: the agent's own transform and its parents' (which a layer
-    # over the shot, or a set referencing it, may move or animate) and the stage frame.
+
+def _to_world(stage, agents, window, position: np.ndarray, heading: np.ndarray, source: str):
+    """Skeleton space to canonical world: the agent's own transform and its parents' (which a layer
+    over the shot, or a set referencing it, may move or animate) and the stage frame."""
+    from ..character.rig import wrap_angle
+    from .parent_space import ParentSpace
+
     to_canonical = stage_frame(stage).to_canonical
     space = ParentSpace(stage, window)
     for a, (prim, _) in enumerate(agents):
@@ -238,15 +271,12 @@ def read_crowd(shot, frames=None) -> tuple[model.CrowdFrames, CrowdInfo]:
         position[:, a] = (position[:, a] @ r3 if r3.ndim == 2 else np.einsum("ti,tij->tj", position[:, a], r3)) \
             + m[..., 3, :3]
         heading[:, a] += np.arctan2(r3[..., 0, 1], r3[..., 0, 0])
-    heading = wrap_angle(heading)
+    return position, wrap_angle(heading)
 
-    fps = shot_time.fps
-    velocity = np.zeros(position.shape[:2] + (2,))
-    if len(window) > 1:
-        velocity[1:] = np.diff(position[..., :2], axis=0) * fps
-        velocity[0] = velocity[1]
-    keep = slice(first - begin, None)
-    t_out = len(codes)
+
+def _frames_of(agents, codes, position, heading, velocity, anim_class) -> model.CrowdFrames:
+    """The frames wanted, with the state tokens read at them."""
+    t_out, n = len(codes), len(agents)
 
     def state(name, vocab):
         return np.stack([_tokens(p.GetAttribute(f"crowd:state:{name}"), codes, vocab) for p, _ in agents], 1)
@@ -255,25 +285,28 @@ def read_crowd(shot, frames=None) -> tuple[model.CrowdFrames, CrowdInfo]:
         v = prim.GetAttribute("crowd:pathMethod").Get()
         return model.PATH_METHODS.index(str(v)) if v else 0
 
-    out = model.CrowdFrames(
-        times=codes, position=position[keep].astype(np.float32), heading=heading[keep].astype(np.float32),
-        velocity=velocity[keep].astype(np.float32), behavior=state("behavior", model.BEHAVIORS),
-        anim_class=anim_class[first:].astype(np.int8), anim_phase=np.zeros((t_out, n), np.float32),
+    return model.CrowdFrames(
+        times=codes, position=position.astype(np.float32), heading=heading.astype(np.float32),
+        velocity=velocity.astype(np.float32), behavior=state("behavior", model.BEHAVIORS),
+        anim_class=anim_class.astype(np.int8), anim_phase=np.zeros((t_out, n), np.float32),
         health=state("health", model.HEALTH_STATES), look_at=np.full((t_out, n, 3), np.nan, np.float32),
         path_method=np.array([path_method(p) for p, _ in agents], np.int8))
+
+
+def _info(agents, codes, shot_time: model.TimeRange) -> CrowdInfo:
+    from pxr import UsdGeom
 
     def target(prim, name):
         rel = prim.GetRelationship(name)
         t = rel.GetTargets() if rel else []
         return str(t[0]) if t else None
 
-    info = CrowdInfo(
+    return CrowdInfo(
         path=[str(p.GetPath()) for p, _ in agents],
         agent_id=np.array([p.GetAttribute("crowd:agentId").Get() or 0 for p, _ in agents], np.int32),
         visible=np.array([UsdGeom.Imageable(p).ComputeVisibility(float(codes[0])) != UsdGeom.Tokens.invisible
                           for p, _ in agents], bool),
         group=[target(p, "crowd:group") or str(p.GetParent().GetPath()) for p, _ in agents],
         height=np.array([p.GetAttribute("crowd:height").Get() or 0.0 for p, _ in agents], np.float64),
-        time=model.TimeRange(float(codes[0]), float(codes[-1]), fps), shot_time=shot_time)
-    return out, info
+        time=model.TimeRange(float(codes[0]), float(codes[-1]), shot_time.fps), shot_time=shot_time)
 

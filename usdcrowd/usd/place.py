@@ -62,7 +62,7 @@ def place_shot(shot: str | os.PathLike, into: str | os.PathLike, out: str | os.P
     StageError
         A shot or a set without a default prim, or --at too far from the origin.
     """
-    from pxr import Gf, Sdf, Vt
+    from pxr import Gf, Sdf
 
     from ..scenario import open_stage, stage_frame
     from ..scenario.stageio import time_range
@@ -84,41 +84,58 @@ def place_shot(shot: str | os.PathLike, into: str | os.PathLike, out: str | os.P
     time = _frames(time_range(shot_stage), set_stage)
 
     out_dir = os.path.dirname(os.path.abspath(out))
+    layer = _layer_over(into, out_dir, parent.name, set_frame, time)
+    with Sdf.ChangeBlock():
+        spec, ref = _placement(layer, parent, name, shot_root.GetName(), at, rotate, set_frame.up_axis,
+                               correction(shot_frame, set_frame))
+        ref.referenceList.prependedItems = [Sdf.Reference(_relative(shot, out_dir), shot_root.GetPath())]
+        lenses = convert_lenses(layer, shot_stage, shot_root.GetPath(), ref.path, set_frame)
+        if offset:
+            shift_ids(layer, shot_stage, shot_root.GetPath(), ref.path, offset)
+    shot_time = time_range(shot_stage)
+    layer.customLayerData = {"usdcrowd": {"placed": {"shot": _relative(shot, out_dir), "prim": str(ref.path),
+                                                     "at": Gf.Vec3d(*map(float, at)), "rotate": float(rotate),
+                                                     "frames": Gf.Vec2d(shot_time.start, shot_time.end),
+                                                     "lensesConverted": lenses, "idOffset": offset}}}
+    return export_layer(layer, out), str(spec.path), offset
+
+
+def _layer_over(into: str, out_dir: str, default_prim: str, set_frame, time):
+    """A new root layer over the set: its axes and units, the frames, the fallback prim types."""
+    from pxr import Sdf
+
     layer = Sdf.Layer.CreateAnonymous(".usda")
     layer.subLayerPaths = [_relative(into, out_dir)]
-    layer.defaultPrim = parent.name
+    layer.defaultPrim = default_prim
     layer.pseudoRoot.SetInfo("upAxis", set_frame.up_axis)
     layer.pseudoRoot.SetInfo("metersPerUnit", set_frame.meters_per_unit)
     layer.startTimeCode, layer.endTimeCode = time.start, time.end
     layer.timeCodesPerSecond = layer.framesPerSecond = time.fps
     schema.author_fallbacks(layer)
+    return layer
+
+
+def _placement(layer, parent, name: str, child: str, at, rotate: float, up_axis: str, units: np.ndarray):
+    """The placing Xform (``parent``/``name``: translate, turn about the up axis, units) and its child
+    ``child`` that will hold the reference (ops on the referencing prim would replace the shot root's own).
+    Inside the caller's change block; returns both prim specs."""
+    from pxr import Gf, Sdf, Vt
+
     T = Sdf.ValueTypeNames
-    with Sdf.ChangeBlock():
-        for p in parent.GetPrefixes():
-            Sdf.CreatePrimInLayer(layer, p).specifier = Sdf.SpecifierOver
-        spec = Sdf.CreatePrimInLayer(layer, parent.AppendChild(name))
-        spec.specifier, spec.typeName = Sdf.SpecifierDef, "Xform"
-        # The reference goes on a child: ops on the referencing prim would replace the shot root's own.
-        ref = Sdf.CreatePrimInLayer(layer, spec.path.AppendChild(shot_root.GetName()))
-        ref.specifier = Sdf.SpecifierDef
-        ref.referenceList.prependedItems = [Sdf.Reference(_relative(shot, out_dir), shot_root.GetPath())]
-        up = "rotateZ" if set_frame.up_axis == "Z" else "rotateY"
-        for op, type_name, value in (
-                ("xformOp:translate", T.Double3, Gf.Vec3d(*map(float, at))),
-                (f"xformOp:{up}", T.Double, float(rotate)),
-                ("xformOp:transform:units", T.Matrix4d, Gf.Matrix4d(correction(shot_frame, set_frame).tolist()))):
-            Sdf.AttributeSpec(spec, op, type_name).default = value
-        order = Sdf.AttributeSpec(spec, "xformOpOrder", T.TokenArray, Sdf.VariabilityUniform)
-        order.default = Vt.TokenArray(["xformOp:translate", f"xformOp:{up}", "xformOp:transform:units"])
-        lenses = convert_lenses(layer, shot_stage, shot_root.GetPath(), ref.path, set_frame)
-        if offset:
-            shift_ids(layer, shot_stage, shot_root.GetPath(), ref.path, offset)
-    layer.customLayerData = {"usdcrowd": {"placed": {"shot": _relative(shot, out_dir), "prim": str(ref.path),
-                                                     "at": Gf.Vec3d(*map(float, at)), "rotate": float(rotate),
-                                                     "frames": Gf.Vec2d(time_range(shot_stage).start,
-                                                                        time_range(shot_stage).end),
-                                                     "lensesConverted": lenses, "idOffset": offset}}}
-    return export_layer(layer, out), str(spec.path), offset
+    for p in parent.GetPrefixes():
+        Sdf.CreatePrimInLayer(layer, p).specifier = Sdf.SpecifierOver
+    spec = Sdf.CreatePrimInLayer(layer, parent.AppendChild(name))
+    spec.specifier, spec.typeName = Sdf.SpecifierDef, "Xform"
+    up = "rotateZ" if up_axis == "Z" else "rotateY"
+    for op, type_name, value in (("xformOp:translate", T.Double3, Gf.Vec3d(*map(float, at))),
+                                 (f"xformOp:{up}", T.Double, float(rotate)),
+                                 ("xformOp:transform:units", T.Matrix4d, Gf.Matrix4d(units.tolist()))):
+        Sdf.AttributeSpec(spec, op, type_name).default = value
+    order = Sdf.AttributeSpec(spec, "xformOpOrder", T.TokenArray, Sdf.VariabilityUniform)
+    order.default = Vt.TokenArray(["xformOp:translate", f"xformOp:{up}", "xformOp:transform:units"])
+    ref = Sdf.CreatePrimInLayer(layer, spec.path.AppendChild(child))
+    ref.specifier = Sdf.SpecifierDef
+    return spec, ref
 
 
 def _roots(shot_stage, shot: str, set_stage, into: str):
