@@ -57,6 +57,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .smoothing import moving_average, rotation_from_ypr
+from .toric import angles_at_a, axes
 
 BEHAVIORS = ("direct-track", "relative-track", "side-track", "orbit")
 MIN_BETA = np.radians(15.0)        # nearer the line AB one character hides the other
@@ -249,14 +250,9 @@ def behavior_track(behavior: Behavior, times, fps: float, heads_a, heads_b, yaw_
     wanted = anchor + distance * u
 
     # A's toric coordinates of the wanted position: beta (theta / 2), phi and the distance AC.
-    ab = heads_b - heads_a
-    d = np.linalg.norm(ab, axis=-1)
-    x = ab / d[:, None]
-    zw = np.array([0.0, 0.0, 1.0])
-    z = _unit(zw - (x @ zw)[:, None] * x)
-    y = np.cross(z, x)
+    x, y, z, d = axes(heads_a, heads_b, np.array([0.0, 0.0, 1.0]))
     ac_vec = _above_the_line(wanted - heads_a, x, y, z)
-    beta, phi = _toric_angles(ac_vec, x, y, z)
+    beta, phi = angles_at_a(ac_vec, x, y, z)
     ac = np.linalg.norm(ac_vec, axis=-1)
     # The angle at C of triangle ABC, then its largest value with both heads within MAX_SPREAD.
     alpha = np.arctan2(d * np.sin(beta), ac - d * np.cos(beta))
@@ -274,7 +270,7 @@ def behavior_track(behavior: Behavior, times, fps: float, heads_a, heads_b, yaw_
     cam = _look_without_roll(eye, heads_a, heads_b, np.arctan(size.head_y * half_y))
     p_a, p_b = (_project(cam, h, fov_x, aspect) for h in (heads_a, heads_b))
     # The toric angles of the camera as placed (exact: (pA, pB, theta, phi) rebuild the pose).
-    beta, phi = _toric_angles(eye - heads_a, x, y, z)
+    beta, phi = angles_at_a(eye - heads_a, x, y, z)
     return BehaviorTrack(cam, p_a, p_b, 2.0 * beta, phi, np.linalg.norm(eye - anchor, axis=-1))
 
 
@@ -316,12 +312,6 @@ def clear_of_obstacles(anchor: np.ndarray, eye: np.ndarray, obstacles, margin: f
         keep = np.clip(first * length - margin, 0.0, None) / np.where(length > 0, length, 1.0)
         out[lo:lo + chunk][blocked] = p[blocked] + keep[blocked, None] * (q - p)[blocked]
     return out
-
-
-def _toric_angles(ac: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray):
-    """(t,) beta (the angle at A between AB and A-to-camera ``ac``) and phi (its turn about AB), radians."""
-    beta = np.arctan2(np.linalg.norm(np.cross(x, ac), axis=-1), np.einsum("ti,ti->t", x, ac))
-    return beta, np.arctan2(np.einsum("ti,ti->t", ac, z), np.einsum("ti,ti->t", ac, y))
 
 
 def _above_the_line(ac: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:

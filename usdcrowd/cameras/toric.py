@@ -67,8 +67,15 @@ def framing_angle(p_a, p_b, fov_x: float, aspect: float):
     return float(alpha) if np.ndim(alpha) == 0 else alpha
 
 
-def _axes(a: np.ndarray, b: np.ndarray, up: np.ndarray):
-    """(t, 3) x along AB, y = up x AB (horizontal), z the up direction made orthogonal to AB; (t,) |AB|."""
+def axes(a: np.ndarray, b: np.ndarray, up: np.ndarray):
+    """The toric frame of targets ``a`` and ``b`` ((t, 3)): (t, 3) x along AB, y = up x AB (horizontal),
+    z the up direction made orthogonal to AB; (t,) |AB|.
+
+    Raises
+    ------
+    ToricError
+        Targets too close together, or one above the other.
+    """
     ab = b - a
     d = np.linalg.norm(ab, axis=-1)
     bad = ~np.isfinite(d) | (d < MIN_TARGET_DISTANCE)
@@ -147,7 +154,7 @@ def toric_to_poses(a, b, p_a, p_b, theta, phi, fov_x: float, aspect: float, up=_
         k = int(np.argmax(outside))
         raise ToricError(f"theta {theta[k]:.6g} is outside (0, {2 * (np.pi - alpha[k]):.6g}) for these screen "
                          f"positions{_at(k, n)}")
-    x, y, z, d = _axes(a, b, up)
+    x, y, z, d = axes(a, b, up)
     # Law of sines in ABC: the angle at C is alpha, at A beta, at B pi - alpha - beta.
     ac = d * np.sin(alpha + beta) / np.sin(alpha)
     direction = (np.cos(beta)[:, None] * x
@@ -190,8 +197,12 @@ def pose_to_toric(cam_to_world, a, b, fov_x: float, aspect: float, up=_Z_UP):
         if c[2] >= 0:
             raise ToricError("a target is behind the camera: no screen position")
         screen.append(np.array([c[0] / (-c[2] * t), c[1] * float(aspect) / (-c[2] * t)]))
-    x, y, z, _ = (v[0] for v in _axes(a[None], b[None], up))
-    ac = eye - a
-    beta = float(_angle(x, ac))
-    phi = float(np.arctan2(np.dot(ac, z), np.dot(ac, y)))
-    return screen[0], screen[1], 2.0 * beta, phi
+    x, y, z, _ = axes(a[None], b[None], up)
+    beta, phi = angles_at_a((eye - a)[None], x, y, z)
+    return screen[0], screen[1], 2.0 * float(beta[0]), float(phi[0])
+
+
+def angles_at_a(ac: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray):
+    """(t,) beta, the angle at A between AB and A-to-camera ``ac`` ((t, 3)), and phi, its turn about AB,
+    radians, in the toric frame ``x, y, z`` of :func:`axes` (theta is 2 beta)."""
+    return _angle(x, ac), np.arctan2(np.einsum("ti,ti->t", ac, z), np.einsum("ti,ti->t", ac, y))
