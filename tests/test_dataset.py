@@ -273,7 +273,7 @@ def test_a_bad_spec_is_a_one_line_error_naming_the_key(tmp_path, capsys, text, k
 def test_the_spec_sets_the_peoples_samples_or_leaves_the_presets(tmp_path):
     from usdcrowd.dataset.run import _settings
     from usdcrowd.dataset.spec import load_spec
-    from usdcrowd.render.sequence import load_presets
+    from usdcrowd.render.settings import load_presets
 
     spec = write_spec(tmp_path)
     assert _settings(load_spec(spec)).people_spp == load_presets()["preview"]["people_spp"]

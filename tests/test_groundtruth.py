@@ -18,7 +18,8 @@ from usdcrowd.groundtruth.annotate import AgentMetadata, annotate_frame  # noqa:
 from usdcrowd.groundtruth.mot import read_mot  # noqa: E402
 from usdcrowd.render.final.exr import read_frame_exr  # noqa: E402
 from usdcrowd.scenario.shot_scene import SCENERY_ID_BASE
-from usdcrowd.render.sequence import frame_files, render_sequence, settings_from_preset  # noqa: E402
+from usdcrowd.render.sequence import frame_files, render_sequence  # noqa: E402
+from usdcrowd.render.settings import settings_from_preset  # noqa: E402
 
 FRAMES = np.array([1.0, 3.0, 5.0])
 

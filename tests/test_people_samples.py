@@ -149,7 +149,8 @@ def test_people_samples_reach_the_manifest_from_the_command_line(walking_museum,
 
 def test_the_scalar_fallback_records_no_people_samples(walking_museum, tmp_path):
     """The scalar variant takes no people's samples: its manifest says 0, the JIT one what was asked."""
-    from usdcrowd.render.sequence import render_sequence, resolve_variant, settings_from_preset
+    from usdcrowd.render.sequence import render_sequence, resolve_variant
+    from usdcrowd.render.settings import settings_from_preset
 
     assert resolve_variant(settings_from_preset("groundtruth", people_spp=9, variant="llvm_ad_rgb")).people_spp == 9
     settings = settings_from_preset("groundtruth", resolution=(8, 6), spp=1, people_spp=9, ground_truth=False,

@@ -16,8 +16,8 @@ pytest.importorskip("OpenEXR")
 from usdcrowd.render.final.exr import ID_TABLE, read_frame_exr  # noqa: E402
 from usdcrowd.render.final.frame import FrameRenderer  # noqa: E402
 from usdcrowd.scenario.shot_scene import SCENERY_ID_BASE, ShotScene
-from usdcrowd.render.sequence import (frame_files, render_sequence, settings_from_preset,  # noqa: E402
-                                      verify_frame, Manifest)
+from usdcrowd.render.sequence import Manifest, frame_files, render_sequence, verify_frame  # noqa: E402
+from usdcrowd.render.settings import settings_from_preset  # noqa: E402
 
 BASELINES = Path(__file__).parent / "baselines"
 FAILURES = Path(__file__).parent / "_failures"
@@ -581,7 +581,8 @@ def test_a_light_shape_carries_its_own_id_where_the_camera_sees_it(tmp_path):
     from conftest import HEADER
 
     from usdcrowd.render.final.exr import read_frame_exr
-    from usdcrowd.render.sequence import render_sequence, settings_from_preset
+    from usdcrowd.render.sequence import render_sequence
+    from usdcrowd.render.settings import settings_from_preset
     from usdcrowd.core.shading import LIGHT_ID_BASE
 
     stage = BOX_STAGE.replace('''    def DomeLight "Sky"''', '''    def SphereLight "Lamp"
@@ -740,3 +741,18 @@ def test_motion_blur_spreads_a_moving_edge_over_the_shutters_travel(tmp_path):
     # The shutter is centred on the frame: the blurred edge's middle is where the sharp edge is.
     assert abs(_edge_crossings(blurred.beauty)[1] - _edge_crossings(sharp.beauty)[1]) < 1.0
     np.testing.assert_array_equal(blurred.gt.ids, sharp.gt.ids)
+
+
+@pytest.mark.parametrize("field, value", [("shutter", 2.0), ("subframes", 0), ("people_spp", -1), ("spp", 0),
+                                          ("sampler", "magic"), ("working_space", "XYZ"), ("aovs", ("depth", "x"))])
+def test_render_settings_are_checked_once_where_they_are_made(field, value):
+    """A preset, the command line and the renderer itself all make a RenderSettings: one check, one message."""
+    from usdcrowd.core.errors import UsdcrowdError
+    from usdcrowd.render.settings import RenderSettings, settings_from_preset
+
+    with pytest.raises(UsdcrowdError):
+        RenderSettings(**{field: value})
+    with pytest.raises(UsdcrowdError):
+        settings_from_preset("groundtruth", **{field: value})
+    assert settings_from_preset("groundtruth").fingerprint() == RenderSettings(
+        **{k: v for k, v in vars(settings_from_preset("groundtruth")).items()}).fingerprint()

@@ -92,7 +92,8 @@ def _final(r, out: Path, progress: bool) -> dict:
     _starts(7, "render", f"{len(frames)} frames with ground truth (Mitsuba, 480x270, 32 spp)")
     try:
         from ..render.demo import final_outputs
-        from ..render.sequence import render_sequence, settings_from_preset
+        from ..render.sequence import render_sequence
+        from ..render.settings import settings_from_preset
 
         size, spp = (480, 270), 32
         # The frames first, with the renderer's labelled progress bar; final_outputs then finds them

@@ -59,17 +59,15 @@ def add_parser(sub):
 
 
 def run(args) -> int:
-    from ..core.errors import UsdcrowdError
     from ..render.final.variant import describe
-    from ..render.sequence import render_sequence, resolve_variant, settings_from_preset
+    from ..render.sequence import render_sequence, resolve_variant
+    from ..render.settings import settings_from_preset
 
     settings = settings_from_preset(args.preset, resolution=args.resolution, spp=args.spp,
                                     max_depth=args.max_depth, ground_truth=args.ground_truth,
                                     exposure=args.exposure, working_space=args.working_space, seed=args.seed,
                                     sampler=args.sampler, denoise=args.denoise, shutter=args.shutter,
                                     subframes=args.subframes, people_spp=args.people_spp)
-    if not 0.0 <= settings.shutter <= 1.0:
-        raise UsdcrowdError(f"--motion-blur {settings.shutter:g}: the shutter is open between 0 and 1 frame")
     settings.variant = args.variant
     asked = settings.people_spp
     resolve_variant(settings)

@@ -81,7 +81,8 @@ def render_task(shot: str, camera: str, settings_dict: dict, times: list, out_di
     """
     import usdcrowd  # noqa: F401
 
-    from ..render.sequence import RenderSettings, frame_renderer, render_frame_to_disk
+    from ..render.sequence import frame_renderer, render_frame_to_disk
+    from ..render.settings import RenderSettings
 
     key = (shot, camera, json.dumps(settings_dict, sort_keys=True))
     if key not in _CACHE:
@@ -217,7 +218,8 @@ def _executor(kind: str, workers: int, address: str | None):
 
 # ------------------------------------------------------------------- driver
 def _settings(spec: DatasetSpec):
-    from ..render.sequence import resolve_variant, settings_from_preset
+    from ..render.sequence import resolve_variant
+    from ..render.settings import settings_from_preset
 
     settings = settings_from_preset(spec.preset, resolution=tuple(spec.resolution), spp=spec.spp,
                                     people_spp=spec.people_spp)

@@ -221,7 +221,7 @@ def _checked(value, kind: str, path: str, where: str):
 def _check_meaning(spec: DatasetSpec, path: str) -> None:
     """Values that parse but cannot be made: one line each, naming the key."""
     from ..character.appearance import PALETTES
-    from ..render.sequence import load_presets
+    from ..render.settings import load_presets
     from ..jobs.templates import list_templates
 
     def fail(where, what):

@@ -33,7 +33,8 @@ def final_outputs(shot_path, out_dir, camera: str | None = None, frames=(1.0, 2.
     """
     import numpy as np
 
-    from .sequence import frame_files, render_sequence, settings_from_preset
+    from .sequence import frame_files, render_sequence
+    from .settings import settings_from_preset
 
     settings = settings_from_preset("groundtruth", resolution=tuple(resolution), spp=int(spp))
     r = render_sequence(shot_path, out_dir, camera=camera, frames=np.asarray(frames, dtype=np.float64),

@@ -31,7 +31,6 @@ import contextlib
 import json
 import os
 import time as _time
-import tomllib
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
@@ -39,76 +38,9 @@ import numpy as np
 
 from ..atomic import atomic_path, clean_partials, file_sha256, output_dir
 from ..core.errors import UsdcrowdError
+from .settings import RenderSettings, settings_from_preset
 
 MANIFEST = "manifest.json"
-AOV_NAMES = ("depth", "normal", "position", "albedo", "id")
-
-
-# ------------------------------------------------------------------ settings
-@dataclass
-class RenderSettings:
-    """What a render does to every frame (a preset plus overrides)."""
-
-    resolution: tuple[int, int] = (640, 360)
-    spp: int = 64
-    max_depth: int = 6
-    ground_truth: bool = True
-    aovs: tuple[str, ...] = AOV_NAMES
-    working_space: str = "sRGB"
-    exposure: float = 0.0
-    seed: int = 0
-    variant: str | None = None
-    sampler: str = "multijitter"
-    denoise: bool = False
-    shutter: float = 0.0
-    subframes: int = 8
-    people_spp: int = 0
-
-    def fingerprint(self) -> dict:
-        """The settings that change output pixels (variant excluded: same picture, other noise)."""
-        d = asdict(self)
-        d.pop("variant")
-        d["resolution"] = list(self.resolution)
-        d["aovs"] = list(self.aovs)
-        return d
-
-
-def load_presets() -> dict[str, dict]:
-    """The presets of ``render/presets.toml`` (name -> values)."""
-    from ..core.resources import data_dir
-
-    with open(data_dir("render") / "presets.toml", "rb") as f:
-        return tomllib.load(f)
-
-
-def settings_from_preset(name: str = "groundtruth", **overrides) -> RenderSettings:
-    """A preset with ``overrides`` (None values are ignored).
-
-    Raises
-    ------
-    UsdcrowdError
-        On an unknown preset, AOV or working space.
-    """
-    presets = load_presets()
-    if name not in presets:
-        raise UsdcrowdError(f"unknown render preset {name!r} (presets: {', '.join(presets)})")
-    values = dict(presets[name])
-    values.update({k: v for k, v in overrides.items() if v is not None})
-    values["resolution"] = tuple(int(v) for v in values["resolution"])
-    values["aovs"] = tuple(values.get("aovs", ()))
-    bad = set(values["aovs"]) - set(AOV_NAMES)
-    if bad:
-        raise UsdcrowdError(f"unknown AOV(s) {sorted(bad)} in preset {name!r} (known: {', '.join(AOV_NAMES)})")
-    from .colour import WORKING_SPACES
-
-    if values.get("working_space", "sRGB") not in WORKING_SPACES:
-        raise UsdcrowdError(f"working space must be one of {', '.join(WORKING_SPACES)}")
-    from .final.camera import SAMPLERS
-
-    if values.get("sampler", RenderSettings.sampler) not in SAMPLERS:
-        raise UsdcrowdError(f"sampler must be one of {', '.join(SAMPLERS)}, not {values['sampler']!r}")
-    known = set(RenderSettings.__dataclass_fields__)
-    return RenderSettings(**{k: v for k, v in values.items() if k in known})
 
 
 def resolve_variant(settings: RenderSettings) -> RenderSettings:
@@ -315,10 +247,7 @@ def frame_renderer(shot, camera: str | None, settings: RenderSettings, threads: 
     """The :class:`~.final.frame.FrameRenderer` that renders ``settings``' frames of ``shot`` through ``camera``."""
     from .final.frame import FrameRenderer
 
-    return FrameRenderer(shot, camera, settings.resolution, settings.spp, settings.max_depth, settings.variant,
-                         settings.ground_truth, settings.seed, threads, sampler=settings.sampler,
-                         denoise=settings.denoise, shutter=settings.shutter, subframes=settings.subframes,
-                         people_spp=settings.people_spp)
+    return FrameRenderer.from_settings(shot, camera, settings, threads)
 
 
 def _build_worker(shot_path, camera, settings_dict, threads):

@@ -26,8 +26,6 @@ def sensor_to_world(cam: CameraView) -> np.ndarray:
     return (_MITSUBA_TO_USD @ cam.cam_to_world).T
 
 
-SAMPLERS = ("independent", "stratified", "multijitter", "orthogonal", "ldsampler")
-
 
 def sensor_dict(cam: CameraView, width: int, height: int, spp: int, rfilter: str = "box",
                 sampler: str = "independent") -> dict:

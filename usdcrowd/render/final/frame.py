@@ -31,9 +31,10 @@ from ...character.poses import AgentPoses
 from ...core.shading import SCENERY_ID_BASE, is_agent_id
 from ...core.view import CameraView
 from ...scenario.shot_scene import ShotScene
+from ..settings import RenderSettings
 from . import variant as _variant
 from .build import AGENTS_KEY, SENSOR_KEY, BuiltScene, agent_vertices, build_scene, posed_scenery
-from .camera import SAMPLERS, pixel_rays, sensor_to_world
+from .camera import pixel_rays, sensor_to_world
 from .pixel_samples import merge_samples, sample_pixels
 
 SAMPLER = "multijitter"             # the least noise per second on the demo's frames (tools/bench.py render)
@@ -218,10 +219,20 @@ class FrameRenderer:
         as ``FrameResult.raw``.
     """
 
+    @classmethod
+    def from_settings(cls, shot, camera: str | None, settings: RenderSettings, threads: int | None = None):
+        """The renderer of ``settings`` (checked where they were made) through ``camera``."""
+        return cls(shot, camera, settings.resolution, settings.spp, settings.max_depth, settings.variant,
+                   settings.ground_truth, settings.seed, threads, sampler=settings.sampler, denoise=settings.denoise,
+                   shutter=settings.shutter, subframes=settings.subframes, people_spp=settings.people_spp)
+
     def __init__(self, shot, camera: str | None = None, resolution=(640, 360), spp: int = 64,
                  max_depth: int = 6, variant: str | None = None, ground_truth: bool = True, seed: int = 0,
                  threads: int | None = None, sampler: str = SAMPLER, denoise: bool = False,
                  shutter: float = 0.0, subframes: int = 8, people_spp: int = 0):
+        # The one place settings are checked (RenderSettings), whoever calls.
+        checked = RenderSettings(resolution=resolution, spp=spp, max_depth=max_depth, seed=seed, sampler=sampler,
+                                 denoise=denoise, shutter=shutter, subframes=subframes, people_spp=people_spp)
         self.shot = shot if isinstance(shot, ShotScene) else ShotScene(os.fspath(shot))
         self.variant = _variant.choose_variant(variant)
         mi = _variant.activate(self.variant)
@@ -230,16 +241,10 @@ class FrameRenderer:
 
             dr.set_thread_count(int(threads))
         self.camera_path = camera
-        self.width, self.height = int(resolution[0]), int(resolution[1])
+        self.width, self.height = checked.resolution
         self.spp, self.max_depth, self.ground_truth, self.seed = int(spp), int(max_depth), ground_truth, int(seed)
-        if sampler not in SAMPLERS:
-            raise ValueError(f"unknown sampler {sampler!r} (one of {', '.join(SAMPLERS)})")
         self.sampler, self.denoise = sampler, bool(denoise)
-        if not 0.0 <= float(shutter) <= 1.0 or int(subframes) < 1:
-            raise ValueError(f"shutter must be in [0, 1] frames and subframes >= 1, not {shutter}, {subframes}")
         self.shutter, self.subframes = float(shutter), int(subframes) if shutter > 0 else 1
-        if int(people_spp) < 0:
-            raise ValueError(f"people_spp must be >= 0, not {people_spp}")
         self.people_spp = int(people_spp) if _variant.is_jit(self.variant) else 0
         if self.denoise:
             require_denoiser()
