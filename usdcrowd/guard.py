@@ -654,7 +654,7 @@ def _lock(s: Session, root: Path) -> None:
         holder = fh.read().strip()
         fh.close()
         if exc.errno in (errno.ENOLCK, errno.EOPNOTSUPP, errno.ENOSYS):
-            return                          # a file system without locks (some NFS, FUSE): unguarded, as before
+            return                          # a file system without locks (some NFS, FUSE): the run goes on unguarded
         if exc.errno not in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
             raise
         raise UsdcrowdError(f"another usdcrowd run{f' (pid {holder})' if holder else ''} is writing in this folder: "
