@@ -467,8 +467,8 @@ def _agents_of(frames: model.CrowdFrames, rows: np.ndarray) -> model.CrowdFrames
 _LOST = (BrokenPipeError, ConnectionResetError, EOFError)
 
 
-def _part_worker(conn, layer_paths, scenario, frame, row_sets, authored, default_prim, clip_plan=None, parents=None):
-    """A process that owns some part layers: commands arrive over ``conn``.
+def _part_worker(conn):
+    """A process that owns some part layers: its work, then commands, arrive over ``conn``.
 
     When the coordinator is gone (interrupted, failed), the worker ends
     quietly: the coordinator reports what happened, once.
@@ -477,7 +477,7 @@ def _part_worker(conn, layer_paths, scenario, frame, row_sets, authored, default
 
     worker_ignores_interrupts()             # Ctrl-C is the coordinator's to handle: it stops this process
     try:
-        _part_work(conn, layer_paths, scenario, frame, row_sets, authored, default_prim, clip_plan, parents)
+        _part_work(conn, *conn.recv())
     except _LOST:
         pass
 
@@ -608,15 +608,20 @@ class CrowdLayerWriter:
             here, there = ctx.Pipe()
             paths = self.part_paths[first:first + len(row_sets)]
             first += len(row_sets)
-            proc = ctx.Process(target=_part_worker, daemon=True,
-                               args=(there, paths, scenario, frame, row_sets,
-                                     {scenario.agents.path[i] for i in rows} & authored, default_prim,
-                                     self.clip_plan, parents))
+            proc = ctx.Process(target=_part_worker, daemon=True, args=(there,))
             _start_ignoring_sigint(proc)
             # Only the worker may hold its end: were it also open here, a send to
             # a worker that died would block on a full pipe instead of failing.
             there.close()
             self._workers.append((proc, here))
+            # Its work goes over the pipe, not in the start-up pickle: while a start-up pickle is
+            # written, the parent itself holds the pipe's other end, so a worker that died at its
+            # start would leave a large one blocked forever; a send to it fails at once.
+            try:
+                here.send((paths, scenario, frame, row_sets, {scenario.agents.path[i] for i in rows} & authored,
+                           default_prim, self.clip_plan, parents))
+            except _LOST:
+                raise self._died(proc) from None
         # Their "ready" is collected with the other replies in save(): the
         # workers build their agents' prims while the caller simulates.
         self._pending = {proc.pid: 1 for proc, _ in self._workers}
