@@ -455,13 +455,38 @@ class PreviewRenderer:
         dict
             Counts: ``drawn`` per level, ``culled``, ``agents``.
         """
-        ctx, mgl = self.ctx, self._moderngl
         w, h = self.width, self.height
         view = camera.world_to_cam
         proj = projection(camera, w, h, flip_y)
         focal = float(camera.intrinsics(w, h)[0, 0])
+        plan = self._plan(poses, camera, view, focal)
+        # One record per agent; draws index them through the slot list.
+        n = plan["n"]
+        self._upload(instancing.pack_instances(plan["skinning"], poses.palette, poses.agent_ids) if n
+                     else np.zeros((0, shaders.INSTANCE_STRIDE, 4), np.float32))
+        s_base = len(plan["order"])
+        self._upload_slots(np.concatenate([plan["order"], plan["s_order"]]))
+        if self.atlas is not None:
+            self.atlas.texture.use(2)
+            self.atlas.boxes.use(3)
+            self.atlas.regions.use(4)
+        shadow = self._shadow_pass(plan, camera, view, focal, time, s_base)
+        self._view_pass(plan, camera, view, proj, focal, time, shadow, flip_y)
+        if self.overlays is not None:
+            self.fbo_color.use()
+            self.overlays.draw_gl(self, camera, view, proj, time)
+        if target is not None:
+            self.ctx.copy_framebuffer(target, self.fbo)
+        counts = np.diff(plan["starts"])
+        m, p = self.lod.n_meshes, self.lod.first_point_level
+        return {"agents": n, "culled": int((plan["draw_mask"] & ~plan["in_view"]).sum()),
+                "shadow_casters": int(plan["casts"].sum()),
+                "full": int(counts[0]), "coarse": int(counts[1:m].sum()), "impostors": int(counts[m:p].sum()),
+                "points": int(counts[p:].sum()), "levels": counts.tolist(), "shadow_texels": int(shadow[3])}
 
-        # --- which agents, at which level --------------------------------
+    def _plan(self, poses: AgentPoses, camera: CameraView, view, focal: float) -> dict:
+        """Which agents are drawn, at which level (nearest first), and which cast shadows."""
+        w, h = self.width, self.height
         n = len(poses)
         skinning = poses.skinning if n else np.zeros((0, 3, 4, 4))
         centres, radius, body_h = lod.agent_bounds(poses.joints_world) if n else (np.zeros((0, 3)),) * 3
@@ -489,56 +514,59 @@ class PreviewRenderer:
         else:
             casts = draw_mask
         s_order, s_starts = lod.group_by_level(lod.shadow_levels(levels, self.lod), casts, n_levels)
+        return {"n": n, "skinning": skinning, "centres": centres, "radius": radius, "draw_mask": draw_mask,
+                "in_view": in_view, "drawn": drawn, "order": order, "starts": starts, "casts": casts,
+                "s_order": s_order, "s_starts": s_starts}
 
-        # One record per agent; draws index them through the slot list.
-        self._upload(instancing.pack_instances(skinning, poses.palette, poses.agent_ids) if n
-                     else np.zeros((0, shaders.INSTANCE_STRIDE, 4), np.float32))
-        s_base = len(order)
-        self._upload_slots(np.concatenate([order, s_order]))
-
-        if self.atlas is not None:
-            self.atlas.texture.use(2)
-            self.atlas.boxes.use(3)
-            self.atlas.regions.use(4)
-
-        # --- the sun's shadow map -----------------------------------------
+    def _shadow_pass(self, plan: dict, camera: CameraView, view, focal: float, time, s_base: int):
+        """The sun's shadow map; returns (light view-projection, texel, scale of the map used, texels used)."""
+        ctx, mgl = self.ctx, self._moderngl
+        w, h = self.width, self.height
+        sun_dir = self.lights.sun_dir
         light_vp, texel, shadow_scale, used = np.eye(4), 1.0, 1.0, 0
-        if sun_dir is not None and self.shadows:
-            lo, hi = self._scenery_box
-            if n:
-                a_lo = centres.min(0) - radius.max()
-                a_hi = centres.max(0) + radius.max()
-                lo, hi = np.minimum(lo, a_lo), np.maximum(hi, a_hi)
-            if not np.isfinite(lo).all():
-                lo, hi = np.array([-10.0, -10.0, 0.0]), np.array([10.0, 10.0, 2.0])
-            corners = shadows.frustum_corners(camera.cam_to_world, focal, w, h, camera.near,
-                                              min(camera.far, self.shadow_distance))
-            light_vp, texel = shadows.fit_light_matrix(sun_dir, lo, hi, corners, self.shadow_size)
-            # Texels finer than a screen pixel at the nearest characters are
-            # wasted fill: use only as much of the map as they need.
-            footprint = shadows.pixel_footprint(centres[drawn], view, focal) if n else None
-            used = shadows.used_size(texel * self.shadow_size, footprint, self.shadow_size)
-            texel, shadow_scale = texel * self.shadow_size / used, used / self.shadow_size
-            self.shadow_fbo.viewport = (0, 0, used, used)
-            self.shadow_fbo.use()
-            # Lookups stay inside the used square (bilinear reads one texel past it).
-            edge = min(used + 1, self.shadow_size)
-            self.shadow_fbo.clear(depth=1.0, viewport=(0, 0, edge, edge))
-            ctx.enable(mgl.DEPTH_TEST | mgl.PROGRAM_POINT_SIZE)
-            ctx.disable(mgl.CULL_FACE)         # both faces: thin open meshes still cast
-            ctx.polygon_offset = (2.0, 4.0)
-            _set(self.prog_shadow_scenery, "u_light_vp", light_vp)
-            for d in self._scenery:
-                _set(self.prog_shadow_scenery, "u_model", self._world(d, time))
-                d.shadow_vao.render(mgl.TRIANGLES)
-            _set(self.prog_shadow_char, "u_light_vp", light_vp)
-            if self.atlas is not None:
-                _set(self.prog_shadow_imp, "u_light_vp", light_vp)
-                _set(self.prog_imp_place, "u_view_dir", np.asarray(sun_dir, np.float32))
-            self._draw_levels(self.prog_shadow_char, 1, s_starts, s_base, shadow_texel=texel)
-            ctx.polygon_offset = (0.0, 0.0)
+        if sun_dir is None or not self.shadows:
+            return light_vp, texel, shadow_scale, used
+        centres, radius = plan["centres"], plan["radius"]
+        lo, hi = self._scenery_box
+        if plan["n"]:
+            a_lo = centres.min(0) - radius.max()
+            a_hi = centres.max(0) + radius.max()
+            lo, hi = np.minimum(lo, a_lo), np.maximum(hi, a_hi)
+        if not np.isfinite(lo).all():
+            lo, hi = np.array([-10.0, -10.0, 0.0]), np.array([10.0, 10.0, 2.0])
+        corners = shadows.frustum_corners(camera.cam_to_world, focal, w, h, camera.near,
+                                          min(camera.far, self.shadow_distance))
+        light_vp, texel = shadows.fit_light_matrix(sun_dir, lo, hi, corners, self.shadow_size)
+        # Texels finer than a screen pixel at the nearest characters are
+        # wasted fill: use only as much of the map as they need.
+        footprint = shadows.pixel_footprint(centres[plan["drawn"]], view, focal) if plan["n"] else None
+        used = shadows.used_size(texel * self.shadow_size, footprint, self.shadow_size)
+        texel, shadow_scale = texel * self.shadow_size / used, used / self.shadow_size
+        self.shadow_fbo.viewport = (0, 0, used, used)
+        self.shadow_fbo.use()
+        # Lookups stay inside the used square (bilinear reads one texel past it).
+        edge = min(used + 1, self.shadow_size)
+        self.shadow_fbo.clear(depth=1.0, viewport=(0, 0, edge, edge))
+        ctx.enable(mgl.DEPTH_TEST | mgl.PROGRAM_POINT_SIZE)
+        ctx.disable(mgl.CULL_FACE)         # both faces: thin open meshes still cast
+        ctx.polygon_offset = (2.0, 4.0)
+        _set(self.prog_shadow_scenery, "u_light_vp", light_vp)
+        for d in self._scenery:
+            _set(self.prog_shadow_scenery, "u_model", self._world(d, time))
+            d.shadow_vao.render(mgl.TRIANGLES)
+        _set(self.prog_shadow_char, "u_light_vp", light_vp)
+        if self.atlas is not None:
+            _set(self.prog_shadow_imp, "u_light_vp", light_vp)
+            _set(self.prog_imp_place, "u_view_dir", np.asarray(sun_dir, np.float32))
+        self._draw_levels(self.prog_shadow_char, 1, plan["s_starts"], s_base, shadow_texel=texel)
+        ctx.polygon_offset = (0.0, 0.0)
+        return light_vp, texel, shadow_scale, used
 
-        # --- the view ------------------------------------------------------
+    def _view_pass(self, plan: dict, camera: CameraView, view, proj, focal: float, time, shadow, flip_y: bool):
+        """The view: background, scenery, then the characters level by level, into the offscreen targets."""
+        ctx, mgl = self.ctx, self._moderngl
+        light_vp, texel, shadow_scale, _ = shadow
+        sun_dir = self.lights.sun_dir
         self.fbo.use()
         self.fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         # Integer and float targets cannot share a clear colour: clear each alone.
@@ -576,19 +604,8 @@ class PreviewRenderer:
                 _set(self.prog_scenery, "u_tex", 1)
             d.vao.render(mgl.TRIANGLES)
         _set(self.prog_char, "u_focal_px", focal)
-        self._draw_levels(self.prog_char, 0, starts, 0)
+        self._draw_levels(self.prog_char, 0, plan["starts"], 0)
         ctx.front_face = "ccw"
-
-        if self.overlays is not None:
-            self.fbo_color.use()
-            self.overlays.draw_gl(self, camera, view, proj, time)
-        if target is not None:
-            ctx.copy_framebuffer(target, self.fbo)
-        counts = np.diff(starts)
-        m, p = self.lod.n_meshes, self.lod.first_point_level
-        return {"agents": n, "culled": int((draw_mask & ~in_view).sum()), "shadow_casters": int(casts.sum()),
-                "full": int(counts[0]), "coarse": int(counts[1:m].sum()), "impostors": int(counts[m:p].sum()),
-                "points": int(counts[p:].sum()), "levels": counts.tolist(), "shadow_texels": int(used)}
 
     def _world(self, d: _SceneryDraw, time) -> np.ndarray:
         return d.item.local_to_world(time) if d.item.animated else d.world
