@@ -248,6 +248,65 @@ def _check_existing(out: Path, spec: DatasetSpec, force: bool) -> None:
                             file=os.fspath(out / MANIFEST))
 
 
+class _Run:
+    """What a dataset run has done so far: the sequences filmed, each camera's frames still to render
+    and its manifest, the cameras whose videos are written, the tasks in flight."""
+
+    def __init__(self, out: Path, plans: dict, settings, bar, ex, guess: dict, n_sequences: int):
+        self.out, self.plans, self.settings, self.bar, self.ex, self.guess = out, plans, settings, bar, ex, guess
+        self.n_sequences = n_sequences
+        self.prepared: dict[int, object] = {}
+        self.cams: dict[tuple, dict] = {}           # (seq index, camera) -> manifest, remaining count
+        self.pending: dict = {}
+        self.written: set = set()                   # (sequence, camera) whose MOT folder is written
+        self.notes: list[str] = []
+        self.rendered = self.n_prepared = 0
+
+    def status(self) -> None:
+        self.bar.set_postfix_str(f"sequences {len(self.prepared)}/{self.n_sequences} filmed, "
+                                 f"{len(self.written)}/{max(len(self.cams), 1)} cameras done")
+
+    def prepared_one(self, i: int, result: dict) -> None:
+        """A sequence is filmed: its cameras' frames still to render go out in chunks."""
+        from ..render.sequence import Manifest, verify_frame
+        from .scenario import PreparedSequence
+
+        self.n_prepared += bool(result.pop("made"))
+        seq = PreparedSequence(**result)
+        self.prepared[i] = seq
+        self.notes += [f"{seq.name}: {n}" for n in seq.notes]
+        self.bar.total += (len(seq.cameras) - self.guess[i]) * len(seq.frames)
+        for camera, _kind in seq.cameras:
+            cam_out = camera_dir(self.out, seq.name, camera)
+            guard.make_dir(cam_out)
+            manifest = Manifest(cam_out, _render_header(seq, camera, self.plans[i], self.settings))
+            todo = [t for t in seq.frames if not verify_frame(cam_out, t, manifest, self.settings)]
+            self.bar.update(len(seq.frames) - len(todo))
+            self.cams[(i, camera)] = {"manifest": manifest, "left": len(todo)}
+            for k in range(0, len(todo), CHUNK_FRAMES):
+                chunk = todo[k:k + CHUNK_FRAMES]
+                self.pending[self.ex.submit(render_task, seq.shot, camera, asdict(self.settings), chunk,
+                                            os.fspath(cam_out), self.ex.threads)] = ("render", i, camera)
+            if not todo:
+                self._camera_done(i, camera)
+
+    def rendered_some(self, i: int, camera: str, entries: list) -> None:
+        """A chunk of frames is in; a camera whose last frame is in is merged now."""
+        state = self.cams[(i, camera)]
+        for entry in entries:
+            state["manifest"].add(entry)
+        state["left"] -= len(entries)
+        self.rendered += len(entries)
+        self.bar.update(len(entries))
+        if state["left"] == 0:
+            self._camera_done(i, camera)
+
+    def _camera_done(self, i: int, camera: str) -> None:
+        self.cams[(i, camera)]["manifest"].flush()
+        write_video(self.out, self.prepared[i], camera)
+        self.written.add((self.prepared[i].name, camera))
+
+
 def make_dataset(spec_path, out_dir, executor: str = "local", workers: int = 1, address: str | None = None,
                  progress: bool = True, force: bool = False, only: list[int] | None = None) -> DatasetResult:
     """Make (or finish) the dataset a spec describes in ``out_dir``.
@@ -276,8 +335,6 @@ def make_dataset(spec_path, out_dir, executor: str = "local", workers: int = 1, 
     DatasetResult
     """
     from tqdm import tqdm
-
-    from ..render.sequence import Manifest, verify_frame
 
     t0 = _time.perf_counter()
     spec = load_spec(spec_path)
@@ -308,73 +365,32 @@ def make_dataset(spec_path, out_dir, executor: str = "local", workers: int = 1, 
     bar = tqdm(total=sum(guess[i] * spec.frames for i in indices), unit="frame", desc="dataset",
                disable=not progress, dynamic_ncols=True, smoothing=0.1)
     ex = _executor(executor, workers, address)
-    spec_dict = asdict(spec)
-    prepared: dict[int, object] = {}
-    cams: dict[tuple, dict] = {}            # (seq index, camera) -> manifest, remaining count
-    pending: dict = {}
-    rendered = n_prepared = 0
-    notes: list[str] = []
-    written: set = set()                    # (sequence, camera) whose MOT folder is written
+    run = _Run(out, plans, settings, bar, ex, guess, n_sequences=len(indices))
     clear_merged(out)
-
-    def status():
-        bar.set_postfix_str(f"sequences {len(prepared)}/{len(indices)} filmed, "
-                            f"{len(written)}/{max(len(cams), 1)} cameras done")
-
     try:
+        spec_dict = asdict(spec)
         for i in indices:
             seq_dir = out / "sequences" / plans[i]["name"]
-            pending[ex.submit(prepare_task, plans[i], spec_dict, os.fspath(seq_dir))] = ("prepare", i)
-        while pending:
-            finished, rest = ex.wait(list(pending))
+            run.pending[ex.submit(prepare_task, plans[i], spec_dict, os.fspath(seq_dir))] = ("prepare", i)
+        while run.pending:
+            finished, _ = ex.wait(list(run.pending))
             for fut, result in finished:
-                what = pending.pop(fut)
+                what = run.pending.pop(fut)
                 if what[0] == "prepare":
-                    from .scenario import PreparedSequence
-
-                    i = what[1]
-                    n_prepared += bool(result.pop("made"))
-                    seq = PreparedSequence(**result)
-                    prepared[i] = seq
-                    notes += [f"{seq.name}: {n}" for n in seq.notes]
-                    bar.total += (len(seq.cameras) - guess[i]) * len(seq.frames)
-                    for camera, _kind in seq.cameras:
-                        cam_out = camera_dir(out, seq.name, camera)
-                        guard.make_dir(cam_out)
-                        manifest = Manifest(cam_out, _render_header(seq, camera, plans[i], settings))
-                        todo = [t for t in seq.frames if not verify_frame(cam_out, t, manifest, settings)]
-                        bar.update(len(seq.frames) - len(todo))
-                        cams[(i, camera)] = {"manifest": manifest, "left": len(todo)}
-                        for k in range(0, len(todo), CHUNK_FRAMES):
-                            chunk = todo[k:k + CHUNK_FRAMES]
-                            pending[ex.submit(render_task, seq.shot, camera, asdict(settings), chunk,
-                                              os.fspath(cam_out), ex.threads)] = ("render", i, camera)
-                        if not todo:
-                            manifest.flush()
-                            write_video(out, seq, camera)
-                            written.add((seq.name, camera))
+                    run.prepared_one(what[1], result)
                 else:
-                    _, i, camera = what
-                    state = cams[(i, camera)]
-                    for entry in result:
-                        state["manifest"].add(entry)
-                    state["left"] -= len(result)
-                    rendered += len(result)
-                    bar.update(len(result))
-                    if state["left"] == 0:          # its last frame is in: merge it now
-                        state["manifest"].flush()
-                        write_video(out, prepared[i], camera)
-                        written.add((prepared[i].name, camera))
-                status()
+                    run.rendered_some(what[1], what[2], result)
+                run.status()
     except BaseException:
         ex.close(now=True)          # Ctrl-C, kill or an error: stop the workers, drop the frames in flight
         clean_partials(out, depth=DEPTH)
         raise
     finally:
-        for state in cams.values():
+        for state in run.cams.values():
             state["manifest"].flush()
         ex.close()
         bar.close()
+    prepared, written, notes, rendered, n_prepared = run.prepared, run.written, run.notes, run.rendered, run.n_prepared
     # Sequences made by earlier runs (with --sequences) belong to the dataset too.
     for i, plan in all_plans.items():
         if i not in prepared:
