@@ -18,7 +18,6 @@ track (``track_id``, the agent's id; ``instance_id`` is unique in the file).
 
 from __future__ import annotations
 
-import json
 import os
 import shutil
 from pathlib import Path
@@ -92,40 +91,9 @@ def write_split_coco(path: Path, videos: list[dict]) -> str:
     """
     from ..groundtruth import coco
 
-    if coco._mask_utils() is None:
+    if not coco.compresses_masks():
         from ..core.errors import UsdcrowdError
 
         raise UsdcrowdError("datasets write COCO's compressed RLE with pycocotools: "
                             "pip install 'usdcrowd[dataset]'")
-
-    def dump(value):
-        return json.dumps(value, separators=(",", ":"))
-
-    images, video_list = [], []
-    image_base = annotation_id = 0
-    categories = None
-    with atomic_path(path) as tmp, open(tmp, "w") as f:
-        f.write(f'{{"info":{dump(coco.INFO)},"licenses":[],"annotations":[')
-        first = True
-        for vid, video in enumerate(videos, start=1):
-            records = video["records"]
-            if categories is None and len(records):
-                categories = coco._categories(records)
-            n = 0
-            for kind, entry in coco._entries(records, video["images"]):
-                if kind == "image":
-                    n += 1
-                    entry = dict(entry, id=image_base + entry["id"], video_id=vid, frame_id=entry["frame_index"])
-                    images.append(entry)
-                    continue
-                annotation_id += 1
-                entry = dict(entry, id=annotation_id, image_id=image_base + entry["image_id"], video_id=vid,
-                             instance_id=vid * 1_000_000 + int(entry["track_id"]))
-                f.write(("" if first else ",") + dump(entry))
-                first = False
-            image_base += n
-            video_list.append({"id": vid, **{k: v for k, v in video.items() if k not in ("records", "images")},
-                               "length": n})
-        f.write(f'],"images":{dump(images)},"videos":{dump(video_list)},'
-                f'"categories":{dump(categories or coco._categories([]))}}}')
-    return os.fspath(path)
+    return coco.write_videos(path, videos, video_ids=True)

@@ -86,26 +86,59 @@ def coco_dict(records, image_files: list[str]) -> dict:
 
 
 def write_coco(records, path, image_files: list[str]) -> str:
-    """Write the COCO file of a sequence atomically; returns its path.
+    """Write the COCO file of a sequence atomically; returns its path (:func:`write_videos`, one video)."""
+    return write_videos(path, [{"records": records, "images": image_files}], video_ids=False)
 
-    The annotations are written as they are made (the document of a long
-    sequence is never whole in memory); the images, a small entry per
-    frame, follow them. ``records`` may read its frames from disk
-    (:class:`.frame_json.Records`).
+
+def compresses_masks() -> bool:
+    """Whether masks are written as COCO's compressed RLE (pycocotools is installed)."""
+    return _mask_utils() is not None
+
+
+def write_videos(path, videos: list[dict], video_ids: bool = True) -> str:
+    """Write the COCO file of one or more videos atomically, as it is read: the annotations are written
+    as they are made (a long sequence, or a dataset's split, is never whole in memory); the images, a
+    small entry per frame, follow them. The one COCO writer of the package.
+
+    Parameters
+    ----------
+    videos : list of dict
+        ``records`` (frame records in order; they may read their frames from disk,
+        :class:`.frame_json.Records`), ``images`` (each frame's image file, relative to the COCO
+        file) and, with ``video_ids``, the fields to list under ``videos`` (sequence, camera, fps...).
+    video_ids : bool
+        Number images and annotations across the videos and add ``video_id``, ``frame_id`` and
+        ``instance_id`` (a track of one video), with a ``videos`` list: the layout of a dataset's
+        split. Without it, one video's file as a sequence's render writes it.
     """
     def dump(value):
         return json.dumps(value, separators=(",", ":"))
 
-    images = []
-    with atomic_path(path) as tmp:
-        with open(tmp, "w") as f:
-            f.write(f'{{"info":{dump(INFO)},"licenses":[],"categories":{dump(_categories(records))},"annotations":[')
-            first = True
-            for kind, entry in _entries(records, image_files):
+    categories = next((_categories(v["records"]) for v in videos if len(v["records"])), _categories([]))
+    images, listed = [], []
+    image_base = annotation_id = 0
+    with atomic_path(path) as tmp, open(tmp, "w") as f:
+        f.write(f'{{"info":{dump(INFO)},"licenses":[],'
+                + ('"annotations":[' if video_ids else f'"categories":{dump(categories)},"annotations":['))
+        first = True
+        for vid, video in enumerate(videos, start=1):
+            n = 0
+            for kind, entry in _entries(video["records"], video["images"]):
                 if kind == "image":
+                    n += 1
+                    if video_ids:
+                        entry = dict(entry, id=image_base + entry["id"], video_id=vid, frame_id=entry["frame_index"])
                     images.append(entry)
                     continue
+                annotation_id += 1
+                if video_ids:
+                    entry = dict(entry, id=annotation_id, image_id=image_base + entry["image_id"], video_id=vid,
+                                 instance_id=vid * 1_000_000 + int(entry["track_id"]))
                 f.write(("" if first else ",") + dump(entry))
                 first = False
-            f.write(f'],"images":{dump(images)}}}')
+            image_base += n
+            listed.append({"id": vid, **{k: v for k, v in video.items() if k not in ("records", "images")},
+                           "length": n})
+        f.write(f'],"images":{dump(images)}'
+                + (f',"videos":{dump(listed)},"categories":{dump(categories)}' if video_ids else "") + "}")
     return os.fspath(path)
