@@ -131,7 +131,7 @@ STILL_LONG = {
     "dataset/run.py:make_dataset": 100,
     "events/groups.py:step": 85, "events/quadtree.py:find_groups": 108,
     "groundtruth/annotate.py:annotate_frame": 84, "jobs/pipeline.py:author_shot": 86,
-    "jobs/plots.py:trajectory_map": 82, "jobs/validation.py:schema_problems": 100,
+    "jobs/plots.py:trajectory_map": 82,
     "render/final/build.py:build_scene": 82, "render/final/integrator.py:_make_class": 99,
     "render/preview/renderer.py:_build": 89, "render/preview/window.py:run_viewer": 97,
     "render/sequence.py:render_sequence": 93, "scenario/attributes.py:resolve_group_members": 106,

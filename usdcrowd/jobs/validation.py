@@ -144,103 +144,134 @@ def _lens_problems(prim) -> list[tuple[str, str]]:
 
 def schema_problems(stage, source: str) -> list[Problem]:
     """Crowd-schema rules: allowed tokens, documented ranges, relationships, assets, ids."""
-    from pxr import UsdGeom
+    from pxr import UsdGeom, UsdSkel
 
     from ..scenario.lights import light_problems
-    from ..scenario.ranges import range_problem
 
-    out: list[Problem] = []
+    found: list[tuple] = []                 # (prim, attribute, message[, severity])
     ids: dict[int, str] = {}
-
-    def add(prim, attr, msg, severity="error"):
-        out.append(Problem(source, str(prim.GetPath()), attr, msg, "usdcrowd", severity))
-
-    from pxr import UsdSkel
-
     anims = []
     for prim in stage.Traverse():
         if prim.IsA(UsdGeom.Camera):
-            for attr_name, msg in _lens_problems(prim):
-                add(prim, attr_name, msg)
+            found += [(prim, a, m) for a, m in _lens_problems(prim)]
         if prim.IsA(UsdSkel.Animation):
             anims.append(prim)
-        for attr_name, msg in _non_finite(prim) + light_problems(prim) + _variant_problems(prim):
-            add(prim, attr_name, msg)
+        found += [(prim, a, m) for a, m in _non_finite(prim) + light_problems(prim) + _variant_problems(prim)]
         tname = prim.GetTypeName()
         if tname == "DistantLight":
             problem = _dim_sun_problem(prim)
             if problem:
-                add(prim, "inputs:normalize", problem, "warning")
-        ours = tname in (schema.GROUP, schema.BEHAVIOR_LAYER, schema.INTEREST_POINT, schema.EVENT) \
-            or schema.is_agent(prim) or prim.HasAPI(schema.CAMERA_AGENT_API) \
-            or prim.HasAPI(schema.SCENERY_API) or prim.HasAPI(schema.TORIC_CAMERA_API)
-        if not ours:
+                found.append((prim, "inputs:normalize", problem, "warning"))
+        if not _is_ours(prim):
             continue
-        for attr in prim.GetAttributes():
-            name = attr.GetName()
-            if not name.startswith("crowd:") or not attr.HasAuthoredValue():
-                continue
-            value = attr.Get()
-            allowed = attr.GetMetadata("allowedTokens")
-            if allowed and value is not None and str(value) not in [str(t) for t in allowed]:
-                add(prim, name, f"{value!r} is not one of {', '.join(str(t) for t in allowed)}")
-                continue
-            key = name[len("crowd:"):]
-            if isinstance(value, (int, float)) and not isinstance(value, bool):
-                problem = range_problem(key, value)
-            elif hasattr(value, "__len__") and not isinstance(value, str) and len(value) in (2, 3):
-                problem = range_problem(key, tuple(value))
-            else:
-                problem = None
-            if problem:
-                add(prim, name, problem)
+        found += _value_problems(prim)
         if prim.HasAPI(schema.CAMERA_AGENT_API):
-            if not prim.IsA(UsdGeom.Camera):
-                add(prim, "", "CameraAgentAPI is applied to a prim that is not a Camera")
-            rel = prim.GetRelationship("crowd:camera:target")
-            for target in (rel.GetTargets() if rel else []):
-                t = stage.GetPrimAtPath(target)
-                if not (t and (t.GetTypeName() == schema.EVENT or schema.is_agent(t))):
-                    add(prim, "crowd:camera:target", f"target {target} is neither a CrowdEvent nor an agent")
+            found += _camera_agent_problems(stage, prim)
         if prim.HasAPI(schema.TORIC_CAMERA_API):
-            if not prim.IsA(UsdGeom.Camera):
-                add(prim, "", "ToricCameraAPI is applied to a prim that is not a Camera")
-            for name in ("crowd:toric:targetA", "crowd:toric:targetB"):
-                attr = prim.GetAttribute(name)
-                for target in {stage_path(attr, str(attr.Get(t)), t)
-                               for t in (attr.GetTimeSamples() or [None])} if attr else ():
-                    t = stage.GetPrimAtPath(target) if target.startswith("/") else None
-                    if target and not (t and schema.is_agent(t)):
-                        add(prim, name, f"target {target} is not an agent of this stage")
-                        break
+            found += _toric_problems(stage, prim)
         if schema.is_agent(prim):
-            body = prim.GetChild("Body")
-            problem = _palette_problem(body) if body and body.IsA(UsdGeom.Mesh) else None
-            if problem:
-                add(body, "primvars:displayColor", problem)
-            aid = prim.GetAttribute("crowd:agentId").Get()
-            if aid is not None and aid != -1:
-                if aid in ids:
-                    add(prim, "crowd:agentId", f"agent id {aid} is also used by {ids[aid]}")
-                ids[aid] = str(prim.GetPath())
-            for rel_name, want in (("crowd:leader", "agent"), ("crowd:group", schema.GROUP)):
-                rel = prim.GetRelationship(rel_name)
-                for target in (rel.GetTargets() if rel else []):
-                    t = stage.GetPrimAtPath(target)
-                    ok = t and (schema.is_agent(t) if want == "agent" else t.GetTypeName() == want)
-                    if not ok:
-                        add(prim, rel_name, f"target {target} is not a {'CrowdAgentAPI agent' if want == 'agent' else want}")
+            found += _agent_problems(stage, prim, ids)
         if tname == schema.EVENT:
-            start, end = prim.GetAttribute("crowd:startTime").Get(), prim.GetAttribute("crowd:endTime").Get()
-            if end < start:
-                add(prim, "crowd:endTime", f"ends ({end}) before it starts ({start})")
-            rel = prim.GetRelationship("crowd:members")
-            for target in (rel.GetTargets() if rel else []):
-                t = stage.GetPrimAtPath(target)
-                if not (t and schema.is_agent(t)):
-                    add(prim, "crowd:members", f"target {target} is not a CrowdAgentAPI agent")
-    for prim, attr_name, msg in _animation_problems(anims):
-        add(prim, attr_name, msg)
+            found += _event_problems(stage, prim)
+    found += _animation_problems(anims)
+    return [Problem(source, str(f[0].GetPath()), f[1], f[2], "usdcrowd", *(f[3:] or ("error",))) for f in found]
+
+
+def _is_ours(prim) -> bool:
+    """Whether a prim is one of the crowd schemas' (typed, or with one of their API schemas)."""
+    return prim.GetTypeName() in (schema.GROUP, schema.BEHAVIOR_LAYER, schema.INTEREST_POINT, schema.EVENT) \
+        or schema.is_agent(prim) or prim.HasAPI(schema.CAMERA_AGENT_API) \
+        or prim.HasAPI(schema.SCENERY_API) or prim.HasAPI(schema.TORIC_CAMERA_API)
+
+
+def _value_problems(prim) -> list[tuple]:
+    """Authored ``crowd:`` values outside their allowed tokens or documented ranges."""
+    from ..scenario.ranges import range_problem
+
+    out = []
+    for attr in prim.GetAttributes():
+        name = attr.GetName()
+        if not name.startswith("crowd:") or not attr.HasAuthoredValue():
+            continue
+        value = attr.Get()
+        allowed = attr.GetMetadata("allowedTokens")
+        if allowed and value is not None and str(value) not in [str(t) for t in allowed]:
+            out.append((prim, name, f"{value!r} is not one of {', '.join(str(t) for t in allowed)}"))
+            continue
+        key = name[len("crowd:"):]
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            problem = range_problem(key, value)
+        elif hasattr(value, "__len__") and not isinstance(value, str) and len(value) in (2, 3):
+            problem = range_problem(key, tuple(value))
+        else:
+            problem = None
+        if problem:
+            out.append((prim, name, problem))
+    return out
+
+
+def _camera_agent_problems(stage, prim) -> list[tuple]:
+    from pxr import UsdGeom
+
+    out = [] if prim.IsA(UsdGeom.Camera) else [(prim, "", "CameraAgentAPI is applied to a prim that is not a Camera")]
+    rel = prim.GetRelationship("crowd:camera:target")
+    for target in (rel.GetTargets() if rel else []):
+        t = stage.GetPrimAtPath(target)
+        if not (t and (t.GetTypeName() == schema.EVENT or schema.is_agent(t))):
+            out.append((prim, "crowd:camera:target", f"target {target} is neither a CrowdEvent nor an agent"))
+    return out
+
+
+def _toric_problems(stage, prim) -> list[tuple]:
+    from pxr import UsdGeom
+
+    out = [] if prim.IsA(UsdGeom.Camera) else [(prim, "", "ToricCameraAPI is applied to a prim that is not a Camera")]
+    for name in ("crowd:toric:targetA", "crowd:toric:targetB"):
+        attr = prim.GetAttribute(name)
+        for target in {stage_path(attr, str(attr.Get(t)), t)
+                       for t in (attr.GetTimeSamples() or [None])} if attr else ():
+            t = stage.GetPrimAtPath(target) if target.startswith("/") else None
+            if target and not (t and schema.is_agent(t)):
+                out.append((prim, name, f"target {target} is not an agent of this stage"))
+                break
+    return out
+
+
+def _agent_problems(stage, prim, ids: dict[int, str]) -> list[tuple]:
+    """An agent's palette, its id (unique: ``ids`` holds those seen), its leader and group."""
+    from pxr import UsdGeom
+
+    out = []
+    body = prim.GetChild("Body")
+    problem = _palette_problem(body) if body and body.IsA(UsdGeom.Mesh) else None
+    if problem:
+        out.append((body, "primvars:displayColor", problem))
+    aid = prim.GetAttribute("crowd:agentId").Get()
+    if aid is not None and aid != -1:
+        if aid in ids:
+            out.append((prim, "crowd:agentId", f"agent id {aid} is also used by {ids[aid]}"))
+        ids[aid] = str(prim.GetPath())
+    for rel_name, want in (("crowd:leader", "agent"), ("crowd:group", schema.GROUP)):
+        rel = prim.GetRelationship(rel_name)
+        for target in (rel.GetTargets() if rel else []):
+            t = stage.GetPrimAtPath(target)
+            ok = t and (schema.is_agent(t) if want == "agent" else t.GetTypeName() == want)
+            if not ok:
+                out.append((prim, rel_name,
+                            f"target {target} is not a {'CrowdAgentAPI agent' if want == 'agent' else want}"))
+    return out
+
+
+def _event_problems(stage, prim) -> list[tuple]:
+    out = []
+    start, end = prim.GetAttribute("crowd:startTime").Get(), prim.GetAttribute("crowd:endTime").Get()
+    if end < start:
+        out.append((prim, "crowd:endTime", f"ends ({end}) before it starts ({start})"))
+    rel = prim.GetRelationship("crowd:members")
+    for target in (rel.GetTargets() if rel else []):
+        t = stage.GetPrimAtPath(target)
+        if not (t and schema.is_agent(t)):
+            out.append((prim, "crowd:members", f"target {target} is not a CrowdAgentAPI agent"))
     return out
 
 
