@@ -135,7 +135,7 @@ STILL_LONG = {
     "render/final/build.py:build_scene": 82, "render/final/integrator.py:_make_class": 99,
     "render/preview/renderer.py:_build": 89, "render/preview/window.py:run_viewer": 97,
     "render/sequence.py:render_sequence": 93, "scenario/attributes.py:resolve_group_members": 106,
-    "scenario/events.py:read_events": 88, "scenario/events.py:read_camera_agents": 94,
+    "scenario/events.py:read_events": 88,
     "scenario/read.py:_read": 84, "scenario/read.py:_resolve": 93, "sim/simulation.py:__init__": 100,
 }
 

@@ -199,67 +199,11 @@ def read_camera_agents(stage, time: float | None = None) -> model.CameraAgentTab
     """
     from pxr import Usd, UsdGeom
 
-    from .stageio import camera_frame, camera_lens
-    from ..core.view import lens_problem
-    from .ranges import range_problem
-
     frame = stage_frame(stage)
     t = time_range(stage).start if time is None else float(time)
     cache = UsdGeom.XformCache(Usd.TimeCode(t))
-    rows = []
-    for prim in Usd.PrimRange(stage.GetPseudoRoot()):
-        if not (prim.IsA(UsdGeom.Camera) and prim.HasAPI(schema.CAMERA_AGENT_API)):
-            continue
-        cam = UsdGeom.Camera(prim)
-        m = camera_frame(cache.GetLocalToWorldTransform(prim), frame)
-        if not np.isfinite(m).all():
-            raise ScenarioError("not a finite value", file=stage.GetRootLayer().identifier,
-                                prim=str(prim.GetPath()), attribute=_bad_op(prim, t))
-
-        def fail(message, attribute):
-            raise ScenarioError(message, file=stage.GetRootLayer().identifier, prim=str(prim.GetPath()),
-                                attribute=attribute)
-
-        def get(name):
-            value = prim.GetAttribute(f"crowd:camera:{name}").Get()
-            if isinstance(value, str) or value is None:
-                return value
-            values = [value] if isinstance(value, (int, float)) else list(value)
-            if not all(math.isfinite(float(v)) for v in values):
-                fail(f"not a finite number: {value}", f"crowd:camera:{name}")
-            # The same words as `usdcrowd validate` (one problem, one line).
-            problem = range_problem(name if name == "elevationRange" else f"camera:{name}",
-                                    value if isinstance(value, (int, float)) else tuple(values))
-            if problem:
-                fail(problem, f"crowd:camera:{name}")
-            return value
-
-        for lens in ("focalLength", "horizontalAperture", "verticalAperture"):
-            value = prim.GetAttribute(lens).Get(t)
-            problem = lens_problem(lens, value) if value is not None else "is not set"
-            if problem:
-                fail(problem, lens)
-        get("elevationRange")
-
-        mode = str(get("mode"))
-        if mode not in model.CAMERA_MODES:
-            raise ScenarioError(f"unknown camera mode {mode!r} (one of {', '.join(model.CAMERA_MODES)})",
-                                file=stage.GetRootLayer().identifier, prim=str(prim.GetPath()),
-                                attribute="crowd:camera:mode")
-        target = prim.GetRelationship("crowd:camera:target")
-        targets = target.GetTargets() if target else []
-        # In the units of the layers that authored them, as the renderers read them.
-        focal, h_ap, v_ap, near, far = camera_lens(cam, t, frame)
-        rows.append(dict(
-            path=str(prim.GetPath()), cam_to_world=m,
-            focal_length=focal, horizontal_aperture=h_ap, vertical_aperture=v_ap, near=near, far=far,
-            mode=model.code(model.CAMERA_MODES, mode), max_speed=float(get("maxSpeed")),
-            max_force=float(get("maxForce")), max_angular_speed=math.radians(get("maxAngularSpeed")),
-            arrival_distance=float(get("arrivalDistance")),
-            aim_threshold=math.radians(get("aimAngleThreshold")),
-            separation_distance=float(get("separationDistance")), view_angle=float(get("viewAngle")),
-            elevation=tuple(float(v) for v in get("elevationRange")),
-            target=str(targets[0]) if targets else None))
+    rows = [_camera_agent(stage, prim, cache, frame, t) for prim in Usd.PrimRange(stage.GetPseudoRoot())
+            if prim.IsA(UsdGeom.Camera) and prim.HasAPI(schema.CAMERA_AGENT_API)]
     if not rows:
         return model.CameraAgentTable.empty()
 
@@ -271,3 +215,58 @@ def read_camera_agents(stage, time: float | None = None) -> model.CameraAgentTab
         col("vertical_aperture"), col("near"), col("far"), col("mode", np.int8), col("max_speed"),
         col("max_force"), col("max_angular_speed"), col("arrival_distance"), col("aim_threshold"),
         col("separation_distance"), col("view_angle"), col("elevation"), [r["target"] for r in rows])
+
+
+def _camera_agent(stage, prim, cache, frame, t: float) -> dict:
+    """One camera agent's row: its pose and lens at ``t`` and its CameraAgentAPI values, checked."""
+    from pxr import UsdGeom
+
+    from ..core.view import lens_problem
+    from .ranges import range_problem
+    from .stageio import camera_frame, camera_lens
+
+    source = stage.GetRootLayer().identifier
+    m = camera_frame(cache.GetLocalToWorldTransform(prim), frame)
+    if not np.isfinite(m).all():
+        raise ScenarioError("not a finite value", file=source, prim=str(prim.GetPath()), attribute=_bad_op(prim, t))
+
+    def fail(message, attribute):
+        raise ScenarioError(message, file=source, prim=str(prim.GetPath()), attribute=attribute)
+
+    def get(name):
+        value = prim.GetAttribute(f"crowd:camera:{name}").Get()
+        if isinstance(value, str) or value is None:
+            return value
+        values = [value] if isinstance(value, (int, float)) else list(value)
+        if not all(math.isfinite(float(v)) for v in values):
+            fail(f"not a finite number: {value}", f"crowd:camera:{name}")
+        # The same words as `usdcrowd validate` (one problem, one line).
+        problem = range_problem(name if name == "elevationRange" else f"camera:{name}",
+                                value if isinstance(value, (int, float)) else tuple(values))
+        if problem:
+            fail(problem, f"crowd:camera:{name}")
+        return value
+
+    for lens in ("focalLength", "horizontalAperture", "verticalAperture"):
+        value = prim.GetAttribute(lens).Get(t)
+        problem = lens_problem(lens, value) if value is not None else "is not set"
+        if problem:
+            fail(problem, lens)
+    get("elevationRange")
+    mode = str(get("mode"))
+    if mode not in model.CAMERA_MODES:
+        fail(f"unknown camera mode {mode!r} (one of {', '.join(model.CAMERA_MODES)})", "crowd:camera:mode")
+    target = prim.GetRelationship("crowd:camera:target")
+    targets = target.GetTargets() if target else []
+    # In the units of the layers that authored them, as the renderers read them.
+    focal, h_ap, v_ap, near, far = camera_lens(UsdGeom.Camera(prim), t, frame)
+    return dict(
+        path=str(prim.GetPath()), cam_to_world=m,
+        focal_length=focal, horizontal_aperture=h_ap, vertical_aperture=v_ap, near=near, far=far,
+        mode=model.code(model.CAMERA_MODES, mode), max_speed=float(get("maxSpeed")),
+        max_force=float(get("maxForce")), max_angular_speed=math.radians(get("maxAngularSpeed")),
+        arrival_distance=float(get("arrivalDistance")),
+        aim_threshold=math.radians(get("aimAngleThreshold")),
+        separation_distance=float(get("separationDistance")), view_angle=float(get("viewAngle")),
+        elevation=tuple(float(v) for v in get("elevationRange")),
+        target=str(targets[0]) if targets else None)
