@@ -103,9 +103,9 @@ def find_shot(path: str | os.PathLike) -> str:
     from ..scenario import open_stage
 
     path = os.fspath(path)
-    stage = open_stage(path)                # its checks first: a FIFO or a device is refused, not read
-    if is_shot_layer(stage.GetRootLayer()):
+    if earlier_shot(path) is not None:      # its root layer alone says so: the caller composes the shot once
         return path
+    stage = open_stage(path)                # its checks first: a FIFO or a device is refused, not read
     shots = sorted({layer.realPath for layer in stage.GetUsedLayers() if layer.realPath and is_shot_layer(layer)})
     if len(shots) == 1:
         return shots[0]
