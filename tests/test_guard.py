@@ -138,6 +138,19 @@ def test_a_shot_edited_after_simulate_keeps_the_users_edits(museum_shot, shot_co
     assert (shot_copy / ".usdcrowd" / "shot.usda.previous").read_text() == text
 
 
+def test_a_shot_usda_rewritten_into_another_stage_is_never_replaced(museum_shot, shot_copy, capsys):
+    """Only a shot's own layer is merged into: a shot.usda the user turned into a stage of their own (no
+    usdcrowd record in it) is refused like any file usdcrowd did not write, and stays as it is."""
+    scenario, _ = museum_shot
+    shot = shot_copy / "shot.usda"
+    shot.write_text('#usda 1.0\ndef Xform "Mine"\n{\n}\n')
+    before = digest_tree(shot_copy)
+    capsys.readouterr()
+    assert main(["simulate", str(scenario), "-o", str(shot_copy), "--frames", "1:6", "--no-progress"]) == 2
+    one_line_error(capsys, "shot.usda", "changed since")
+    assert digest_tree(shot_copy) == before
+
+
 def test_simulate_again_into_its_own_shot_replaces_it(museum_shot, shot_copy, capsys):
     scenario, _ = museum_shot
     assert main(["simulate", str(scenario), "-o", str(shot_copy), "--frames", "1:6", "--no-progress"]) == 0

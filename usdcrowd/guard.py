@@ -537,11 +537,8 @@ def claim(folder, what: str | None = None) -> Path:
     foreign = [e.name for e in sorted(os.scandir(full), key=lambda e: e.name)
                if e.name != STATE_DIR and not _partial(e.name) and not s.owns(full, e.name)
                and not (full / e.name / STATE_DIR / RECORD).is_file()]     # an output folder of its own
-    kind = what or s.entries(full).get(".", {}).get("what")
-    for name in USER_LAYERS.get(kind, ()):
-        if name in foreign and name in s.entries(full):     # edited by the user: updated, never replaced
-            foreign.remove(name)
-            merge_into(full / name)
+    # A layer this run merges into (merge_into: the user's edits kept) is theirs to have edited.
+    foreign = [n for n in foreign if full / n not in s.in_place]
     changed = [n for n in foreign if n in s.entries(full)]
     if changed and not s.force:
         raise UsdcrowdError(f"{', '.join(changed[:3])}{' and more' if len(changed) > 3 else ''} changed since usdcrowd "
@@ -562,10 +559,6 @@ def claim(folder, what: str | None = None) -> Path:
             s.record_folder(full, what)
     return folder
 
-
-# Layers of a folder's kind that are the user's to edit: usdcrowd updates what it owns in them and
-# keeps every other opinion (usd.shot.write_shot), so an edited one is no reason to refuse the folder.
-USER_LAYERS = {"shot": ("shot.usda",)}
 
 # What a folder of each kind held when an earlier usdcrowd wrote it (adopted with --force).
 ADOPTABLE = {

@@ -203,9 +203,11 @@ def _claim_shot_folder(out_dir: Path) -> None:
     from ..usd import CAMERAS, CROWD, SHOT
     from ..usd.shot import earlier_shot
 
-    output_dir(out_dir, "shot")
+    # Before the folder is claimed: an earlier shot's shot.usda is the user's layer, edited or not; any
+    # other file in its place (edited into something else) is refused like any file usdcrowd did not write.
     if earlier_shot(out_dir / SHOT) is not None:
         guard.merge_into(out_dir / SHOT)
+    output_dir(out_dir, "shot")
     for name in (SHOT, CROWD, CAMERAS, "trajectories.png", "crowd.clips"):
         guard.check_write(out_dir / name)
 
