@@ -121,26 +121,5 @@ def main(argv: list[str] | None = None) -> int:
         return 143
 
 
-def entry() -> None:
-    """The ``usdcrowd`` command (and ``python -m usdcrowd``): :func:`main`, then exit with its code.
-
-    After Ctrl-C or a kill (130, 143) the process ends at once, without finalizing the interpreter:
-    the run has already put back or kept every output and written its record, and finalizing over
-    what USD's own threads still held crashed the process now and then under load (SIGSEGV instead
-    of 130). Library callers of :func:`main` are not affected.
-    """
-    code = main()
-    if code in (130, 143):
-        import multiprocessing.util
-
-        # What finalizing would still do that matters: multiprocessing's exit (its finalizers unlink the
-        # pools' semaphores, daemonic workers are stopped), then the streams.
-        multiprocessing.util._exit_function()
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os._exit(code)
-    sys.exit(code)
-
-
 if __name__ == "__main__":
-    entry()
+    sys.exit(main())
