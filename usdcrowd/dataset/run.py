@@ -74,7 +74,7 @@ def prepare_task(plan: dict, spec_dict: dict, seq_dir: str) -> dict:
     return {**prepare_sequence(plan, DatasetSpec(**spec_dict), seq_dir).to_json(), "made": made}
 
 
-def render_task(shot: str, camera: str, settings_dict: dict, times: list, out_dir: str, threads) -> list:
+def render_task(shot: str, camera: str, settings, times: list, out_dir: str, threads) -> list:
     """Worker side of a render task: render ``times`` of one camera; returns their manifest entries.
 
     The last camera's renderer is kept, so consecutive chunks of a camera build its scene once.
@@ -82,15 +82,13 @@ def render_task(shot: str, camera: str, settings_dict: dict, times: list, out_di
     import usdcrowd  # noqa: F401
 
     from ..render.sequence import frame_renderer, render_frame_to_disk
-    from ..render.settings import RenderSettings
 
-    key = (shot, camera, json.dumps(settings_dict, sort_keys=True))
+    key = (shot, camera, repr(settings))
     if key not in _CACHE:
         from ..groundtruth.annotate import AgentMetadata
         from ..scenario.shot_scene import ShotScene
 
         _CACHE.clear()                        # one scene per worker at a time: bounded memory
-        settings = RenderSettings(**settings_dict)
         scene = ShotScene(shot)
         renderer = frame_renderer(scene, camera, settings, threads)
         _CACHE[key] = (renderer, AgentMetadata.from_shot(scene), settings)
@@ -285,7 +283,7 @@ class _Run:
             self.cams[(i, camera)] = {"manifest": manifest, "left": len(todo)}
             for k in range(0, len(todo), CHUNK_FRAMES):
                 chunk = todo[k:k + CHUNK_FRAMES]
-                self.pending[self.ex.submit(render_task, seq.shot, camera, asdict(self.settings), chunk,
+                self.pending[self.ex.submit(render_task, seq.shot, camera, self.settings, chunk,
                                             os.fspath(cam_out), self.ex.threads)] = ("render", i, camera)
             if not todo:
                 self._camera_done(i, camera)

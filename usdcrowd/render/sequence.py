@@ -31,7 +31,7 @@ import contextlib
 import json
 import os
 import time as _time
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -220,7 +220,7 @@ def verify_frame(out_dir, t: float, manifest: Manifest, settings: RenderSettings
 _WORKER: dict = {}
 
 
-def _worker_init(shot_path, camera, settings_dict, threads):
+def _worker_init(shot_path, camera, settings: RenderSettings, threads):
     """Runs once in each worker process: build the Mitsuba scene.
 
     A user's mistake found here (a damaged animation) is kept and raised by the
@@ -230,17 +230,17 @@ def _worker_init(shot_path, camera, settings_dict, threads):
     from ..core.errors import UsdcrowdError
 
     try:
-        _build_worker(shot_path, camera, settings_dict, threads)
+        _build_worker(shot_path, camera, settings, threads)
     except UsdcrowdError as exc:
         _WORKER["error"] = exc
 
 
-def _pool_worker_init(shot_path, camera, settings_dict, threads):
+def _pool_worker_init(shot_path, camera, settings: RenderSettings, threads):
     """A pool worker's start: interrupts are the parent's to handle (it stops the pool), then the scene."""
     from ..interrupts import worker_ignores_interrupts
 
     worker_ignores_interrupts()
-    _worker_init(shot_path, camera, settings_dict, threads)
+    _worker_init(shot_path, camera, settings, threads)
 
 
 def frame_renderer(shot, camera: str | None, settings: RenderSettings, threads: int | None = None):
@@ -250,13 +250,12 @@ def frame_renderer(shot, camera: str | None, settings: RenderSettings, threads: 
     return FrameRenderer.from_settings(shot, camera, settings, threads)
 
 
-def _build_worker(shot_path, camera, settings_dict, threads):
+def _build_worker(shot_path, camera, settings, threads):
     import usdcrowd  # noqa: F401  (registers the schemas)
 
     from ..groundtruth.annotate import AgentMetadata
     from ..scenario.shot_scene import ShotScene
 
-    settings = RenderSettings(**settings_dict)
     shot = ShotScene(shot_path)
     _WORKER["renderer"] = frame_renderer(shot, camera, settings, threads)
     _WORKER["metadata"] = AgentMetadata.from_shot(shot) if settings.ground_truth else None
@@ -270,7 +269,7 @@ def _worker_render(t, out_dir):
 
 
 def _run_inline(shot_path, camera, settings, todo, out_dir, on_done):
-    _worker_init(shot_path, camera, asdict(settings), None)
+    _worker_init(shot_path, camera, settings, None)
     for t in todo:
         on_done(_worker_render(t, out_dir))
 
@@ -284,7 +283,7 @@ def _run_local(shot_path, camera, settings, todo, out_dir, on_done, workers):
 
     ctx = multiprocessing.get_context("spawn")
     pool = ProcessPoolExecutor(workers, mp_context=ctx, initializer=_pool_worker_init,
-                               initargs=(shot_path, camera, asdict(settings), threads))
+                               initargs=(shot_path, camera, settings, threads))
     try:
         with children_deaf_to_ctrl_c():     # the workers start on the first submit
             pending = {pool.submit(_worker_render, float(t), os.fspath(out_dir)) for t in todo}
@@ -323,7 +322,7 @@ def _run_ray(shot_path, camera, settings, todo, out_dir, on_done, workers, addre
     try:
         actor_cls = ray.remote(num_cpus=1)(_RayRenderer)
         threads = max(1, (os.cpu_count() or 1) // workers) if not address else None
-        actors += [actor_cls.remote(shot_path, camera, asdict(settings), threads) for _ in range(workers)]
+        actors += [actor_cls.remote(shot_path, camera, settings, threads) for _ in range(workers)]
         queue = [float(t) for t in todo]
         in_flight = {}
         for a in actors:
@@ -358,8 +357,8 @@ def _ray_result(ray, ref):
 class _RayRenderer:
     """A Ray actor holding one FrameRenderer (the scene is built once per actor)."""
 
-    def __init__(self, shot_path, camera, settings_dict, threads):
-        _worker_init(shot_path, camera, settings_dict, threads)
+    def __init__(self, shot_path, camera, settings: RenderSettings, threads):
+        _worker_init(shot_path, camera, settings, threads)
 
     def render(self, t, out_dir):
         return _worker_render(t, out_dir)
