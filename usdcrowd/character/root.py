@@ -199,55 +199,83 @@ def recover_root_motion(root_rot: np.ndarray, root_trans: np.ndarray, torso_rot:
     legs, torso, pz = _model(cls, k, s)
 
     w = blend_weight(since)
-    blend = w < 1.0
+    gen = _blend_generations(w < 1.0, since)
+    angles = (yaw, pitch, roll, torso_pitch, torso_roll)
+    for g in range(gen.max() + 1):
+        tt, aa = np.nonzero(gen == g)
+        _solve_blends(tt, aa, since, cls, w, angles, (heading, k, s), (legs, torso, pz), iterations)
+    position = trans.copy()
+    position[..., 2] -= scale * pz
+    return position, wrap_angle(heading)
+
+
+def _blend_generations(blend: np.ndarray, since: np.ndarray) -> np.ndarray:
+    """(t, n) int64 generation of each blended frame's key pose, -1 on unblended frames: the order of solving."""
     # A blend's key is the pose of the frame before its class change. Generation 0 blends
     # key on an unblended frame, generation g on one of generation g - 1 (a change during a
     # blend). Solving by generation, then by frames since the change, every key and every
     # starting guess (the frame before) is final when needed, and each batch is vectorised.
-    gen = np.full(w.shape, -1, dtype=np.int64)
+    gen = np.full(blend.shape, -1, dtype=np.int64)
     for t in np.flatnonzero(blend.any(axis=1)):
         a = np.flatnonzero(blend[t])
         before = np.maximum(t - since[t, a] - 1, 0)        # a key before the first row: approximated
         gen[t, a] = np.where(blend[before, a] & (before < t), gen[before, a] + 1, 0)
+    return gen
+
+
+def _solve_blends(tt, aa, since, cls, w, angles, cycle, body, iterations: int) -> None:
+    """Solve the blended entries ``(tt, aa)`` of one generation: their ``cycle`` and ``body`` rows, in place."""
+    # The (t, n) arrays go in whole: keys and starting guesses are read at other frames.
+    # angles: observed (yaw, pitch, roll, torso pitch, torso roll); cycle: (heading, k, s);
+    # body: (legs, torso, pelvis height).
+    heading, k, s = cycle
+    legs, torso, pz = body
+    before = np.maximum(tt - since[tt, aa] - 1, 0)
+    key = (legs[before, aa], torso[before, aa], pz[before, aa])
+    c, wa = cls[tt, aa], w[tt, aa]
+    obs = np.stack([a[tt, aa] for a in angles], -1)
+    residual = _blend_residual(c, key, wa, obs)
+    # Start from the key frame, final by now: the phase runs on through a class change.
+    x = np.stack([heading[before, aa], k[before, aa], s[before, aa]], -1)
+    yaw = angles[0]
+    x[:, 0] += wrap_angle(yaw[tt, aa] - yaw[before, aa])
+    _gauss_newton(residual, x, iterations)
+    heading[tt, aa], k[tt, aa], s[tt, aa] = x[:, 0], x[:, 1], x[:, 2]
+    legs[tt, aa], torso[tt, aa], pz[tt, aa] = _model(c, x[:, 1], x[:, 2], key, wa)
+
+
+def _blend_residual(c, key, wa, obs):
+    """``residual(x, m)``: the blend model's angles minus the observed ``obs`` (k, 5), for Gauss-Newton."""
+
+    def residual(x, m):
+        """(len(m), 5) model minus observed angles of the entries ``m`` at values ``x``."""
+        lg, to, _ = _model(c[m], x[:, 1], x[:, 2], (key[0][m], key[1][m], key[2][m]), wa[m])
+        hz = 0.5 * x[:, 0]
+        qz = np.stack([np.cos(hz), np.zeros_like(hz), np.zeros_like(hz), np.sin(hz)], -1)
+        d = np.stack([*_zyx(quat_multiply(qz, lg)), *_zyx(quat_multiply(lg, to))[1:]], -1) - obs[m]
+        d[:, 0] = wrap_angle(d[:, 0])
+        return d
+
+    return residual
+
+
+def _gauss_newton(residual, x: np.ndarray, iterations: int) -> None:
+    """Refine (heading, k, s) rows ``x`` (k, 3) in place, each until it converges, within the pose's bounds."""
     lo, hi = np.array([-np.inf, STRIDE_SCALE_RANGE[0], -1.0]), np.array([np.inf, STRIDE_SCALE_RANGE[1], 1.0])
     mid = np.array([0.0, 0.5 * sum(STRIDE_SCALE_RANGE), 0.0])
-    for g in range(gen.max() + 1):
-        tt, aa = np.nonzero(gen == g)
-        before = np.maximum(tt - since[tt, aa] - 1, 0)
-        key = (legs[before, aa], torso[before, aa], pz[before, aa])
-        c, wa = cls[tt, aa], w[tt, aa]
-        obs = np.stack([yaw[tt, aa], pitch[tt, aa], roll[tt, aa], torso_pitch[tt, aa], torso_roll[tt, aa]], -1)
-
-        def residual(x, m):
-            """(len(m), 5) model minus observed angles of the entries ``m`` at values ``x``."""
-            lg, to, _ = _model(c[m], x[:, 1], x[:, 2], (key[0][m], key[1][m], key[2][m]), wa[m])
-            hz = 0.5 * x[:, 0]
-            qz = np.stack([np.cos(hz), np.zeros_like(hz), np.zeros_like(hz), np.sin(hz)], -1)
-            d = np.stack([*_zyx(quat_multiply(qz, lg)), *_zyx(quat_multiply(lg, to))[1:]], -1) - obs[m]
-            d[:, 0] = wrap_angle(d[:, 0])
-            return d
-
-        # Start from the key frame, final by now: the phase runs on through a class change.
-        x = np.stack([heading[before, aa], k[before, aa], s[before, aa]], -1)
-        x[:, 0] += wrap_angle(yaw[tt, aa] - yaw[before, aa])
-        todo = np.arange(len(tt))
-        for _ in range(iterations):
-            xt = x[todo]
-            r0 = residual(xt, todo)
-            # Differences taken inward: the pose clips k, so an outward step at a bound sees no slope.
-            eps = np.where(xt > mid, -1e-6, 1e-6)
-            jac = np.stack([(residual(xt + eps * np.eye(3)[i], todo) - r0) / eps[:, i:i + 1] for i in range(3)], -1)
-            jtj = jac.transpose(0, 2, 1) @ jac + 1e-9 * np.eye(3)   # a value the pose ignores stays put
-            step = np.linalg.solve(jtj, jac.transpose(0, 2, 1) @ r0[..., None])[..., 0]
-            x_new = np.clip(xt - step, lo, hi)
-            dx = np.abs(x_new - xt)
-            x[todo] = x_new
-            # Converged where it matters: heading, and the pelvis height (bob ~ k s^2) through s and k.
-            todo = todo[(dx[:, 0] > 1e-10) | (dx[:, 2] > 1e-9) | (dx[:, 1] * x_new[:, 2] ** 2 > 1e-9)]
-            if not len(todo):
-                break
-        heading[tt, aa], k[tt, aa], s[tt, aa] = x[:, 0], x[:, 1], x[:, 2]
-        legs[tt, aa], torso[tt, aa], pz[tt, aa] = _model(c, x[:, 1], x[:, 2], key, wa)
-    position = trans.copy()
-    position[..., 2] -= scale * pz
-    return position, wrap_angle(heading)
+    todo = np.arange(len(x))
+    for _ in range(iterations):
+        xt = x[todo]
+        r0 = residual(xt, todo)
+        # Differences taken inward: the pose clips k, so an outward step at a bound sees no slope.
+        eps = np.where(xt > mid, -1e-6, 1e-6)
+        jac = np.stack([(residual(xt + eps * np.eye(3)[i], todo) - r0) / eps[:, i:i + 1] for i in range(3)], -1)
+        jtj = jac.transpose(0, 2, 1) @ jac + 1e-9 * np.eye(3)   # a value the pose ignores stays put
+        step = np.linalg.solve(jtj, jac.transpose(0, 2, 1) @ r0[..., None])[..., 0]
+        x_new = np.clip(xt - step, lo, hi)
+        dx = np.abs(x_new - xt)
+        x[todo] = x_new
+        # Converged where it matters: heading, and the pelvis height (bob ~ k s^2) through s and k.
+        todo = todo[(dx[:, 0] > 1e-10) | (dx[:, 2] > 1e-9) | (dx[:, 1] * x_new[:, 2] ** 2 > 1e-9)]
+        if not len(todo):
+            break

@@ -250,56 +250,91 @@ def find_groups(xy: np.ndarray, velocity: np.ndarray, character_type: np.ndarray
     if m < max(int(p.cell_min_agents), 1):
         return labels
     n_types = max(len(CHARACTER_TYPES), int(ctype.max()) + 1)
+    speed, moving, u = _unit_velocities(velocity)
+    levels = _evaluated_levels(xy, u, speed, ctype, n_types, p)
+    if not any(lv.marked.any() for lv in levels):
+        return labels
+    offset, comp = _link(levels, p)
+    inv0 = levels[0].inverse  # (m,) level-0 cell of each agent
+    agent_comp = _cell_components(levels, offset, comp, p.member_levels)[inv0]
+    has = agent_comp >= 0
+    if not has.any():
+        return labels
+    a, g = _number_present(agent_comp[has], len(comp))
+    gdir, gspeed, gtype = _group_motion(a, g, u[has], speed[has], ctype[has], n_types)
+    agrees = _member_test(u, speed, moving, ctype, gdir, gspeed, gtype, p)
 
+    # Leave out the agents of group cells that do not move with the group.
+    rows = np.flatnonzero(has)
+    keep = agrees(rows, a) > -np.inf
+    labels[rows[keep]] = a[keep]
+
+    if p.halo_distance > 0:
+        _grow(labels, xy, moving, inv0, levels[0], agrees, p.halo_distance, p.cell_size)
+    _number_by_first_agent(labels, g)
+    return labels
+
+
+def _unit_velocities(velocity: np.ndarray):
+    """Speeds (m,), whether each agent moves (m,) bool, and unit velocities (m, 2) (zero when still)."""
     speed = np.hypot(velocity[:, 0], velocity[:, 1])
     moving = speed > _MOVING
     u = velocity / np.where(moving, speed, 1.0)[:, None]
     u[~moving] = 0.0
+    return speed, moving, u
 
+
+def _evaluated_levels(xy, u, speed, ctype, n_types, p: EventParams) -> list[_Level]:
+    """The frame's quad-tree levels, finest first, each cell marked or not as a group motion."""
     # Level-0 cell coordinates, shifted so the coarsest cells stay world-aligned
     # (a group does not jump between cells as the crowd's bounding box moves).
     top = int(p.levels) - 1
     ij = np.floor(xy / p.cell_size).astype(np.int64)
     ij -= (ij.min(axis=0) >> top) << top
     span = (int(ij[:, 0].max()) + 3) * (int(ij[:, 1].max()) + 3)
-    use_lut = span <= max(_LUT_PER_AGENT * m, 1 << 16)
+    use_lut = span <= max(_LUT_PER_AGENT * len(xy), 1 << 16)
     levels = _build_levels(ij, u, speed, ctype, n_types, top + 1, use_lut)
-    inv0 = levels[0].inverse  # (m,) level-0 cell of each agent
     for L, lv in enumerate(levels):
         lv.evaluate((p.cell_size * 2 ** L) ** 2, p)
-    if not any(lv.marked.any() for lv in levels):
-        return labels
-    offset, comp = _link(levels, p)
+    return levels
 
-    # Each level-0 cell belongs to the component of its finest marked cell
-    # (itself, or the nearest marked ancestor up to `member_levels`): coarser
-    # cells only link finer ones, their agents can be far apart.
-    lv0 = levels[0]
-    c0 = len(lv0.key)
+
+def _cell_components(levels: list[_Level], offset, comp, member_levels) -> np.ndarray:
+    """(c0,) int64 component of each level-0 cell's finest marked cell (itself or an ancestor), else -1."""
+    # Ancestors only up to `member_levels`: coarser cells only link finer
+    # ones, their agents can be far apart.
+    c0 = len(levels[0].key)
     cell_comp = np.full(c0, -1, np.int64)
     anc = np.arange(c0)
-    for L, lv in enumerate(levels[:max(int(p.member_levels), 1)]):
+    for L, lv in enumerate(levels[:max(int(member_levels), 1)]):
         if L:
             anc = levels[L - 1].parent[anc]
         take = (cell_comp < 0) & lv.marked[anc]
         cell_comp[take] = comp[offset[L] + anc[take]]
-    agent_comp = cell_comp[inv0]
-    has = agent_comp >= 0
-    if not has.any():
-        return labels
-    # Number the components that hold agents 0 .. g-1 (linear: ids < nodes).
-    present = np.zeros(len(comp), bool)
-    present[agent_comp[has]] = True
-    rank = np.cumsum(present) - 1
-    a = rank[agent_comp[has]]
+    return cell_comp
 
-    # The group's motion, from the agents of its cells.
-    g = int(present.sum())
+
+def _number_present(ids: np.ndarray, n_nodes: int) -> tuple[np.ndarray, int]:
+    """The components ``ids`` (k,) that hold agents, numbered ``0 .. g-1``, and g."""
+    # Linear, no sort: the ids are graph nodes, below `n_nodes`.
+    present = np.zeros(n_nodes, bool)
+    present[ids] = True
+    rank = np.cumsum(present) - 1
+    return rank[ids], int(present.sum())
+
+
+def _group_motion(a, g: int, u, speed, ctype, n_types: int):
+    """Direction (g, 2), mean speed (g,) and majority type (g,) of each group ``a`` (k,) of the agents given."""
     cnt = np.bincount(a, minlength=g).astype(np.float64)
-    gu = np.stack([np.bincount(a, u[has, 0], g), np.bincount(a, u[has, 1], g)], axis=1)
+    gu = np.stack([np.bincount(a, u[:, 0], g), np.bincount(a, u[:, 1], g)], axis=1)
     gdir = gu / np.maximum(np.hypot(gu[:, 0], gu[:, 1]), 1e-12)[:, None]
-    gspeed = np.bincount(a, speed[has], g) / cnt
-    gtype = np.argmax(np.bincount(a * n_types + ctype[has], None, g * n_types).reshape(g, n_types), axis=1)
+    gspeed = np.bincount(a, speed, g) / cnt
+    gtype = np.argmax(np.bincount(a * n_types + ctype, None, g * n_types).reshape(g, n_types), axis=1)
+    return gdir, gspeed, gtype
+
+
+def _member_test(u, speed, moving, ctype, gdir, gspeed, gtype, p: EventParams):
+    """``agrees(agent, grp)``: whether agents move with groups of this motion, by the member thresholds."""
     cos_member = np.cos(np.radians(p.member_angle))
     r = p.member_speed_ratio
 
@@ -310,24 +345,7 @@ def find_groups(xy: np.ndarray, velocity: np.ndarray, character_type: np.ndarray
         ok = moving[agent] & (cos >= cos_member) & (s * r >= gs) & (s <= r * gs) & (ctype[agent] == gtype[grp])
         return np.where(ok, cos, -np.inf)
 
-    # Leave out the agents of group cells that do not move with the group.
-    rows = np.flatnonzero(has)
-    keep = agrees(rows, a) > -np.inf
-    labels[rows[keep]] = a[keep]
-
-    if p.halo_distance > 0:
-        _grow(labels, xy, moving, inv0, lv0, agrees, p.halo_distance, p.cell_size)
-
-    # Number groups by their first agent (deterministic, independent of the graph).
-    has = labels >= 0
-    if has.any():
-        first = np.full(g, m, np.int64)
-        np.minimum.at(first, labels[has], np.flatnonzero(has))
-        order = np.argsort(first, kind="stable")
-        rank = np.empty(g, np.int64)
-        rank[order] = np.arange(g)
-        labels[has] = rank[labels[has]]
-    return labels
+    return agrees
 
 
 def _grow(labels, xy, moving, inv0, lv0: _Level, agrees, halo: float, cell_size: float) -> None:
@@ -386,3 +404,15 @@ def _grow(labels, xy, moving, inv0, lv0: _Level, agrees, halo: float, cell_size:
         took = score[np.arange(len(free)), best] > -np.inf
         labels[free[took]] = grp[took, best[took]]
         new = free[took]
+
+
+def _number_by_first_agent(labels: np.ndarray, g: int) -> None:
+    """Number the ``g`` groups of ``labels`` (in place) by their first agent: independent of the graph."""
+    has = labels >= 0
+    if has.any():
+        first = np.full(g, len(labels), np.int64)
+        np.minimum.at(first, labels[has], np.flatnonzero(has))
+        order = np.argsort(first, kind="stable")
+        rank = np.empty(g, np.int64)
+        rank[order] = np.arange(g)
+        labels[has] = rank[labels[has]]

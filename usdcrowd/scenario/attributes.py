@@ -161,42 +161,11 @@ def resolve_group_members(seed: int, group: GroupSpec, group_values: dict,
     """
     rng = group_rng(seed, group.path)
     n = len(members)
-    # Authored agents each form their own draw; clones come in runs of
-    # `subclones` that share every drawn attribute (seed 004 subclones).
-    n_authored = sum(1 for m in members if not m.path.rsplit("/", 1)[-1].startswith("clone_"))
-    expand = [i if i < n_authored else n_authored + (i - n_authored) // max(group.subclones, 1)
-              for i in range(n)]
-
-    def value(i, name):
-        return members[i].authored.get(name, group_values.get(name))
-
-    ctype_vals = [value(i, "characterType") or FALLBACKS["characterType"] for i in range(n)]
-    out: dict[str, np.ndarray] = {
-        "character_type": np.array([model.CHARACTER_TYPES.index(v) for v in ctype_vals], dtype=np.int8)
-    }
-    out["personality"] = _categorical([value(i, "personality") for i in range(n)],
-                                      lambda i: _PERSONALITY[ctype_vals[i]], rng, n, expand,
-                                      model.PERSONALITIES)
-    out["behavior"] = _categorical([value(i, "behavior") for i in range(n)],
-                                   lambda i: _BEHAVIOR[ctype_vals[i]], rng, n, expand, model.BEHAVIORS)
-    out["condition"] = _categorical([value(i, "condition") for i in range(n)],
-                                    lambda i: _CONDITION, rng, n, expand, model.CONDITIONS)
-    out["fear_response"] = _categorical([value(i, "fearResponse") for i in range(n)],
-                                        lambda i: _FEAR, rng, n, expand, model.FEAR_RESPONSES)
-    # The visit profile belongs to the group: one draw for all its members.
-    profile = group_values.get("visitProfile")
-    if profile in (None, "random"):
-        profile = _draw(rng, _VISIT_PROFILE, 1)[0]
-    out["visit_profile"] = np.full(n, model.VISIT_PROFILES.index(profile), dtype=np.int8)
-
-    def numeric(name, agent_name=None):
-        return np.array([members[i].authored.get(agent_name or name,
-                                                 group_values.get(name, FALLBACKS.get(name)))
-                         for i in range(n)], dtype=np.float64)
-
-    out["max_slope"] = numeric("maxSlope")
-    out["map_influence"] = numeric("behaviorMapInfluence")
-    out["trades"] = np.array([bool(value(i, "trades") or False) for i in range(n)], dtype=bool)
+    expand = _draw_runs(members, group.subclones)
+    out = _categorical_attributes(rng, members, group_values, expand)
+    out["max_slope"] = _numeric(members, group_values, "maxSlope")
+    out["map_influence"] = _numeric(members, group_values, "behaviorMapInfluence")
+    out["trades"] = np.array([bool(v or False) for v in _values(members, group_values, "trades")], dtype=bool)
 
     # Continuous draws, one per clone run, in a fixed order for reproducibility.
     n_runs = max(expand) + 1 if n else 0
@@ -204,8 +173,63 @@ def resolve_group_members(seed: int, group: GroupSpec, group_values: dict,
     u_angle, u_radius, u_heading = rng.random(n), rng.random(n), rng.random(n)
     run = np.asarray(expand, dtype=np.int64)
 
-    speed_range = np.array([value(i, "speedRange") or FALLBACKS["speedRange"] for i in range(n)], dtype=np.float64).reshape(n, 2)
-    height_range = np.array([value(i, "heightRange") or FALLBACKS["heightRange"] for i in range(n)], dtype=np.float64).reshape(n, 2)
+    out["speed"], out["height"] = _speed_and_height(members, group_values, u_speed, u_height, run)
+    out["palette"], out["color"] = _clothes(seed, group.path, members, group_values, u_color, run, palette_name)
+    out["start"], out["start_heading"] = _starts(members, group_values, u_angle, u_radius, u_heading)
+    return out
+
+
+def _draw_runs(members: list[AgentSpec], subclones: int) -> list[int]:
+    """The draw run of each member: members of one run share every drawn attribute."""
+    # Authored agents each form their own draw; clones come in runs of
+    # `subclones` that share every drawn attribute (seed 004 subclones).
+    n = len(members)
+    n_authored = sum(1 for m in members if not m.path.rsplit("/", 1)[-1].startswith("clone_"))
+    return [i if i < n_authored else n_authored + (i - n_authored) // max(subclones, 1) for i in range(n)]
+
+
+def _values(members: list[AgentSpec], group_values: dict, name: str) -> list:
+    """Each member's value of ``name``: its own, else its group's, else None."""
+    return [m.authored.get(name, group_values.get(name)) for m in members]
+
+
+def _categorical_attributes(rng, members: list[AgentSpec], group_values: dict, expand) -> dict[str, np.ndarray]:
+    """(n,) int8 codes of the character type and the token attributes, drawing the unauthored ones."""
+    n = len(members)
+    ctype_vals = [v or FALLBACKS["characterType"] for v in _values(members, group_values, "characterType")]
+    out: dict[str, np.ndarray] = {
+        "character_type": np.array([model.CHARACTER_TYPES.index(v) for v in ctype_vals], dtype=np.int8)
+    }
+    out["personality"] = _categorical(_values(members, group_values, "personality"),
+                                      lambda i: _PERSONALITY[ctype_vals[i]], rng, n, expand,
+                                      model.PERSONALITIES)
+    out["behavior"] = _categorical(_values(members, group_values, "behavior"),
+                                   lambda i: _BEHAVIOR[ctype_vals[i]], rng, n, expand, model.BEHAVIORS)
+    out["condition"] = _categorical(_values(members, group_values, "condition"),
+                                    lambda i: _CONDITION, rng, n, expand, model.CONDITIONS)
+    out["fear_response"] = _categorical(_values(members, group_values, "fearResponse"),
+                                        lambda i: _FEAR, rng, n, expand, model.FEAR_RESPONSES)
+    # The visit profile belongs to the group: one draw for all its members.
+    profile = group_values.get("visitProfile")
+    if profile in (None, "random"):
+        profile = _draw(rng, _VISIT_PROFILE, 1)[0]
+    out["visit_profile"] = np.full(n, model.VISIT_PROFILES.index(profile), dtype=np.int8)
+    return out
+
+
+def _numeric(members: list[AgentSpec], group_values: dict, name: str) -> np.ndarray:
+    """(n,) float64 value of ``name``: the member's, else its group's, else the schema fallback."""
+    return np.array([m.authored.get(name, group_values.get(name, FALLBACKS.get(name))) for m in members],
+                    dtype=np.float64)
+
+
+def _speed_and_height(members: list[AgentSpec], group_values: dict, u_speed, u_height, run):
+    """(n,) speeds and heights: drawn per run (``u_*`` (runs,) in [0, 1)) in each member's range, else authored."""
+    n = len(members)
+    speed_range = np.array([v or FALLBACKS["speedRange"] for v in _values(members, group_values, "speedRange")],
+                           dtype=np.float64).reshape(n, 2)
+    height_range = np.array([v or FALLBACKS["heightRange"] for v in _values(members, group_values, "heightRange")],
+                            dtype=np.float64).reshape(n, 2)
     speed = speed_range[:, 0] + (speed_range[:, 1] - speed_range[:, 0]) * u_speed[run] if n else np.zeros(0)
     height = height_range[:, 0] + (height_range[:, 1] - height_range[:, 0]) * u_height[run] if n else np.zeros(0)
     for i, m in enumerate(members):
@@ -213,22 +237,29 @@ def resolve_group_members(seed: int, group: GroupSpec, group_values: dict,
             speed[i] = m.authored["speed"]
         if "height" in m.authored:
             height[i] = m.authored["height"]
-    out["speed"], out["height"] = speed, height
+    return speed, height
 
+
+def _clothes(seed: int, group_path: str, members: list[AgentSpec], group_values: dict, u_color, run,
+             palette_name: str):
+    """(n, regions, 3) clothing palettes and (n, 3) top colours: drawn per run, authored colours tint the top."""
+    n = len(members)
     color = _PALETTE[u_color[run]] if n else np.zeros((0, 3))
-    drawn_top = color.reshape(-1, 3)[_first_of_run(expand)]
+    drawn_top = color.reshape(-1, 3)[_first_of_run(run)]
     # Clothes, skin and hair come from their own generator, so adding them
-    # changed none of the draws above; subclones dress alike.
-    palette = appearance.draw_palettes(appearance_rng(seed, group.path), drawn_top, palette_name)
-    out["palette"] = palette[run] if n else np.zeros((0, len(appearance.REGIONS), 3))
-    for i in range(n):
-        c = value(i, "color")
+    # changed none of the group's other draws; subclones dress alike.
+    palette = appearance.draw_palettes(appearance_rng(seed, group_path), drawn_top, palette_name)
+    palette = palette[run] if n else np.zeros((0, len(appearance.REGIONS), 3))
+    for i, c in enumerate(_values(members, group_values, "color")):
         if c is not None:
             color[i] = c
-            out["palette"][i, 0] = appearance.tint(out["palette"][i, 0], c)
-    out["color"] = np.asarray(color, dtype=np.float64).reshape(n, 3)
+            palette[i, 0] = appearance.tint(palette[i, 0], c)
+    return palette, np.asarray(color, dtype=np.float64).reshape(n, 3)
 
-    # Start positions: authored, else the prim's translation, else the spawn disc.
+
+def _starts(members: list[AgentSpec], group_values: dict, u_angle, u_radius, u_heading):
+    """(n, 3) start positions and (n,) headings: authored, else the prim's transform, else drawn in the spawn disc."""
+    n = len(members)
     center = np.asarray(group_values.get("spawnCenter", FALLBACKS["spawnCenter"]), dtype=np.float64)
     radius = float(group_values.get("spawnRadius", FALLBACKS["spawnRadius"]))
     r = radius * np.sqrt(u_radius)
@@ -242,5 +273,4 @@ def resolve_group_members(seed: int, group: GroupSpec, group_values: dict,
             start[i] = m.position
         if m.heading is not None:
             heading[i] = m.heading
-    out["start"], out["start_heading"] = start.reshape(n, 3), heading
-    return out
+    return start.reshape(n, 3), heading
