@@ -27,10 +27,15 @@ USDCROWD = [sys.executable, "-m", "usdcrowd"]
 PROMPT_S = 6.0
 
 
+def _hear_ctrl_c():
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def start(argv) -> tuple[subprocess.Popen, list]:
-    """The command in a new process group (as a terminal's foreground job)."""
+    """The command in a new process group (as a terminal's foreground job), Ctrl-C heard as a terminal's
+    job hears it even when this process was started in the background (where a shell ignores SIGINT)."""
     proc = subprocess.Popen(USDCROWD + argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)
+                            start_new_session=True, preexec_fn=_hear_ctrl_c)
     return proc
 
 
@@ -209,7 +214,8 @@ def test_a_render_on_a_ray_cluster_kills_its_actors_on_ctrl_c(small_shot, tmp_pa
         out = tmp_path / "render"
         proc = subprocess.Popen(USDCROWD + _render_argv(small_shot, out) + [
             "--executor", "ray", "--address", f"127.0.0.1:{port}", "--workers", "1"],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True, env=env)
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True, env=env,
+            preexec_fn=_hear_ctrl_c)
         wait_for(lambda: len(list((out / "exr").glob("*.exr"))) >= 1 if (out / "exr").is_dir() else False, 300,
                  proc)
         assert _renderers_alive(), "the render actor runs in a cluster worker"
