@@ -34,30 +34,24 @@ halves of the run), and the mean errors (the match was made on one seed).
 Each reference is two halves rendered with seeds of their own (never the
 measured frames' seeds: Cycles' default seed is 0 for every render, and its
 first 64 Sobol samples would be shared), and Cycles' with adaptive sampling
-off (left on, as Blender's default, its "512 spp" stopped most pixels early:
-two such references with two seeds differed from each other by as much as
-the 64-spp frame differed from either). The halves give the reference's own
-noise, which the error against it holds too and which is taken out
-(:func:`error_against`); both figures are printed. Both references converge
-to what their renderer's scene looks like: usdcrowd's path tracer has no
-biased shortcut, and Cycles' reference is rendered without the two in
-Blender's defaults (indirect samples clamped at 10, filter glossy 1). With
-them, the reference converged to the clamped and blurred picture, and the
-error of Cycles' default frame left out what those take away: on the bench frame
-0.000119 against the clamped reference, 0.000167 against the unclamped one
-(the two references differ by 0.000029); Cycles' 64-spp frame without those
-shortcuts: 0.000140. Left as Blender has them, as they make
-the picture Cycles renders: diffuse and glossy bounces capped at 4 (usdcrowd
+off (left on, as Blender's default, its "512 spp" stops most pixels early).
+The halves give the reference's own noise, which the error against it holds
+too and which is taken out (:func:`error_against`); both figures are
+printed. Both references converge to what their renderer's scene looks
+like: usdcrowd's path tracer has no biased shortcut, and Cycles' reference
+is rendered without the two in Blender's defaults (indirect samples clamped
+at 10, filter glossy 1). A reference with them converges to the clamped and
+blurred picture, and the error of Cycles' default frame against it leaves
+out what those take away. Left as Blender has them, as they make the
+picture Cycles renders: diffuse and glossy bounces capped at 4 (usdcrowd
 caps a path at 6 of any kind) and a 1.5-pixel Blackman-Harris pixel filter
-(usdcrowd: a 1-pixel box). The caps take noise and time off Cycles'
-frames, the wider filter some sharpness; its reference shares both, so
-neither counts as error. Blender's importer reads
-UsdLux lights with factors of its own (a DistantLight's intensity times 4, an
-untextured DomeLight left out), so the Cycles script sets each light to what
-UsdLux means (read here with plain usd-core), and gives meshes without a material
-their displayColor as usdcrowd does: the two converged frames' mean
-levels then agree within 10 % per channel (before, Cycles' frame was 20 to
-100 times darker, lit by the lamp alone, which flattered its relative MSE).
+(usdcrowd: a 1-pixel box). The caps take noise and time off Cycles' frames,
+the wider filter some sharpness; its reference shares both, so neither
+counts as error. Blender's importer reads UsdLux lights with factors of its
+own (a DistantLight's intensity times 4, an untextured DomeLight left out),
+so the Cycles script sets each light to what UsdLux means (read here with
+plain usd-core), and gives meshes without a material their displayColor as
+usdcrowd does, so both renderers light the same scene.
 
 Usage::
 

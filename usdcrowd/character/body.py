@@ -137,7 +137,7 @@ def build_body() -> Body:
     Returns
     -------
     Body
-        About 1,300 triangles, watertight, 1.75 m tall.
+        About 1,450 triangles, watertight, 1.75 m tall.
     """
     parts = _parts()
     idx, wts = zip(*(_weights(m.vertices[:, 2], kind) for m, kind, _ in parts))
