@@ -1,4 +1,4 @@
-"""Write the reference renders of tests/test_render_final.py into tests/baselines/.
+"""Write the reference renders of tests/render/final/test_render_final.py into tests/baselines/.
 
 Run after a deliberate change to how frames look::
 
@@ -30,9 +30,10 @@ MARGIN = 3.0
 
 
 def museum_test_shot(out_dir) -> str:
-    """The shot the tests render: museum.usda with every agent walking straight (tests/frames_factory)."""
-    sys.path.insert(0, str(ROOT / "tests"))
-    from frames_factory import straight_walk
+    """The shot the tests render: museum.usda with every agent walking straight (tests/helpers/frames.py)."""
+    if str(ROOT) not in sys.path:
+        sys.path.insert(0, str(ROOT))           # the repository's tests package
+    from tests.helpers.frames import straight_walk
 
     import usdcrowd.core.resources as res
     from usdcrowd.jobs.pipeline import author_shot

@@ -4,9 +4,10 @@
 
 Builds a tiny shot (a floor, a block, a sun and sky, one camera, four agents
 walking straight; nothing random that the simulation could change) and
-renders it headless. tests/test_preview.py builds the same shot with the
-functions here and compares its render with these files; re-run this after a
-deliberate change to the preview's look, and look at the images first.
+renders it headless. tests/render/preview/test_preview.py builds the same
+shot with the functions here and compares its render with these files; re-run
+this after a deliberate change to the preview's look, and look at the images
+first.
 """
 
 from __future__ import annotations
@@ -123,8 +124,9 @@ TINY_STAGE = textwrap.dedent('''\
 
 def make_tiny_shot(out_dir) -> Path:
     """Write the tiny scenario and its shot (agents walk straight) into ``out_dir``; returns shot.usda."""
-    sys.path.insert(0, str(ROOT / "tests"))
-    from frames_factory import straight_walk
+    if str(ROOT) not in sys.path:
+        sys.path.insert(0, str(ROOT))           # the repository's tests package
+    from tests.helpers.frames import straight_walk
 
     import usdcrowd  # noqa: F401  (registers the schemas)
     from usdcrowd.jobs.pipeline import author_shot

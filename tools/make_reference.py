@@ -5,7 +5,7 @@
 
 cli.md is every command's ``--help``; schemas.md lists each crowd schema of
 schemas/schema.usda with its documentation and its attributes (type, fallback,
-allowed tokens, documentation). tests/test_docs.py fails when either is stale.
+allowed tokens, documentation). tests/project/test_docs.py fails when either is stale.
 """
 
 from __future__ import annotations

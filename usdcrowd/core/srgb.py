@@ -10,8 +10,8 @@ def srgb8(linear: np.ndarray) -> np.ndarray:
 
     The one sRGB encoder of the package (pictures, previews, final PNGs). Written out
     rather than taken from colour-science: importing colour costs 1.4 s, which every
-    ``simulate`` paid for a few thousand colours (tests/test_preview.py checks it against
-    colour.cctf_encoding).
+    ``simulate`` paid for a few thousand colours (tests/render/preview/test_preview.py checks
+    it against colour.cctf_encoding).
     """
     c = np.clip(np.asarray(linear, dtype=np.float64), 0.0, 1.0)
     encoded = np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1.0 / 2.4) - 0.055)

@@ -6,8 +6,8 @@ third of the samples. Here each vertex sends one shadow ray to every light,
 weighted against BSDF sampling by the balance heuristic (Veach 1997) with
 that light's own direction pdf, and the BSDF-sampled ray that hits a light
 takes the complementary weight. Expectation unchanged (checked against
-``path`` in tests/test_integrator.py). On the 200-person museum with three
-lights, at 640x360 and 64 spp, a frame's noise (half the relative MSE
+``path`` in tests/render/final/test_integrator.py). On the 200-person museum
+with three lights, at 640x360 and 64 spp, a frame's noise (half the relative MSE
 between two seeds) was 0.0014 with ``path`` and 0.00057 with every light.
 
 The bounce direction is drawn from a mixture: a cosine-weighted direction

@@ -6,8 +6,8 @@ so GLSL sees ``transpose(M)`` and ``u_m * v`` is exactly ``v @ M``.
 
 Colour: shading is done in linear RGB and encoded to sRGB in the fragment
 shader with the exact piecewise sRGB curve (IEC 61966-2-1), so 8-bit frames
-come straight out of the read-back. ``tests/test_preview.py`` checks the
-encoding against colour-science to within one code value.
+come straight out of the read-back. ``tests/render/preview/test_preview.py``
+checks the encoding against colour-science to within one code value.
 """
 
 from __future__ import annotations

@@ -1,0 +1,36 @@
+"""Other people's tools in their own virtual environments, made once per machine.
+
+The checks that a file we write is read right by a tool that does not know
+our code run that tool in its own venv: it pins its own numpy (motmetrics
+needs numpy < 2, Blender's ``bpy`` wheel its own), which must not meet ours.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import pytest
+
+# The Blender of the checks that Blender reads our shots: the ``bpy`` wheel, in its own venv.
+BPY = ["bpy==5.0.1"]
+
+
+def tool_python(name: str, packages: list[str], env: str) -> str:
+    """The Python of a venv holding ``packages`` (at ``$env`` if set, else in the temporary folder).
+
+    Skips the test with a clear line when the venv cannot be built (no package index).
+    """
+    venv = Path(os.environ.get(env, Path(tempfile.gettempdir()) / f"usdcrowd-{name}-venv"))
+    python = venv / "bin" / "python"
+    if not python.exists():
+        try:
+            subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
+            subprocess.run([str(python), "-m", "pip", "install", "-q", *packages], check=True)
+        except subprocess.CalledProcessError:
+            pytest.skip(f"could not build the {name} venv ({' '.join(packages)}): no package index? "
+                        f"Point {env} at a venv that has them.")
+    return str(python)
