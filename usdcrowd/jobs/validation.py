@@ -494,7 +494,7 @@ def lens_unit_problems(stage, source: str) -> list[Problem]:
     from pxr import UsdGeom
 
     from ..scenario import stage_frame
-    from ..scenario.stageio import authoring_meters_per_unit
+    from ..scenario.stageio import lens_scale
 
     try:
         frame = stage_frame(stage)
@@ -508,12 +508,12 @@ def lens_unit_problems(stage, source: str) -> list[Problem]:
         if not attr.HasAuthoredValue():
             continue
         t = (attr.GetTimeSamples() or [stage.GetStartTimeCode()])[0]
-        mpu = authoring_meters_per_unit(attr, t, frame)
-        if abs(mpu / frame.meters_per_unit - 1.0) > 1e-9:
+        scale = lens_scale(attr, t, frame, frame.meters_per_unit)
+        if scale != 1.0:
             out.append(Problem(source, str(prim.GetPath()), "focalLength",
-                               f"lens authored in a layer of {mpu:g} m per unit under a stage of "
-                               f"{frame.meters_per_unit:g}: usdcrowd reads it right, but Blender, usdview and a "
-                               f"flattened copy read it as {frame.meters_per_unit / mpu:g} times its length; "
+                               f"lens authored in a layer of {scale * frame.meters_per_unit:g} m per unit under a "
+                               f"stage of {frame.meters_per_unit:g}: usdcrowd reads it right, but Blender, usdview "
+                               f"and a flattened copy read it as {1 / scale:g} times its length; "
                                f"`usdcrowd place` converts the lenses of a shot it places", "usdcrowd", "warning"))
     return out
 

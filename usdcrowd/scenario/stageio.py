@@ -368,6 +368,19 @@ def authoring_meters_per_unit(attr, time, stage_frame: StageFrame) -> float:
     return stage_frame.meters_per_unit
 
 
+def lens_scale(attr, time, stage_frame: StageFrame, meters_per_unit: float) -> float:
+    """The factor that turns ``attr``'s lens value (authored in its own layer's units) into one read in a
+    stage of ``meters_per_unit``: 1 when the units agree (within :data:`~usdcrowd.core.tolerances.UNIT_RTOL`).
+
+    USD does not convert a lens across a reference, so the one factor serves both to warn about a
+    mismatch (``validate``) and to author the converted value (``place``).
+    """
+    from ..core.tolerances import UNIT_RTOL
+
+    ratio = authoring_meters_per_unit(attr, time, stage_frame) / meters_per_unit
+    return 1.0 if abs(ratio - 1.0) <= UNIT_RTOL else ratio
+
+
 def lens_mm(attr, time, stage_frame: StageFrame) -> float | None:
     """A UsdGeom.Camera lens value in millimetres (USD: tenths of the authoring layer's scene unit)."""
     from ..core.view import mm_per_lens_unit

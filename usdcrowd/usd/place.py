@@ -228,7 +228,7 @@ def convert_lenses(layer, shot_stage, shot_root, placed_root, set_frame) -> int:
     from pxr import Gf, Sdf, UsdGeom
 
     from ..scenario import stage_frame
-    from ..scenario.stageio import authoring_meters_per_unit
+    from ..scenario.stageio import lens_scale
 
     frame = stage_frame(shot_stage)
     n = 0
@@ -244,11 +244,11 @@ def convert_lenses(layer, shot_stage, shot_root, placed_root, set_frame) -> int:
             times = attr.GetTimeSamples() or [None]
             values = []
             for t in times:
-                ratio = authoring_meters_per_unit(attr, t if t is not None else 0.0, frame) / set_frame.meters_per_unit
+                ratio = lens_scale(attr, t if t is not None else 0.0, frame, set_frame.meters_per_unit)
                 v = attr.Get(t) if t is not None else attr.Get()
                 values.append((t, Gf.Vec2f(v[0] * ratio, v[1] * ratio) if name == "clippingRange" else v * ratio,
                                ratio))
-            if all(abs(r - 1.0) < 1e-12 for _, _, r in values):
+            if all(r == 1.0 for _, _, r in values):
                 continue
             spec = Sdf.CreatePrimInLayer(layer, target)
             over = Sdf.AttributeSpec(spec, name, attr.GetTypeName())
