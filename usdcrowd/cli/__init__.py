@@ -115,10 +115,19 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_USER_ERROR
     except KeyboardInterrupt:
         print(f"usdcrowd {args.command}: interrupted (finished outputs kept; run it again to resume)", file=sys.stderr)
-        return 130
+        return _after_a_stop(130)
     except Terminated:
         print(f"usdcrowd {args.command}: terminated (finished outputs kept; run it again to resume)", file=sys.stderr)
-        return 143
+        return _after_a_stop(143)
+
+
+def _after_a_stop(code: int) -> int:
+    """Free now what the stopped work left in reference cycles (USD layers and stages among them), while
+    USD is whole: left to the interpreter's exit, they would be destroyed after USD's own statics."""
+    import gc
+
+    gc.collect()
+    return code
 
 
 if __name__ == "__main__":
