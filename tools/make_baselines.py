@@ -4,6 +4,10 @@ Run after a deliberate change to how frames look::
 
     .venv/bin/python tools/make_baselines.py
 
+and, after a deliberate change to what the demo's ground truth holds, ``--demo``:
+the sha256 of the demo's MOT and COCO files, which tests/cli/test_cli.py
+holds every later demo run to (the same command gives the same bytes).
+
 Each baseline is a small beauty EXR plus a JSON of how it was made (shot
 recipe, camera, frame, size, spp, seed) and the tolerances the test applies:
 the mean and the 99th percentile of the per-pixel absolute difference,
@@ -52,7 +56,33 @@ def render_baseline(shot, meta: dict, seed: int | None = None):
     return r.render(meta["time"])
 
 
+# The demo's outputs that must not change by a byte unless their content is meant to.
+DEMO_FILES = ("render/mot/gt/gt.txt", "render/coco.json")
+
+
+def demo_digests(folder) -> dict:
+    """sha256 of :data:`DEMO_FILES` under a demo's output folder."""
+    import hashlib
+
+    return {name: hashlib.sha256((Path(folder) / name).read_bytes()).hexdigest() for name in DEMO_FILES}
+
+
+def record_demo() -> int:
+    """Run ``usdcrowd demo`` and write its ground truth's digests to tests/baselines/demo_ground_truth.json."""
+    import subprocess
+
+    with tempfile.TemporaryDirectory() as tmp:
+        subprocess.run([sys.executable, "-m", "usdcrowd", "demo", "-o", f"{tmp}/demo", "--no-progress"], check=True,
+                       capture_output=True)
+        digests = demo_digests(f"{tmp}/demo")
+    (BASELINES / "demo_ground_truth.json").write_text(json.dumps(digests, indent=2) + "\n")
+    print(f"wrote {BASELINES / 'demo_ground_truth.json'}")
+    return 0
+
+
 def main() -> int:
+    if "--demo" in sys.argv[1:]:
+        return record_demo()
     from usdcrowd.render.final.exr import channels_of, write_frame_exr
     from usdcrowd.render.final.variant import choose_variant
 

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.helpers.paths import BASELINES
 from usdcrowd.cli import main
 
 GROUP = '''
@@ -127,6 +128,11 @@ def test_demo_runs_the_whole_chain(tmp_path, capsys):
     for name in ("shot.usda", "crowd.usdc", "cameras.usda", "trajectories.png"):
         assert (shot / name).stat().st_size > 0, name
     assert "validate  shot: 0 errors" in stdout
+    # The same command gives the same ground truth, byte for byte (tools/make_baselines.py --demo records it).
+    from tests.helpers.tools import load_tool
+
+    expected = json.loads((BASELINES / "demo_ground_truth.json").read_text())
+    assert load_tool("make_baselines").demo_digests(tmp_path / "demo") == expected
     # One toric camera (seed 002) on the shot, filmed by the preview: two heads in each of its frames.
     from usdcrowd.scenario.shot_scene import ShotScene
 
