@@ -32,7 +32,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT / "tests"), str(ROOT / "tools")]
+sys.path[:0] = [str(ROOT), str(ROOT / "tools")]      # the tests package (its helpers) and the tools
 
 AUTHOR_TARGET_S = 20.0
 AUTHOR_TARGET_GIB = 4.0
@@ -48,7 +48,7 @@ def _peak_mib() -> float:
 def author_once(agents: int, frames: int, events: bool = False) -> dict:
     """Author ``agents`` x ``frames`` of walking crowd as a shot; returns timings."""
     import usdcrowd  # noqa: F401
-    from frames_factory import straight_walk
+    from tests.helpers.frames import straight_walk
 
     from usdcrowd.core import model
     from usdcrowd.jobs.pipeline import author_shot
@@ -88,7 +88,7 @@ def _child(section: str, **kw) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def bench_author(agents: int, frames: int) -> None:
+def bench_author(agents: int, frames: int) -> dict:
     print(f"== author: {agents} agents x {frames} frames (two UsdSkel samples per agent and frame)")
     r = _child("author", agents=agents, frames=frames)
     print(f"   {r['seconds']:.2f} s, {r['samples_per_s']:,} samples/s, {r['agent_frames_per_s']:,} agent-frames/s, "
@@ -99,19 +99,128 @@ def bench_author(agents: int, frames: int) -> None:
     e = _child("author", agents=agents, frames=frames, events=True)
     print(f"   with event detection (simulate's default): {e['seconds']:.2f} s "
           f"({e['seconds'] / r['seconds']:.2f}x), peak {e['peak_mib']:,} MiB")
+    return {"alone": r, "with_events": e}
 
 
-def bench_section(name: str, **kw) -> None:
-    """Run tools/bench_<name>.py's run(); each prints its own table."""
+def bench_section(name: str, **kw):
+    """Run tools/bench_<name>.py's run(), which prints its own table; returns what it measured."""
     import importlib
 
     try:
         module = importlib.import_module(f"bench_{name}")
     except ImportError as exc:
         print(f"== {name}: not available ({exc})")
-        return
+        return None
     print(f"== {name}")
-    module.run(**kw)
+    return module.run(**kw)
+
+
+def _min_max(values) -> dict:
+    values = list(values)
+    return {"min": min(values), "max": max(values)}
+
+
+def figures_of(section: str, found) -> tuple[dict, dict | None, list | None]:
+    """What a section measured, as docs/data keeps it: (figures with string keys and plain numbers,
+    tables, images written into docs/)."""
+    if section == "render":
+        return render_figures(found)
+    return _section_figures(section, found), None, None
+
+
+def _section_figures(section: str, found) -> dict:
+    if section == "sim":
+        try:
+            from importlib.metadata import version
+            jps = version("jupedsim")
+        except Exception:
+            jps = None
+        return {"usdcrowd": {str(r["agents"]): r["steps_per_s"] for r in found},
+                "jupedsim": {str(r["agents"]): r["jupedsim_steps_per_s"] for r in found}, "jupedsim_version": jps}
+    if section == "cameras":
+        return {f"{r['cameras']}x{r['characters']}": r for r in found}
+    if section == "preview":
+        out: dict = {}
+        for (template, n, _camera, label), fps in found.items():
+            out.setdefault(f"{template}_{n}", {}).setdefault(label.replace(", ", "_").replace(" ", "_"), []).append(fps)
+        return {scene: {label: _min_max(v) for label, v in labels.items()} for scene, labels in out.items()}
+    if section == "dataset":
+        for r in found.values():
+            if isinstance(r, dict) and "bytes_per_frame" in r:
+                r["bytes_per_frame_mb"] = r["bytes_per_frame"] / 1e6
+    return found
+
+
+def _slug(text: str) -> str:
+    import re
+
+    return re.sub(r"[^a-z0-9]+", "_", text.lower()).strip("_")
+
+
+def _sampler_table(ours: dict) -> dict:
+    """Relative MSE and time per sample count (rows) and sampler (columns)."""
+    names = ("independent", "multijitter", "multijitter + OIDN")
+    counts = sorted({spp for name, spp in ours if name in names})
+    rows = [[spp] + [f"{ours[(n, spp)][0][1]:.5f}, {ours[(n, spp)][1]:.2f} s" if (n, spp) in ours else ""
+                     for n in names] for spp in counts]
+    return {"columns": ["spp", *names], "rows": rows}
+
+
+def _people_table(ours: dict) -> dict:
+    """The rows with more samples on the people: spp + the people's, relative MSE, time."""
+    import re
+
+    found = []
+    for (name, spp), ((_, err), sec) in ours.items():
+        m = re.match(r"mj \+ (\d+) people \+ OIDN", name)
+        if m:
+            found.append((spp, int(m[1]), err, sec))
+    rows = [[f"{spp} + {people}", f"{err:.5f}", f"{sec:.2f} s"] for spp, people, err, sec in sorted(found)]
+    return {"columns": ["spp + people's spp, OIDN", "relative MSE", "time"], "rows": rows}
+
+
+def render_figures(found: dict) -> tuple[dict, dict, list]:
+    """bench_render's results as (figures, tables, images): per-frame times, the noise-against-time rows,
+    Cycles' rows, the comparison in turns, and the two figures copied into docs/images."""
+    import shutil
+
+    import numpy as np
+
+    figures = {key: {**r, "gt_pct": 100 * r["ground_truth"] / r["beauty"]} for key, r in found.items()
+               if key in ("llvm", "cuda")}
+    q = found["quality"]
+    ours = {f"{_slug(name)}_{spp}": {"error": err, "measured": measured, "seconds": sec}
+            for (name, spp), ((measured, err), sec) in q["ours"].items()}
+    figures["ours"] = ours
+    tables = {"samplers": _sampler_table(q["ours"]), "people": _people_table(q["ours"])}
+    if ("independent", 64) in q["ours"] and ("multijitter", 64) in q["ours"]:
+        (_, ind), ind_s = q["ours"][("independent", 64)]
+        (_, mj), mj_s = q["ours"][("multijitter", 64)]
+        figures["multijitter_64"] = {"less_error": ind / mj, "more_time_pct": 100 * (mj_s / ind_s - 1)}
+    images = []
+    for src, name in ((q.get("people_figure"), "museum_people_samples.png"), (q.get("figure"), "museum_vs_cycles.png")):
+        if src:
+            shutil.copyfile(src, ROOT / "docs" / "images" / name)
+            images.append(f"docs/images/{name}")
+    if isinstance(q.get("cycles"), dict):
+        figures["cycles"] = {_slug(label): {"error": err, "measured": measured, "seconds": sec}
+                             for label, ((measured, err), sec) in q["cycles"].items()}
+        tables["cycles"] = {"columns": ["Cycles CPU, 64 spp", "relative MSE", "time"],
+                            "rows": [[label, f"{err:.5f}", f"{sec:.2f} s"]
+                                     for label, ((_, err), sec) in q["cycles"].items()]}
+        figures["in_turns"] = {}
+        turns = []
+        for label, it in q.get("in_turns", {}).items():
+            ours_s, cycles_s = float(np.median(it["ours"])), float(np.median(it["cycles"]))
+            mine, theirs = float(np.mean(it["ours_error"])), float(np.mean(it["cycles_error"]))
+            setting = f"{it['key'][0]} at {it['key'][1]} spp"
+            figures["in_turns"][_slug(label)] = {"ours_setting": setting, "ours_s": ours_s, "cycles_s": cycles_s,
+                                                 "ours_error": mine, "cycles_error": theirs,
+                                                 "speedup": cycles_s / ours_s}
+            turns.append([label, f"{theirs:.6f} in {cycles_s:.2f} s", f"{setting}: {mine:.6f} in {ours_s:.2f} s",
+                          f"**{cycles_s / ours_s:.2f}x**"])
+        tables["in_turns"] = {"columns": ["Cycles frame", "Cycles", "usdcrowd", "faster"], "rows": turns}
+    return figures, tables, images
 
 
 def main(argv=None) -> int:
@@ -122,17 +231,29 @@ def main(argv=None) -> int:
     p.add_argument("--frames", type=int, default=300)
     p.add_argument("--sizes", default="1000,10000,100000", help="agent counts of the sim section")
     p.add_argument("--long", action="store_true", help="memory: also 10,000 agents x 10,000 frames")
+    p.add_argument("--record", action="store_true",
+                   help="write what each section measured to docs/data/bench_<section>.json and fill the pages")
     args = p.parse_args(argv)
     print(f"machine: {os.cpu_count()} cores, python {sys.version.split()[0]}")
+    found = {}
     if args.section in ("all", "author"):
-        bench_author(args.agents, args.frames)
+        found["author"] = bench_author(args.agents, args.frames)
     if args.section in ("all", "sim"):
-        bench_section("sim", sizes=tuple(int(s) for s in args.sizes.split(",")))
+        found["sim"] = bench_section("sim", sizes=tuple(int(s) for s in args.sizes.split(",")))
     for name in ("cameras", "moe", "preview", "render", "dataset"):
         if args.section in ("all", name):
-            bench_section(name)
+            found[name] = bench_section(name)
     if args.section in ("all", "memory"):
-        bench_section("memory", long=args.long)
+        found["memory"] = bench_section("memory", long=args.long)
+    if args.record:
+        from docfigures import record
+
+        for section, result in found.items():
+            if result:
+                source = "tools/bench.py" if section == "author" else f"tools/bench_{section}.py"
+                figures, tables, images = figures_of(section, result)
+                record(f"bench_{section}", source, figures=figures, tables=tables, images=images,
+                       command=f"python tools/bench.py {section}" + (" --long" if args.long and section == "memory" else ""))
     return 0
 
 

@@ -100,11 +100,14 @@ def run_case(cameras: int, n: int, frames: int = 96) -> dict:
             "tracking_at_end": tracking, "events": len(events)}
 
 
-def run(cases=((30, 100), (100, 10_000))) -> None:
+def run(cases=((30, 100), (100, 10_000))) -> list[dict]:
+    """Print and return one row per (cameras, characters) case."""
+    rows = []
     print(f"   {'cameras':>7} {'characters':>10} {'steps/s':>8} {'events ms':>9} {'cameras ms':>10} "
           f"{'tracking':>8} {'events':>6}")
     for cams, n in cases:
         r = run_case(cams, n)
+        rows.append(r)
         print(f"   {r['cameras']:>7} {r['characters']:>10,} {r['steps_per_s']:>8.1f} {r['events_ms']:>9.2f} "
               f"{r['cameras_ms']:>10.2f} {r['tracking_at_end']:>8.0%} {r['events']:>6}")
         if (cams, n) == PAPER[:2]:
@@ -112,6 +115,7 @@ def run(cases=((30, 100), (100, 10_000))) -> None:
                   f"included): {r['steps_per_s'] / PAPER[2]:.1f}x")
         if (cams, n) == (100, 10_000):
             print(f"   target >= {TARGET_STEPS:.0f} steps/s: {r['steps_per_s'] / TARGET_STEPS:.2f}x of target")
+    return rows
 
 
 if __name__ == "__main__":

@@ -54,7 +54,8 @@ def _make(spec: Path, out: Path, executor: str, workers: int) -> dict:
             "bytes_per_frame": size / max(r.frames, 1)}
 
 
-def run() -> None:
+def run() -> dict:
+    """Print and return each run's rate and size, the scaling and the projection."""
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         spec = tmp / "spec.toml"
@@ -77,6 +78,11 @@ def run() -> None:
         print(f"projection: {MACHINES} machines like this one, {best['per_hour'] * MACHINES:,.0f} frames/hour "
               f"({best['per_hour'] * MACHINES * best['bytes_per_frame'] / 3600 / 1e6:.1f} MB/s to the shared "
               f"file system), if the file system keeps up and each machine runs its best configuration here")
+    found = {name.replace(" ", "_"): r for name, r in runs.items()}
+    found["scaling"] = runs["ray x1"]["seconds"] / runs["ray x2"]["seconds"] if "ray x2" in runs and "ray x1" in runs else None
+    found["projection"] = {"machines": MACHINES, "per_hour": best["per_hour"] * MACHINES,
+                           "mb_per_s": best["per_hour"] * MACHINES * best["bytes_per_frame"] / 3600 / 1e6}
+    return found
 
 
 if __name__ == "__main__":

@@ -91,28 +91,33 @@ def _line(r: dict) -> str:
             f"{r['refilm_private_mib']:,} MiB private ({r['refilm_rss_mib']:,} MiB with the shot's mapped files)")
 
 
-def run(long: bool = False) -> None:
+def run(long: bool = False) -> dict:
+    """Print and return simulate's and re-filming's peaks at 750 and 6,000 frames (and the long run)."""
     try:
         import psutil  # noqa: F401
     except ImportError:
         print("   psutil is not installed (pip install -e '.[bench]'): skipped")
-        return
+        return {}
     print("   usdcrowd simulate (events and camera agents on), peak resident memory of the command and its workers")
     short = simulate_peak(300, SHORT)
     print(_line(short))
     longer = simulate_peak(300, LONG)
     print(_line(longer))
     growth = longer["peak_mib"] / short["peak_mib"] - 1
+    found = {"short": short, "long": longer, "growth_pct": 100 * growth}
     print(f"   simulate: {LONG // SHORT}x the frames, peak {growth:+.1%} (target within {GROWTH_TARGET:.0%}: "
           f"{'met' if abs(growth) <= GROWTH_TARGET else 'missed'})")
     growth = longer["refilm_private_mib"] / short["refilm_private_mib"] - 1
     # A 750-frame shot is read in one full window and a short one; longer shots reach the
     # full per-window peak (a window plus the look-back to unblended poses) and stay there.
     print(f"   cameras: {LONG // SHORT}x the frames, private peak {growth:+.1%} (a window of frames and its look-back)")
+    found["refilm_growth_pct"] = 100 * growth
     if long:
         big = simulate_peak(10_000, 10_000)
         print(_line(big))
         print(f"   target <= {BIG_TARGET_GIB:.0f} GiB: {big['peak_mib'] / 1024 / BIG_TARGET_GIB:.2f}x of budget")
+        found["big"] = big
+    return found
 
 
 def main(argv=None) -> int:

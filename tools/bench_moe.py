@@ -24,7 +24,8 @@ def _rate(fn, min_seconds: float = 1.0) -> tuple[float, int]:
     return n / (time.perf_counter() - t0), n
 
 
-def run() -> None:
+def run() -> dict:
+    """Print and return the learned cameras' rates and the weights' size."""
     from usdcrowd.cameras.moe import CameraMoE
     from usdcrowd.cameras.moe_data import make_clip
 
@@ -47,3 +48,5 @@ def run() -> None:
     print(f"prediction, batches of 256: {batched * 256:,.0f}/s")
     print(f"gating network on one reference: {1e3 / gate:.1f} ms; roll-out of 480 frames: {1e3 / roll:.1f} ms "
           f"({480 * roll:,.0f} frames/s)")
+    return {"weights_mb": model.size_bytes / 1e6, "predictions_per_s": single, "batched_per_s": batched * 256,
+            "gate_ms": 1e3 / gate, "rollout_ms": 1e3 / roll, "target_per_s": TARGET_PER_S}

@@ -323,10 +323,9 @@ def bench_quality(shot: str, camera: str = "/World/Cameras/Overview") -> dict:
          (denoised[people], f"{people[1]} + {PEOPLE_ROWS[1][0]} on people + OIDN"),
          ((halves[0] + halves[1]) / 2, f"{REFERENCE_SPP} spp")], PEOPLE_FIGURE)
     try:
-        sys.path.insert(0, str(ROOT / "tests"))
-        from tool_venvs import tool_python
+        from tests.helpers.venvs import BPY, tool_python
 
-        python = tool_python("bpy", ["bpy==5.0.1"], "USDCROWD_BPY_VENV")
+        python = tool_python("bpy", BPY, "USDCROWD_BPY_VENV")
     except BaseException as exc:                                  # pytest.skip raises a BaseException
         out["cycles"] = f"Blender's bpy is not installed here ({exc}): Cycles not measured"
         return out

@@ -66,6 +66,13 @@ def main() -> int:
     Path(a.output).parent.mkdir(parents=True, exist_ok=True)
     sheet.save(a.output)
     print(f"wrote {a.output}")
+    out = Path(a.output).resolve()
+    if out.is_relative_to(ROOT / "docs"):
+        sys.path.insert(0, str(ROOT / "tools"))
+        from docfigures import record
+
+        record("denoise_figure", "tools/make_denoise_figure.py", figures={"spp": a.spp, "agents": 200},
+               images=[out.relative_to(ROOT).as_posix()])
     return 0
 
 

@@ -177,6 +177,9 @@ def main() -> int:
     p.add_argument("--install", action="store_true", help="copy the weights into the package")
     p.add_argument("--config", default="{}",
                    help='JSON overriding the model and training config, e.g. \'{"noise": 0.1}\'')
+    p.add_argument("--record", action="store_true",
+                   help="copy summary.csv, history.csv and the plot into docs/ and record the figures the camera "
+                        "researcher's guide quotes (docs/data/camera_moe.json)")
     p.add_argument("--evaluate-only", action="store_true",
                    help="evaluate the weights, CSV and history already in --out (no training)")
     a = p.parse_args()
@@ -227,11 +230,73 @@ def main() -> int:
     sil = [float(r["silhouette"]) for r in hist if r["model"] == "moe"]
     print(f"silhouette of the gating outputs: first epoch {sil[0]:.3f}, last {sil[-1]:.3f}")
     print("plots:", *plots(out, out / "errors.csv", out / "history.csv"))
+    if a.record:
+        record_figures(out, summary, sil, rows)
     if a.install:
         dest = ROOT / "usdcrowd" / "cameras" / "camera_moe.npz"
         shutil.copy(out / "camera_moe.npz", dest)
         print(f"installed {dest} ({dest.stat().st_size / 1e6:.2f} MB)")
     return 0
+
+
+def record_figures(out: Path, summary: list[dict], silhouette: list[float], rows: list[dict]) -> None:
+    """The guide's figures: the summary per behavior, the silhouette's rise, the spread of single orbits."""
+    sys.path.insert(0, str(ROOT / "tools"))
+    from docfigures import record
+
+    docs = ROOT / "docs"
+    shutil.copyfile(out / "summary.csv", docs / "camera_moe_summary.csv")
+    shutil.copyfile(out / "history.csv", docs / "camera_moe_history.csv")
+    shutil.copyfile(out / "camera_moe_evaluation.png", docs / "images" / "camera_moe_evaluation.png")
+    hist = list(csv.DictReader(open(out / "history.csv")))
+    orbit_turns = [r[f"{name}_turn_ratio"] for r in rows for name in ("own_clip", "same_motion", "other_motion")
+                   if np.isfinite(r[f"{name}_turn_ratio"])]
+    figures = {line["behavior"].replace("-", "_"): {k: v for k, v in line.items() if k != "behavior"}
+               for line in summary}
+    figures["silhouette"] = {"first": silhouette[0], "last": silhouette[-1]}
+    figures["training_s"] = sum(float(r["seconds"]) for r in hist)
+    figures["training_min"] = figures["training_s"] / 60
+    if orbit_turns:
+        figures["orbit_turn_ratio"] = {"min": float(np.min(orbit_turns)), "max": float(np.max(orbit_turns))}
+    figures["ranges"] = _ranges(summary)
+    record("camera_moe", "tools/train_camera_moe.py", figures=figures, tables={"summary": _summary_table(summary)},
+           images=["docs/images/camera_moe_evaluation.png"])
+
+
+ROLLOUTS = ("own_clip", "same_motion", "other_motion", "other_motion_warm")
+
+
+def _summary_table(summary: list[dict]) -> dict:
+    """The guide's table: one prediction's direction error, then theta error mean / median per roll-out."""
+    def pair(a, b):
+        return " / ".join(f"{v:.1f}" if abs(v) < 50 else f"{v:.0f}" for v in (a, b))
+
+    rows = [[line["behavior"].replace("-", " "), pair(line["moe_direction_deg"], line["shared_bottom_direction_deg"]),
+             *(pair(line[f"rollout_{r}_theta_deg"], line[f"rollout_{r}_theta_median_deg"]) for r in ROLLOUTS)]
+            for line in summary]
+    return {"columns": ["behavior", "direction error, MoE / shared bottom (one prediction, deg)",
+                        "roll-out on its own clip", "on another pair, same kind of motion",
+                        "on another kind of motion", "the same, started from the true framing"], "rows": rows}
+
+
+def _ranges(summary: list[dict]) -> dict:
+    """Ranges the guide's prose quotes: the tracks' medians by roll-out, the one-prediction errors."""
+    by = {line["behavior"]: line for line in summary}
+    tracks = [b for b in by if b.endswith("track")]
+    steady = [by[b] for b in ("direct-track", "side-track") if b in by]
+
+    def span(lines, key):
+        values = [line[key] for line in lines]
+        return {"min": float(min(values)), "max": float(max(values))}
+
+    return {"steady_same_kind": span(steady, "rollout_same_motion_theta_median_deg")
+            | {"max": float(max(max(line["rollout_own_clip_theta_median_deg"], line[
+                "rollout_same_motion_theta_median_deg"]) for line in steady))},
+            "steady_other_kind": span(steady, "rollout_other_motion_theta_median_deg"),
+            "relative": span([by["relative-track"]], "rollout_own_clip_theta_median_deg")
+            | {"max": float(max(by["relative-track"][f"rollout_{r}_theta_median_deg"] for r in ROLLOUTS))},
+            "tracks_moe": span([by[b] for b in tracks], "moe_direction_deg"),
+            "tracks_shared_bottom": span([by[b] for b in tracks], "shared_bottom_direction_deg")}
 
 
 if __name__ == "__main__":
