@@ -306,6 +306,21 @@ def apply_look_at(rotations: np.ndarray, position: np.ndarray, heading: np.ndarr
         Local joint quaternions.
     """
     rot = np.array(rotations, dtype=np.float64)
+    yaw, pitch, has = _look_angles(position, heading, height, target)
+    weight = has.astype(np.float64)
+    if max_step is not None:
+        _rate_limit_look(yaw, pitch, weight, has, max_step, state)
+    # Only agents looking at something (or still turning back) change; most
+    # of a crowd usually does not, so the quaternion work runs on those alone.
+    on = weight > 0.0
+    if not on.any():
+        return rot
+    rot[on] = _turn_torso_and_head(rot[on], yaw[on], pitch[on], weight[on])
+    return rot
+
+
+def _look_angles(position, heading, height, target):
+    """Body-relative yaw and pitch from eyes to target within the head's limits, and where a target is."""
     position = np.asarray(position, dtype=np.float64)
     target = np.asarray(target, dtype=np.float64)
     height = np.broadcast_to(np.asarray(height, dtype=np.float64), np.shape(heading))
@@ -316,29 +331,30 @@ def apply_look_at(rotations: np.ndarray, position: np.ndarray, heading: np.ndarr
     pitch = np.where(has, np.arctan2(d[..., 2], np.hypot(d[..., 0], d[..., 1])), 0.0)
     yaw = np.clip(yaw, -HEAD_YAW_LIMIT, HEAD_YAW_LIMIT)
     pitch = np.clip(pitch, -HEAD_PITCH_LIMIT, HEAD_PITCH_LIMIT)
-    weight = has.astype(np.float64)
-    if max_step is not None:  # rate-limit angles and the on/off weight alike
-        # Fading in or out takes as long as sweeping the head over its range.
-        w_step = max_step / HEAD_YAW_LIMIT
-        before = None if state is None or state.yaw is None else (state.yaw, state.pitch, state.weight)
-        for t in range(len(yaw)):
-            if t == 0 and before is None:
-                continue
-            p_yaw, p_pitch, p_weight = before if t == 0 else (yaw[t - 1], pitch[t - 1], weight[t - 1])
-            yaw[t] = p_yaw + np.clip(yaw[t] - p_yaw, -max_step, max_step)
-            pitch[t] = p_pitch + np.clip(pitch[t] - p_pitch, -max_step, max_step)
-            weight[t] = p_weight + np.clip(weight[t] - p_weight, -w_step, w_step)
-            # Where there is no target, the angles hold while the weight fades.
-            yaw[t] = np.where(has[t], yaw[t], p_yaw)
-            pitch[t] = np.where(has[t], pitch[t], p_pitch)
-        if state is not None and len(yaw):
-            state.yaw, state.pitch, state.weight = yaw[-1].copy(), pitch[-1].copy(), weight[-1].copy()
-    # Only agents looking at something (or still turning back) change; most
-    # of a crowd usually does not, so the quaternion work runs on those alone.
-    on = weight > 0.0
-    if not on.any():
-        return rot
-    yaw, pitch, weight, r = yaw[on], pitch[on], weight[on], rot[on]
+    return yaw, pitch, has
+
+
+def _rate_limit_look(yaw, pitch, weight, has, max_step, state):
+    """Rate-limit angles and on/off weight alike, in place, carrying ``state`` across chunks."""
+    # Fading in or out takes as long as sweeping the head over its range.
+    w_step = max_step / HEAD_YAW_LIMIT
+    before = None if state is None or state.yaw is None else (state.yaw, state.pitch, state.weight)
+    for t in range(len(yaw)):
+        if t == 0 and before is None:
+            continue
+        p_yaw, p_pitch, p_weight = before if t == 0 else (yaw[t - 1], pitch[t - 1], weight[t - 1])
+        yaw[t] = p_yaw + np.clip(yaw[t] - p_yaw, -max_step, max_step)
+        pitch[t] = p_pitch + np.clip(pitch[t] - p_pitch, -max_step, max_step)
+        weight[t] = p_weight + np.clip(weight[t] - p_weight, -w_step, w_step)
+        # Where there is no target, the angles hold while the weight fades.
+        yaw[t] = np.where(has[t], yaw[t], p_yaw)
+        pitch[t] = np.where(has[t], pitch[t], p_pitch)
+    if state is not None and len(yaw):
+        state.yaw, state.pitch, state.weight = yaw[-1].copy(), pitch[-1].copy(), weight[-1].copy()
+
+
+def _turn_torso_and_head(r, yaw, pitch, weight):
+    """``r`` (m, 3, 4) with torso and head turned by the look angles, eased in by ``weight``; legs kept."""
     torso_yaw = np.clip(TORSO_SHARE * yaw, -TORSO_YAW_LIMIT, TORSO_YAW_LIMIT)
     legs = r[:, 0, :]
     torso = quat_multiply(legs, r[:, 1, :])
@@ -350,8 +366,7 @@ def apply_look_at(rotations: np.ndarray, position: np.ndarray, heading: np.ndarr
     torso_new = quat_slerp(torso, torso_new, weight)
     r[:, 1, :] = quat_multiply(quat_conjugate(legs), torso_new)
     r[:, 2, :] = quat_multiply(quat_conjugate(torso_new), head_new)
-    rot[on] = r
-    return rot
+    return r
 
 
 def head_forward(rotations: np.ndarray) -> np.ndarray:

@@ -336,13 +336,37 @@ def make_dataset(spec_path, out_dir, executor: str = "local", workers: int = 1, 
 
     t0 = _time.perf_counter()
     spec = load_spec(spec_path)
+    indices = _chosen_sequences(spec, executor, address, only)
+    settings = _settings(spec)
+    out, all_plans, plans = _open_dataset(spec, out_dir, indices, progress, force, only)
+
+    # Cameras per sequence before preparing: every one planned (a toric camera may turn out impossible).
+    guess = {i: p["steering"] + len(p["static"]) + bool(p["toric"]) + bool(p["overview"]) for i, p in plans.items()}
+    bar = tqdm(total=sum(guess[i] * spec.frames for i in indices), unit="frame", desc="dataset",
+               disable=not progress, dynamic_ncols=True, smoothing=0.1)
+    ex = _executor(executor, workers, address)
+    run = _Run(out, plans, settings, bar, ex, guess, n_sequences=len(indices))
+    clear_merged(out)
+    _run_tasks(run, spec, indices)
+    return _result(run, spec, all_plans, t0)
+
+
+def _chosen_sequences(spec: DatasetSpec, executor: str, address: str | None, only: list[int] | None) -> list[int]:
+    """The sequence indices to make, sorted; refuses an address without Ray and indices the spec lacks."""
     if address and executor != "ray":
         raise UsdcrowdError("--address is a Ray cluster's: give it with --executor ray")
     indices = list(range(spec.sequences)) if only is None else sorted(set(only))
     bad = [i for i in indices if not 0 <= i < spec.sequences]
     if bad:
         raise UsdcrowdError(f"no sequence {bad[0]}: the spec has {spec.sequences} (0 to {spec.sequences - 1})")
-    settings = _settings(spec)
+    return indices
+
+
+def _open_dataset(spec: DatasetSpec, out_dir, indices: list[int], progress: bool, force: bool,
+                  only: list[int] | None) -> tuple[Path, dict, dict]:
+    """The dataset folder cleaned and marked "in progress" for this spec, with all plans and those to make."""
+    from tqdm import tqdm
+
     out = output_dir(out_dir, "dataset")
     clean_partials(out, depth=DEPTH)        # frames in flight when an earlier run was stopped
     _check_existing(out, spec, force)
@@ -357,19 +381,17 @@ def make_dataset(spec_path, out_dir, executor: str = "local", workers: int = 1, 
         with atomic_path(out / "spec.toml") as tmp:
             shutil.copyfile(spec.path, tmp)
     _write_manifest(out, spec, all_plans, state="in progress")
+    return out, all_plans, plans
 
-    # Cameras per sequence before preparing: every one planned (a toric camera may turn out impossible).
-    guess = {i: p["steering"] + len(p["static"]) + bool(p["toric"]) + bool(p["overview"]) for i, p in plans.items()}
-    bar = tqdm(total=sum(guess[i] * spec.frames for i in indices), unit="frame", desc="dataset",
-               disable=not progress, dynamic_ncols=True, smoothing=0.1)
-    ex = _executor(executor, workers, address)
-    run = _Run(out, plans, settings, bar, ex, guess, n_sequences=len(indices))
-    clear_merged(out)
+
+def _run_tasks(run: _Run, spec: DatasetSpec, indices: list[int]) -> None:
+    """Prepare and render the sequences of ``indices`` as results arrive; on any exit keep the frames in."""
+    ex, out = run.ex, run.out
     try:
         spec_dict = asdict(spec)
         for i in indices:
-            seq_dir = out / "sequences" / plans[i]["name"]
-            run.pending[ex.submit(prepare_task, plans[i], spec_dict, os.fspath(seq_dir))] = ("prepare", i)
+            seq_dir = out / "sequences" / run.plans[i]["name"]
+            run.pending[ex.submit(prepare_task, run.plans[i], spec_dict, os.fspath(seq_dir))] = ("prepare", i)
         while run.pending:
             finished, _ = ex.wait(list(run.pending))
             for fut, result in finished:
@@ -387,7 +409,12 @@ def make_dataset(spec_path, out_dir, executor: str = "local", workers: int = 1, 
         for state in run.cams.values():
             state["manifest"].flush()
         ex.close()
-        bar.close()
+        run.bar.close()
+
+
+def _result(run: _Run, spec: DatasetSpec, all_plans: dict, t0: float) -> DatasetResult:
+    """Merge every sequence made (by this run or earlier ones), write the final manifest, say what was done."""
+    out, settings = run.out, run.settings
     prepared, written, notes, rendered, n_prepared = run.prepared, run.written, run.notes, run.rendered, run.n_prepared
     # Sequences made by earlier runs (with --sequences) belong to the dataset too.
     for i, plan in all_plans.items():

@@ -105,59 +105,14 @@ class GroupTracker:
         eligible : (n,) bool
             Agents that may take part (visible, alive).
         """
-        p = self.p
-        n = len(self.owner)
-        idx = np.flatnonzero(eligible)
-        labels = np.full(n, -1, np.int64)
-        labels[idx] = find_groups(position[idx, :2], velocity[idx], self.ctype[idx], p)
-        has = labels >= 0
-        sizes = np.bincount(labels[has]) if has.any() else np.zeros(0, np.int64)
-        # Groups too small to keep an event are no groups at all.
-        small = sizes < p.min_members_keep
-        labels[has] = np.where(small[labels[has]], -1, labels[has])
-        has = labels >= 0
+        labels, sizes, small = self._groups(position, velocity, eligible)
 
         # Members not seen in their event's group for too long are let go.
         stale = (self.owner >= 0) & (frame - self.last_seen > self.member_gap)
         self.owner[stale] = -1
 
-        # Members of each group, by label.
-        order = np.flatnonzero(has)[np.argsort(labels[has], kind="stable")]
-        bounds = np.concatenate([[0], np.cumsum(np.bincount(labels[has], minlength=len(sizes)))])
-
-        # Overlaps between groups and running events' current members.
-        matched_g: dict[int, int] = {}
-        both = has & (self.owner >= 0)
-        if both.any():
-            k = self.next_key
-            pair, common = np.unique(labels[both] * k + self.owner[both], return_counts=True)
-            g, e = pair // k, pair % k
-            esize = np.bincount(self.owner[self.owner >= 0], minlength=k)
-            ok = common >= p.match_overlap * np.minimum(sizes[g], esize[e])
-            g, e, common = g[ok], e[ok], common[ok]
-            taken_e: set[int] = set()
-            # Largest overlap first; ties by older event, then by group's first agent.
-            for i in np.lexsort((g, e, -common)):
-                gi, ei = int(g[i]), int(e[i])
-                if gi in matched_g or ei in taken_e:
-                    continue
-                matched_g[gi] = ei
-                taken_e.add(ei)
-
-        for gi in range(len(sizes)):
-            if small[gi]:
-                continue
-            rows = order[bounds[gi]:bounds[gi + 1]]
-            ei = matched_g.get(gi)
-            if ei is None:
-                if len(rows) < p.min_members_create:
-                    continue
-                ei = self.next_key
-                self.next_key += 1
-                self.running[ei] = _Track(ei, frame)
-            self.running[ei].detected = frame
-            self.running[ei].n_detected += 1
-            self._support(self.running[ei], rows, frame)
+        matched_g = self._match(labels, sizes)
+        self._continue_or_start(frame, labels, sizes, small, matched_g)
 
         # Events no group continues may go on, for a while, with their own
         # members that still move together: the grid misses a small group
@@ -175,6 +130,64 @@ class GroupTracker:
 
         if self.running:
             self._sample(frame, time, position)
+
+    def _groups(self, position: np.ndarray, velocity: np.ndarray, eligible: np.ndarray):
+        """Group label per agent ((n,) int, -1: none), group sizes, and which groups are too small."""
+        p = self.p
+        n = len(self.owner)
+        idx = np.flatnonzero(eligible)
+        labels = np.full(n, -1, np.int64)
+        labels[idx] = find_groups(position[idx, :2], velocity[idx], self.ctype[idx], p)
+        has = labels >= 0
+        sizes = np.bincount(labels[has]) if has.any() else np.zeros(0, np.int64)
+        # Groups too small to keep an event are no groups at all.
+        small = sizes < p.min_members_keep
+        labels[has] = np.where(small[labels[has]], -1, labels[has])
+        return labels, sizes, small
+
+    def _match(self, labels: np.ndarray, sizes: np.ndarray) -> dict[int, int]:
+        """``{group label: event key}``, greedily by the overlap of groups with events' current members."""
+        p = self.p
+        matched_g: dict[int, int] = {}
+        both = (labels >= 0) & (self.owner >= 0)
+        if both.any():
+            k = self.next_key
+            pair, common = np.unique(labels[both] * k + self.owner[both], return_counts=True)
+            g, e = pair // k, pair % k
+            esize = np.bincount(self.owner[self.owner >= 0], minlength=k)
+            ok = common >= p.match_overlap * np.minimum(sizes[g], esize[e])
+            g, e, common = g[ok], e[ok], common[ok]
+            taken_e: set[int] = set()
+            # Largest overlap first; ties by older event, then by group's first agent.
+            for i in np.lexsort((g, e, -common)):
+                gi, ei = int(g[i]), int(e[i])
+                if gi in matched_g or ei in taken_e:
+                    continue
+                matched_g[gi] = ei
+                taken_e.add(ei)
+        return matched_g
+
+    def _continue_or_start(self, frame: int, labels: np.ndarray, sizes: np.ndarray, small: np.ndarray,
+                           matched_g: dict[int, int]) -> None:
+        """Each kept group continues its matched event, or starts one if it is big enough."""
+        has = labels >= 0
+        # Members of each group, by label.
+        order = np.flatnonzero(has)[np.argsort(labels[has], kind="stable")]
+        bounds = np.concatenate([[0], np.cumsum(np.bincount(labels[has], minlength=len(sizes)))])
+        for gi in range(len(sizes)):
+            if small[gi]:
+                continue
+            rows = order[bounds[gi]:bounds[gi + 1]]
+            ei = matched_g.get(gi)
+            if ei is None:
+                if len(rows) < self.p.min_members_create:
+                    continue
+                ei = self.next_key
+                self.next_key += 1
+                self.running[ei] = _Track(ei, frame)
+            self.running[ei].detected = frame
+            self.running[ei].n_detected += 1
+            self._support(self.running[ei], rows, frame)
 
     def _support(self, track: _Track, rows: np.ndarray, frame: int) -> None:
         """``rows`` (k,) are the event's group at ``frame``."""

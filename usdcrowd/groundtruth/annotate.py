@@ -129,6 +129,41 @@ def _box(x0, y0, x1, y1) -> list[float]:
     return [float(x0), float(y0), float(x1 - x0), float(y1 - y0)]
 
 
+def _visible_pixels(ids: np.ndarray) -> dict[int, np.ndarray]:
+    """Flat pixel indices of each agent id in the id pass, ascending, in one pass over the image."""
+    flat = ids.ravel()
+    agent_px = np.flatnonzero(is_agent_id(flat))
+    order = np.argsort(flat[agent_px], kind="stable")
+    agent_px = agent_px[order]
+    px_ids = flat[agent_px]
+    uniq, first, counts = np.unique(px_ids, return_index=True, return_counts=True)
+    return {int(i): agent_px[s:s + c] for i, s, c in zip(uniq, first, counts)}
+
+
+def _amodal_box(cam, vertices: np.ndarray, w: int, h: int) -> list[float] | None:
+    """Box of the mesh's vertices in front of the camera, unclipped; None if none is."""
+    uv, z = cam.project(vertices, w, h)
+    front = z > cam.near
+    if not front.any():
+        return None
+    lo, hi = uv[front].min(0), uv[front].max(0)
+    return _box(lo[0], lo[1], hi[0], hi[1])
+
+
+def _keypoints(cam, points: np.ndarray, gt, aid: int, w: int, h: int):
+    """``[u, v, flag]`` per keypoint (COCO: 0 not in image, 1 occluded, 2 visible) and its camera depth."""
+    kuv, kz = cam.project(points, w, h)
+    kps = []
+    for (u, v), zk in zip(kuv, kz):
+        flag = 0
+        if zk > cam.near and 0 <= u < w and 0 <= v < h:
+            col, row = int(u), int(v)
+            seen = gt.ids[row, col] == aid or gt.depth_z[row, col] >= zk - KEYPOINT_TOLERANCE
+            flag = 2 if seen else 1
+        kps.append([float(u), float(v), flag] if np.isfinite(u) and np.isfinite(v) else [0.0, 0.0, 0])
+    return kps, kz
+
+
 def annotate_frame(result, metadata: AgentMetadata | None = None, keypoint_names=None) -> dict:
     """The JSON-ready record of one rendered frame.
 
@@ -157,15 +192,7 @@ def annotate_frame(result, metadata: AgentMetadata | None = None, keypoint_names
     cam, poses = result.camera, result.poses
     names = tuple(keypoint_names or rig.KEYPOINT_NAMES)
 
-    # Visible pixels of every agent in one pass over the id image: sort agent pixels by id.
-    flat = gt.ids.ravel()
-    agent_px = np.flatnonzero(is_agent_id(flat))
-    order = np.argsort(flat[agent_px], kind="stable")
-    agent_px = agent_px[order]
-    px_ids = flat[agent_px]
-    uniq, first, counts = np.unique(px_ids, return_index=True, return_counts=True)
-    visible = {int(i): agent_px[s:s + c] for i, s, c in zip(uniq, first, counts)}
-
+    visible = _visible_pixels(gt.ids)
     keypoints = poses.keypoints() if len(poses) else np.zeros((0, len(names), 3))
     agents = []
     for i, path in enumerate(poses.paths):
@@ -176,23 +203,8 @@ def annotate_frame(result, metadata: AgentMetadata | None = None, keypoint_names
         px = visible.get(aid, np.zeros(0, np.int64))
         ys, xs = np.divmod(px, w)
         bbox_visible = _box(xs.min(), ys.min(), xs.max() + 1, ys.max() + 1) if px.size else None
-        uv, z = cam.project(result.vertices[i], w, h)
-        front = z > cam.near
-        if front.any():
-            lo, hi = uv[front].min(0), uv[front].max(0)
-            bbox_amodal = _box(lo[0], lo[1], hi[0], hi[1])
-        else:
-            bbox_amodal = None
-        # Keypoints with visibility flags (COCO: 0 not in image, 1 occluded, 2 visible).
-        kuv, kz = cam.project(keypoints[i], w, h)
-        kps = []
-        for (u, v), zk in zip(kuv, kz):
-            flag = 0
-            if zk > cam.near and 0 <= u < w and 0 <= v < h:
-                col, row = int(u), int(v)
-                seen = gt.ids[row, col] == aid or gt.depth_z[row, col] >= zk - KEYPOINT_TOLERANCE
-                flag = 2 if seen else 1
-            kps.append([float(u), float(v), flag] if np.isfinite(u) and np.isfinite(v) else [0.0, 0.0, 0])
+        bbox_amodal = _amodal_box(cam, result.vertices[i], w, h)
+        kps, kz = _keypoints(cam, keypoints[i], gt, aid, w, h)
         joints = poses.joints_world[i]
         heading = float(np.arctan2(joints[0, 0, 1], joints[0, 0, 0]))      # legs joint's +X, the facing
         entry = {

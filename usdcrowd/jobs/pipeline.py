@@ -99,14 +99,11 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
 
     from ..atomic import restored_on_failure
     from ..events import EventDetector
-    from ..events.scenario import layer_events
     from ..scenario import stage_frame
     from ..scenario.parent_space import ParentSpace
     from ..usd import CAMERAS, CROWD, CrowdLayerWriter, write_shot
-    from ..usd.cameras import write_camera_tracks
     from ..usd.crowd_layer import write_group_properties
     from ..usd.events import author_events
-    from .plots import trajectory_map
 
     scenario_path = os.fspath(scenario_path)
     out_dir = Path(out_dir)
@@ -140,24 +137,15 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
             _author_frames(writer, crowd_source(scenario), scenario, plotted, stride, progress,
                            collected, detector if events else None)
             positions = collected.positions
-            detected = list(detector.finish()) + layer_events(
-                scenario.fields, positions, scenario.time.codes, scenario.agents.visible, detector.scope) if events else []
-            shot_events = model.EventTable(list(scenario.events) + detected)
+            shot_events = _shot_events(scenario, detector, positions, events)
             with Sdf.ChangeBlock():
                 n_events = author_events(writer.layer, shot_events, scenario.agents.path, scenario.agents.agent_id,
                                          sframe, parents=space)
             # The part writers save while the cameras and the picture are made.
             writer.start_saving()
-            tracks = film_cameras(scenario, positions, shot_events, default_prim, progress, count=camera_count,
-                                  summary=collected.summary())
-            cameras = write_camera_tracks(out_dir, tracks, sframe, default_prim, scenario.time,
-                                          defined={p for p in scenario.cameras.path},
-                                          extra={"seed": int(scenario.seed), "events": len(shot_events)},
-                                          parents=space, keep_toric=True)
-            plot = trajectory_map(_subset(scenario, plotted), np.concatenate(collected.tracks),
-                                  out_dir / "trajectories.png",
-                                  title=f"{Path(scenario_path).name}: {len(scenario.agents)} agents, "
-                                        f"{scenario.time.n_frames} frames, seed {scenario.seed}")
+            tracks, cameras = _write_cameras(out_dir, scenario, collected, shot_events, default_prim, sframe,
+                                             space, progress, camera_count)
+            plot = _plot_trajectories(out_dir, scenario_path, scenario, plotted, collected)
             crowd = writer.save()
         except BaseException:
             writer.abort()          # stop the part writers; nothing half-written is left behind
@@ -170,6 +158,40 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     camera = tracks[0].path
     return ShotResult(shot, crowd, cameras, camera, plot, len(scenario.agents), scenario.time.n_frames,
                       scenario.seed, [t.path for t in tracks], n_events)
+
+
+def _shot_events(scenario: model.Scenario, detector, positions: FrameStore, events: bool) -> model.EventTable:
+    """The scenario's authored events and, when ``events``, those detected in the crowd and its fields."""
+    from ..events.scenario import layer_events
+
+    detected = list(detector.finish()) + layer_events(
+        scenario.fields, positions, scenario.time.codes, scenario.agents.visible, detector.scope) if events else []
+    return model.EventTable(list(scenario.events) + detected)
+
+
+def _write_cameras(out_dir: Path, scenario: model.Scenario, collected: _Collected, shot_events: model.EventTable,
+                   default_prim: str, sframe, space, progress: bool, camera_count: int | None):
+    """The shot's camera tracks, filmed and written to the cameras layer: (tracks, the layer's path)."""
+    from ..usd.cameras import write_camera_tracks
+
+    tracks = film_cameras(scenario, collected.positions, shot_events, default_prim, progress, count=camera_count,
+                          summary=collected.summary())
+    cameras = write_camera_tracks(out_dir, tracks, sframe, default_prim, scenario.time,
+                                  defined={p for p in scenario.cameras.path},
+                                  extra={"seed": int(scenario.seed), "events": len(shot_events)},
+                                  parents=space, keep_toric=True)
+    return tracks, cameras
+
+
+def _plot_trajectories(out_dir: Path, scenario_path: str, scenario: model.Scenario, plotted: np.ndarray,
+                       collected: _Collected) -> str:
+    """trajectories.png: the sampled tracks of the ``plotted`` agents, titled with the shot's size and seed."""
+    from .plots import trajectory_map
+
+    return trajectory_map(_subset(scenario, plotted), np.concatenate(collected.tracks),
+                          out_dir / "trajectories.png",
+                          title=f"{Path(scenario_path).name}: {len(scenario.agents)} agents, "
+                                f"{scenario.time.n_frames} frames, seed {scenario.seed}")
 
 
 def _read_scenario(scenario_path: str, seed, frames, limits):

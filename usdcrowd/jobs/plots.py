@@ -36,14 +36,9 @@ def trajectory_map(scenario: model.Scenario, positions: np.ndarray, out_png: str
     """
     from PIL import Image, ImageDraw
 
-    lo, hi = scenario.bounds
     pts = positions[..., :2]
     finite = np.isfinite(pts).all(-1)
-    if finite.any():
-        lo = np.minimum(lo, pts[finite].min(0))
-        hi = np.maximum(hi, pts[finite].max(0))
-    pad = 0.04 * (hi - lo).max() + 1.0
-    lo, hi = lo - pad, hi + pad
+    lo, hi = _map_bounds(scenario.bounds, pts, finite)
     scale = width / (hi[0] - lo[0])
     height = max(200, int(round((hi[1] - lo[1]) * scale)))
     img = Image.new("RGB", (width, height + 40), _BACKGROUND)
@@ -52,6 +47,28 @@ def trajectory_map(scenario: model.Scenario, positions: np.ndarray, out_png: str
     def px(xy):
         xy = np.asarray(xy, dtype=np.float64)
         return np.stack([(xy[..., 0] - lo[0]) * scale, (hi[1] - xy[..., 1]) * scale], -1)
+
+    _draw_scenery(img, draw, scenario, px, scale)
+    _draw_tracks(draw, scenario.agents, pts, finite, px, scale)
+    _draw_scale_bar(draw, hi[0] - lo[0], scale, width, height, title or os.path.basename(scenario.source))
+    with atomic_path(out_png) as tmp:
+        img.save(tmp, format="PNG")
+    return os.fspath(out_png)
+
+
+def _map_bounds(bounds, pts: np.ndarray, finite: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The map's (lo, hi) corners: the scenario's bounds grown to every finite position, then padded."""
+    lo, hi = bounds
+    if finite.any():
+        lo = np.minimum(lo, pts[finite].min(0))
+        hi = np.maximum(hi, pts[finite].max(0))
+    pad = 0.04 * (hi - lo).max() + 1.0
+    return lo - pad, hi + pad
+
+
+def _draw_scenery(img, draw, scenario: model.Scenario, px, scale: float) -> None:
+    """Behavior layers as tints (blast rings for generated ones), obstacles, interest points' rings."""
+    from PIL import Image
 
     for f in scenario.fields:
         if f.values is None:
@@ -72,7 +89,9 @@ def trajectory_map(scenario: model.Scenario, positions: np.ndarray, out_png: str
         c, rr = px(p[:2]), r * scale
         draw.ellipse([c[0] - rr, c[1] - rr, c[0] + rr, c[1] + rr], outline=_INTEREST, width=2)
 
-    a = scenario.agents
+
+def _draw_tracks(draw, a: model.AgentTable, pts: np.ndarray, finite: np.ndarray, px, scale: float) -> None:
+    """Each agent's path in its clothing colour (grey if hidden), a dot where it ends, leaders outlined."""
     colors = srgb8(a.color)
     line_w = max(1, int(round(scale * 0.06)))
     dot = max(2.0, scale * 0.25)
@@ -90,19 +109,18 @@ def trajectory_map(scenario: model.Scenario, positions: np.ndarray, out_png: str
         outline = (0, 0, 0) if i in leaders else col
         draw.ellipse([x - dot, y - dot, x + dot, y + dot], fill=col, outline=outline, width=2 if i in leaders else 1)
 
-    # Scale bar: the largest round number of metres under a fifth of the width.
-    metres = 10 ** np.floor(np.log10((hi[0] - lo[0]) / 5))
+
+def _draw_scale_bar(draw, span: float, scale: float, width: int, height: int, label: str) -> None:
+    """A scale bar under the map and the ``label`` at its right."""
+    # The largest round number of metres under a fifth of the width.
+    metres = 10 ** np.floor(np.log10(span / 5))
     for m in (5 * metres, 2 * metres, metres):
         if m * scale < width / 5:
             break
     y0 = height + 20
     draw.line([(20, y0), (20 + m * scale, y0)], fill=_TEXT, width=3)
     draw.text((25 + m * scale, y0 - 7), f"{m:g} m", fill=_TEXT)
-    label = title or os.path.basename(scenario.source)
     draw.text((width - 10 - 7 * len(label), y0 - 7), label, fill=_TEXT)
-    with atomic_path(out_png) as tmp:
-        img.save(tmp, format="PNG")
-    return os.fspath(out_png)
 
 
 def coverage_plot(series: dict, column: str, n_cameras: int, out_png: str | os.PathLike, fps: float) -> str:

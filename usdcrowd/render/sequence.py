@@ -413,24 +413,10 @@ def render_sequence(shot_path, out_dir, camera: str | None = None, frames=None,
     """
     from tqdm import tqdm
 
-    from ..scenario.shot_scene import ShotScene
-
     settings = replace(settings) if settings else settings_from_preset("groundtruth")    # the caller's, unchanged
     out = Path(out_dir)
     shot_path = os.fspath(Path(shot_path).resolve())
-    shot = ShotScene(shot_path)
-    times = np.asarray(frames if frames is not None else shot.time_codes, dtype=np.float64)
-    shot.check_times(times)
-    if times.size == 0:
-        raise UsdcrowdError("no frames to render")
-    cam_path = shot.camera(camera, float(times[0])).path            # raises StageError on a bad camera
-    # Lights and scenery are checked here too: an error raised while a worker
-    # builds its scene would only say that the process pool broke.
-    shot.lights, shot.scenery
-    if executor not in ("local", "inline", "ray"):
-        raise UsdcrowdError(f"unknown executor {executor!r} (local, inline, ray)")
-    if address and executor != "ray":
-        raise UsdcrowdError("--address is a Ray cluster's: give it with --executor ray", attribute="--address")
+    shot, times, cam_path = _checked_request(shot_path, camera, frames, executor, address)
     resolve_variant(settings)
     output_dir(out, "render")
     header = {"shot": shot_path, "camera": cam_path, "settings": settings.fingerprint()}
@@ -453,12 +439,7 @@ def render_sequence(shot_path, out_dir, camera: str | None = None, frames=None,
 
     try:
         if todo:
-            if executor == "inline" or (executor == "local" and workers <= 0):
-                _run_inline(shot_path, cam_path, settings, todo, out, on_done)
-            elif executor == "local":
-                _run_local(shot_path, cam_path, settings, todo, out, on_done, workers)
-            else:
-                _run_ray(shot_path, cam_path, settings, todo, out, on_done, max(workers, 1), address)
+            _run_frames(executor, shot_path, cam_path, settings, todo, out, on_done, workers, address)
     except BaseException:
         clean_partials(out)         # the frames in flight, abandoned (this run holds the folder)
         raise
@@ -472,6 +453,37 @@ def render_sequence(shot_path, out_dir, camera: str | None = None, frames=None,
     if sequence_files:
         result.outputs.update(write_sequence_files(out, times, settings, shot.fps, mp4=mp4))
     return result
+
+
+def _checked_request(shot_path: str, camera: str | None, frames, executor: str, address: str | None):
+    """(shot, (t,) float64 times, camera path), every mistake in the request refused before any work."""
+    from ..scenario.shot_scene import ShotScene
+
+    shot = ShotScene(shot_path)
+    times = np.asarray(frames if frames is not None else shot.time_codes, dtype=np.float64)
+    shot.check_times(times)
+    if times.size == 0:
+        raise UsdcrowdError("no frames to render")
+    cam_path = shot.camera(camera, float(times[0])).path            # raises StageError on a bad camera
+    # Lights and scenery are checked here too: an error raised while a worker
+    # builds its scene would only say that the process pool broke.
+    shot.lights, shot.scenery
+    if executor not in ("local", "inline", "ray"):
+        raise UsdcrowdError(f"unknown executor {executor!r} (local, inline, ray)")
+    if address and executor != "ray":
+        raise UsdcrowdError("--address is a Ray cluster's: give it with --executor ray", attribute="--address")
+    return shot, times, cam_path
+
+
+def _run_frames(executor: str, shot_path: str, cam_path: str, settings: RenderSettings, todo: list[float],
+                out: Path, on_done, workers: int, address: str | None) -> None:
+    """Render ``todo`` on the executor asked for (inline when a local run has no workers)."""
+    if executor == "inline" or (executor == "local" and workers <= 0):
+        _run_inline(shot_path, cam_path, settings, todo, out, on_done)
+    elif executor == "local":
+        _run_local(shot_path, cam_path, settings, todo, out, on_done, workers)
+    else:
+        _run_ray(shot_path, cam_path, settings, todo, out, on_done, max(workers, 1), address)
 
 
 def write_sequence_files(out_dir, times, settings: RenderSettings, fps: float = 24.0, mp4: bool = False) -> dict:

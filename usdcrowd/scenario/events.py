@@ -112,54 +112,66 @@ def read_events(stage, agent_rows: dict[str, int], time: model.TimeRange,
     """
     from pxr import Usd
 
-    from .parent_space import ParentSpace, scale_of, transform_points
+    from .parent_space import ParentSpace
 
     frame = stage_frame(stage)
     space = ParentSpace(stage, time.codes)
     ids = np.asarray(agent_ids, dtype=np.int64) if agent_ids is not None else _agent_ids(stage, agent_rows)
     id_row = {int(a): r for r, a in enumerate(ids) if a >= 0}
-    codes = time.codes
     authored, detected = [], []
     for prim in Usd.PrimRange(stage.GetPseudoRoot()):
         if prim.GetTypeName() != schema.EVENT:
             continue
-        path = str(prim.GetPath())
-        kind = str(prim.GetAttribute("crowd:kind").Get())
-        if kind not in model.EVENT_KINDS:
-            raise ScenarioError(f"unknown event kind {kind!r} (one of {', '.join(model.EVENT_KINDS)})",
-                                file=stage.GetRootLayer().identifier, prim=path, attribute="crowd:kind")
-        start = max(float(prim.GetAttribute("crowd:startTime").Get()), time.start)
-        end = min(float(prim.GetAttribute("crowd:endTime").Get()), time.end)
-        times = codes[(codes >= start - 1e-6) & (codes <= end + 1e-6)]
-
-        rel = prim.GetRelationship("crowd:members")
-        rows = {agent_rows[str(p)] for p in (rel.GetTargets() if rel else []) if str(p) in agent_rows}
-        ids_attr = prim.GetAttribute("crowd:memberIds")
-        per_frame = None
-        if ids_attr and ids_attr.HasAuthoredValue():
-            per_frame = [{id_row[int(a)] for a in (v or []) if int(a) in id_row}
-                         for v in _sampled(ids_attr, times, [])]
-            rows = rows.union(*per_frame)
-        members = np.array(sorted(rows), dtype=np.int32)
-        if per_frame is None:
-            active = np.ones((len(times), len(members)), dtype=bool)
-        else:
-            col = {r: j for j, r in enumerate(members)}
-            active = np.zeros((len(times), len(members)), dtype=bool)
-            for i, present in enumerate(per_frame):
-                active[i, [col[r] for r in present]] = True
-
-        center = np.array(_sampled(prim.GetAttribute("crowd:center"), times, (0.0, 0.0, 0.0)),
-                          dtype=np.float64).reshape(-1, 3)
-        radius = np.array(_sampled(prim.GetAttribute("crowd:radius"), times, 1.0), dtype=np.float64)
-        # Centre and radius are in the event's parent space: a moved shot moves its events.
-        to_world = space.world(path, times)
-        center, radius = transform_points(center, to_world), radius * scale_of(to_world)
-        ev = model.Event(path, model.code(model.EVENT_KINDS, kind), start, end, members, times, active,
-                         frame.points_to_canonical(center), frame.length_to_canonical(radius),
-                         authored=_is_authored(prim))
+        ev = _read_event(stage, prim, agent_rows, id_row, time, frame, space)
         (authored if ev.authored else detected).append(ev)
     return model.EventTable(authored + sorted(detected, key=lambda e: e.path))
+
+
+def _read_event(stage, prim, agent_rows: dict[str, int], id_row: dict[int, int], time: model.TimeRange,
+                frame, space) -> model.Event:
+    """One CrowdEvent prim, clamped to ``time`` and sampled at its codes, in canonical units."""
+    from .parent_space import scale_of, transform_points
+
+    path = str(prim.GetPath())
+    kind = str(prim.GetAttribute("crowd:kind").Get())
+    if kind not in model.EVENT_KINDS:
+        raise ScenarioError(f"unknown event kind {kind!r} (one of {', '.join(model.EVENT_KINDS)})",
+                            file=stage.GetRootLayer().identifier, prim=path, attribute="crowd:kind")
+    codes = time.codes
+    start = max(float(prim.GetAttribute("crowd:startTime").Get()), time.start)
+    end = min(float(prim.GetAttribute("crowd:endTime").Get()), time.end)
+    times = codes[(codes >= start - 1e-6) & (codes <= end + 1e-6)]
+    members, active = _event_members(prim, agent_rows, id_row, times)
+
+    center = np.array(_sampled(prim.GetAttribute("crowd:center"), times, (0.0, 0.0, 0.0)),
+                      dtype=np.float64).reshape(-1, 3)
+    radius = np.array(_sampled(prim.GetAttribute("crowd:radius"), times, 1.0), dtype=np.float64)
+    # Centre and radius are in the event's parent space: a moved shot moves its events.
+    to_world = space.world(path, times)
+    center, radius = transform_points(center, to_world), radius * scale_of(to_world)
+    return model.Event(path, model.code(model.EVENT_KINDS, kind), start, end, members, times, active,
+                       frame.points_to_canonical(center), frame.length_to_canonical(radius),
+                       authored=_is_authored(prim))
+
+
+def _event_members(prim, agent_rows: dict[str, int], id_row: dict[int, int], times: np.ndarray):
+    """Member rows ``(k,) int32``, ascending, and who takes part at each of ``times``, ``(m, k) bool``."""
+    rel = prim.GetRelationship("crowd:members")
+    rows = {agent_rows[str(p)] for p in (rel.GetTargets() if rel else []) if str(p) in agent_rows}
+    ids_attr = prim.GetAttribute("crowd:memberIds")
+    per_frame = None
+    if ids_attr and ids_attr.HasAuthoredValue():
+        per_frame = [{id_row[int(a)] for a in (v or []) if int(a) in id_row}
+                     for v in _sampled(ids_attr, times, [])]
+        rows = rows.union(*per_frame)
+    members = np.array(sorted(rows), dtype=np.int32)
+    if per_frame is None:
+        return members, np.ones((len(times), len(members)), dtype=bool)
+    col = {r: j for j, r in enumerate(members)}
+    active = np.zeros((len(times), len(members)), dtype=bool)
+    for i, present in enumerate(per_frame):
+        active[i, [col[r] for r in present]] = True
+    return members, active
 
 
 def _bad_op(prim, time) -> str:

@@ -263,8 +263,36 @@ def scenario_errors(path: str | os.PathLike, stage=None, limits: Limits = DEFAUL
 
 def _read(r: _Reader, seed: int | None) -> model.Scenario | None:
     """The scenario (None when problems were collected instead of raised)."""
-    from pxr import Usd
+    stage, source = r.stage, r.source
+    time, seed = _read_time_and_seed(r, seed)
+    groups, agents, waypoints, layers, points, scenery = _traverse(r, time)
+    if not groups and not agents:
+        raise ScenarioError("no CrowdGroup and no agent: nothing to simulate", file=source)
 
+    table, group_table = _resolve(r, seed, groups, agents)
+    if any(w is not None for w in waypoints):
+        for gi, g in enumerate(groups):          # subgroups follow their parent's waypoints
+            if waypoints[gi] is None and g.parent >= 0 and "goal" not in g.authored:
+                waypoints[gi] = waypoints[g.parent]
+        group_table.waypoints = waypoints
+    obstacles, ground = _obstacles(r, scenery)
+    fields = r.each(layers, lambda p: _behavior_field(r, p))
+    interest = _interest(r, points)
+    cameras = events = None
+    with r.checking():
+        events = read_events(stage, {p: i for i, p in enumerate(table.path)}, time, agent_ids=table.agent_id)
+        events = model.EventTable([e for e in events if e.authored])
+    with r.checking():
+        cameras = read_camera_agents(stage)
+    if r.problems:
+        return None
+    bounds = _bounds(ground, obstacles, table, interest, fields)
+    return model.Scenario(source, time, int(seed), group_table, table, fields, interest, obstacles, bounds,
+                          cameras=cameras, events=events)
+
+
+def _read_time_and_seed(r: _Reader, seed: int | None):
+    """The stage's units into ``r.frame``, its time range (checked against the limits) and the run's seed."""
     stage, source, limits = r.stage, r.source, r.limits
     with r.checking():
         r.frame = stage_frame(stage)
@@ -277,16 +305,26 @@ def _read(r: _Reader, seed: int | None) -> model.Scenario | None:
     run_seed = 0
     with r.checking():
         run_seed = (stored_seed(stage) or 0) if seed is None else checked_seed(seed)
-    seed = run_seed
+    return time, run_seed
 
+
+def _traverse(r: _Reader, time: model.TimeRange):
+    """Groups and agents read, and behavior layers, interest points and scenery prims found, in stage order.
+
+    Returns ``(groups, agents, waypoints, layers, points, scenery)``; ``waypoints`` holds, per group, the
+    ``(times, points)`` of a time-sampled goal, or None.
+    """
+    from pxr import Usd
+
+    source = r.source
     groups: list[GroupSpec] = []
     group_row: dict[str, int] = {}
     agents: list[AgentSpec] = []
     layers, points, scenery = [], [], []
-    waypoints: list = []            # per group: (times, points) of a time-sampled goal, or None
+    waypoints: list = []
 
     # Instance proxies too: scenery from DCC tools is often instanced.
-    it = iter(Usd.PrimRange(stage.GetPseudoRoot(), Usd.TraverseInstanceProxies()))
+    it = iter(Usd.PrimRange(r.stage.GetPseudoRoot(), Usd.TraverseInstanceProxies()))
     for prim in it:
         if not prim.IsActive():
             it.PruneChildren()
@@ -321,30 +359,7 @@ def _read(r: _Reader, seed: int | None) -> model.Scenario | None:
             continue
         elif _is_gprim(prim):
             scenery.append(prim)
-
-    if not groups and not agents:
-        raise ScenarioError("no CrowdGroup and no agent: nothing to simulate", file=source)
-
-    table, group_table = _resolve(r, seed, groups, agents)
-    if any(w is not None for w in waypoints):
-        for gi, g in enumerate(groups):          # subgroups follow their parent's waypoints
-            if waypoints[gi] is None and g.parent >= 0 and "goal" not in g.authored:
-                waypoints[gi] = waypoints[g.parent]
-        group_table.waypoints = waypoints
-    obstacles, ground = _obstacles(r, scenery)
-    fields = r.each(layers, lambda p: _behavior_field(r, p))
-    interest = _interest(r, points)
-    cameras = events = None
-    with r.checking():
-        events = read_events(stage, {p: i for i, p in enumerate(table.path)}, time, agent_ids=table.agent_id)
-        events = model.EventTable([e for e in events if e.authored])
-    with r.checking():
-        cameras = read_camera_agents(stage)
-    if r.problems:
-        return None
-    bounds = _bounds(ground, obstacles, table, interest, fields)
-    return model.Scenario(source, time, int(seed), group_table, table, fields, interest, obstacles, bounds,
-                          cameras=cameras, events=events)
+    return groups, agents, waypoints, layers, points, scenery
 
 
 def _instanced_agent(prim) -> StageError:
@@ -434,7 +449,28 @@ def _agent_spec(r: _Reader, prim, g: int) -> AgentSpec:
 
 
 def _resolve(r: _Reader, seed, groups, agents):
+    """The agent and group tables: every group's members (authored and cloned) resolved, ids and leaders set."""
     values = inherited_values(groups)
+    rows, cat = _group_members(r, seed, groups, agents, values)
+    path_row = {a.path: i for i, a in enumerate(rows)}
+    ids = _track_ids(r, rows, groups, path_row)
+    role, group, g_leader, leader = _leaders(r, rows, groups, path_row)
+
+    table = model.AgentTable(
+        path=[a.path for a in rows], agent_id=ids.astype(np.int32), group=group, leader=leader, role=role,
+        **{k: cat.get(k, np.zeros(0)) for k in (
+            "character_type", "personality", "behavior", "condition", "fear_response", "visit_profile",
+            "speed", "height", "max_slope", "map_influence", "color", "start", "start_heading")},
+        trades=cat.get("trades", np.zeros(0, bool)), palette=cat.get("palette"))
+    goals = np.array([values[i].get("goal", (np.nan,) * 3) for i in range(len(groups))], dtype=np.float64).reshape(-1, 3)
+    budgets = np.array([values[i].get("visitBudget", 300.0) for i in range(len(groups))], dtype=np.float64)
+    group_table = model.GroupTable([g.path for g in groups], np.array([g.parent for g in groups], dtype=np.int32),
+                                   goals, budgets, g_leader)
+    return table, group_table
+
+
+def _group_members(r: _Reader, seed, groups, agents, values):
+    """Agent rows group by group (authored agents, then clones not on the stage) and their columns."""
     palette = "everyday"
     with r.checking():
         palette = stored_palette(r.stage)
@@ -466,12 +502,11 @@ def _resolve(r: _Reader, seed, groups, agents):
         for k, arr in resolve_group_members(seed, g, values[gi], members, palette).items():
             cols.setdefault(k, []).append(arr)
         rows.extend(members)
+    return rows, {k: np.concatenate(v) for k, v in cols.items()}
 
-    n = len(rows)
-    path_row = {a.path: i for i, a in enumerate(rows)}
-    cat = {k: np.concatenate(v) for k, v in cols.items()}
 
-    # Track ids: authored ones kept (unique, >= 1), the rest numbered after them.
+def _track_ids(r: _Reader, rows: list[AgentSpec], groups, path_row: dict[str, int]) -> np.ndarray:
+    """(n,) int64 track ids: authored ones kept (unique, >= 1), the rest numbered after them."""
     ids = np.array([a.agent_id for a in rows], dtype=np.int64)
     authored_ids = ids[ids != -1]
     with r.checking():
@@ -496,7 +531,12 @@ def _resolve(r: _Reader, seed, groups, agents):
                    f"included) would reach {int(ids.max()):,}, past the largest agent id {MAX_AGENT_ID:,}",
                    prim or r.stage.GetPrimAtPath(groups[top.group].path), "crowd:agentId" if prim else "crowd:clones")
         ids[free] = 0           # (only collecting problems from here on)
+    return ids
 
+
+def _leaders(r: _Reader, rows: list[AgentSpec], groups, path_row: dict[str, int]):
+    """Roles, groups, each group's leader row and each agent's leader row (-1: none), leader cycles refused."""
+    n = len(rows)
     role = np.array([model.ROLES.index(a.role) for a in rows], dtype=np.int8)
     group = np.array([a.group for a in rows], dtype=np.int32)
     g_leader = np.full(len(groups), -1, dtype=np.int32)
@@ -514,18 +554,7 @@ def _resolve(r: _Reader, seed, groups, agents):
             leader[i] = g_leader[a.group]
     with r.checking():
         _check_leader_cycles(r, rows, leader)
-
-    table = model.AgentTable(
-        path=[a.path for a in rows], agent_id=ids.astype(np.int32), group=group, leader=leader, role=role,
-        **{k: cat.get(k, np.zeros(0)) for k in (
-            "character_type", "personality", "behavior", "condition", "fear_response", "visit_profile",
-            "speed", "height", "max_slope", "map_influence", "color", "start", "start_heading")},
-        trades=cat.get("trades", np.zeros(0, bool)), palette=cat.get("palette"))
-    goals = np.array([values[i].get("goal", (np.nan,) * 3) for i in range(len(groups))], dtype=np.float64).reshape(-1, 3)
-    budgets = np.array([values[i].get("visitBudget", 300.0) for i in range(len(groups))], dtype=np.float64)
-    group_table = model.GroupTable([g.path for g in groups], np.array([g.parent for g in groups], dtype=np.int32),
-                                   goals, budgets, g_leader)
-    return table, group_table
+    return role, group, g_leader, leader
 
 
 def _check_leader_cycles(r: _Reader, rows: list[AgentSpec], leader: np.ndarray) -> None:

@@ -135,6 +135,27 @@ class Simulation:
         self.rng = r_step
         a = scenario.agents
         n = self.n = len(a)
+        self._init_agent_state(a, r_init)
+        scenario = self.scenario = self._make_room(scenario)
+        self.lo = np.asarray(scenario.bounds[0], dtype=np.float32)
+        self.hi = np.asarray(scenario.bounds[1], dtype=np.float32)
+        self.time = 0.0  # seconds since the first frame
+        self.steps = 0
+        self._init_scene(scenario, s)
+        self._init_steering(scenario, r_paths, r_slope, r_trade)
+
+        self.interest = (InterestFields(scenario, self.dmaps, self.visitors, r_interest)
+                         if self.visitors.size else None)
+        t0 = scenario.time.start
+        self.reactions = Reactions(scenario, self.dmaps, lambda tc: (tc - t0) / self.fps, r_maps)
+        self._anim = _animation_module()
+        self._anim_prev = None
+        self._dom_of = np.full(n, -1, np.int64)  # dominant exhibit of each visitor
+
+    # -- set-up helpers ---------------------------------------------------------
+    def _init_agent_state(self, a, r_init) -> None:
+        """Per-agent constants and starting state (positions with the ghost column, headings, behaviours)."""
+        n = self.n
         ctype = np.asarray(a.character_type, dtype=np.int64)
         self.ctype = ctype
         f32 = np.float32
@@ -153,20 +174,22 @@ class Simulation:
         self.base_behavior = np.asarray(a.behavior, dtype=np.int8)
         self.behavior = self.base_behavior.copy()
         self.look = np.full((3, n), np.nan, f32)
-        room = room_for_piles(self.pos[:, :n], self.radius[:n])
-        if room is not None:        # clones spawned on one point spread out beyond the padded bounds: make room
-            scenario = self.scenario = dataclasses.replace(scenario, bounds=np.array(
-                [np.minimum(scenario.bounds[0], room[0]), np.maximum(scenario.bounds[1], room[1])]))
-        self.lo = np.asarray(scenario.bounds[0], dtype=f32)
-        self.hi = np.asarray(scenario.bounds[1], dtype=f32)
-        self.time = 0.0  # seconds since the first frame
-        self.steps = 0
         self.birds = ctype == code(CHARACTER_TYPES, "bird")
         self.walkers = np.where(~self.birds)[0]
         self.altitude = np.where(self.birds, r_init.uniform(*P.BIRD_ALTITUDE, n), 0.0).astype(f32)
         self.wander_angle = r_init.uniform(-np.pi, np.pi, n).astype(f32)
 
-        # Scene.
+    def _make_room(self, scenario: Scenario) -> Scenario:
+        """The scenario, its bounds widened where clones spawned on one point spread out beyond them."""
+        room = room_for_piles(self.pos[:, :self.n], self.radius[:self.n])
+        if room is None:
+            return scenario
+        return dataclasses.replace(scenario, bounds=np.array(
+            [np.minimum(scenario.bounds[0], room[0]), np.maximum(scenario.bounds[1], room[1])]))
+
+    def _init_scene(self, scenario: Scenario, s: SimSettings) -> None:
+        """Walkable grid, distance maps, terrain, neighbours and groups; starts moved out of walls and apart."""
+        a, n = scenario.agents, self.n
         self.grid = WalkGrid(scenario, s.grid_cell)
         self.dmaps = DistanceMaps(self.grid, s.distance_method)
         self.terrain = Terrain(scenario.field("height"))
@@ -175,14 +198,16 @@ class Simulation:
         # Neighbours. Invisible leaders neither avoid nor are avoided.
         invisible = np.asarray(a.role) == code(ROLES, "invisibleLeader")
         self.nl = NeighborList(n, np.where(~invisible)[0], k=s.neighbor_k)
-        self.movable = (~invisible).astype(f32)
+        self.movable = (~invisible).astype(np.float32)
         # Bodies that start on top of each other are set apart now, not flung apart by the first steps.
         separate_spawns(self.nl, self.grid, self.pos, self.radius, self.movable)
         self.groups = Groups(a, scenario.groups, self.pos)
         self.isolated = self.groups.isolated
         self.mates = None
 
-        # Who steers how: followers follow; the others ("navigators") by behavior.
+    def _init_steering(self, scenario: Scenario, r_paths, r_slope, r_trade) -> None:
+        """Who steers how: followers follow; the others ("navigators") by behavior, goal and path method."""
+        a, n = scenario.agents, self.n
         follower = np.zeros(n, bool)
         follower[self.groups.followers] = True
         nav = ~follower
@@ -210,15 +235,6 @@ class Simulation:
         self._goal_fields(goal, goers)
         self._waypoints = self._resolve_waypoints(scenario)
 
-        self.interest = (InterestFields(scenario, self.dmaps, self.visitors, r_interest)
-                         if self.visitors.size else None)
-        t0 = scenario.time.start
-        self.reactions = Reactions(scenario, self.dmaps, lambda tc: (tc - t0) / self.fps, r_maps)
-        self._anim = _animation_module()
-        self._anim_prev = None
-        self._dom_of = np.full(n, -1, np.int64)  # dominant exhibit of each visitor
-
-    # -- set-up helpers ---------------------------------------------------------
     def _resolve_goals(self, scenario: Scenario) -> np.ndarray:
         """(2, n) goal of each agent's group (inherited from ancestors), NaN if none."""
         g = scenario.groups

@@ -123,6 +123,22 @@ def build_scene(shot: ShotScene, cam: CameraView, width: int, height: int, spp: 
     scene: dict = {"type": "scene", "integrator": integrator,
                    SENSOR_KEY: sensor_dict(cam, width, height, spp, sampler=sampler)}
     id_paths: dict[int, str] = {}
+    animated = _add_scenery(scene, id_paths, shot, time)
+    scene.update(emitters(shot.lights, shot.frame.up_axis))
+    id_paths.update({light_id(k): light.path for k, light in enumerate(shot.lights) if has_shape(light)})
+    agent_ids, nv = _add_agents(scene, id_paths, shot, time)
+    if not any(k.startswith("light_") for k in scene):
+        # A stage without lights still shows something: a dim grey sky.
+        scene["light_default"] = {"type": "constant", "radiance": {"type": "rgb", "value": [0.5, 0.5, 0.5]}}
+    with single_threaded_build():       # a BVH that does not depend on thread timing
+        loaded = mi.load_dict(scene)
+    return BuiltScene(loaded, mi.traverse(loaded), agent_ids, nv, animated, id_paths)
+
+
+def _add_scenery(scene: dict, id_paths: dict[int, str], shot: ShotScene, time: float) -> list[AnimatedScenery]:
+    """Put every scenery mesh, posed at ``time``, in ``scene`` (and its id in ``id_paths``); the animated ones."""
+    import mitsuba as mi
+
     animated = []
     bsdf_cache: dict[str, object] = {}
     for k, item in enumerate(shot.scenery):
@@ -143,8 +159,12 @@ def build_scene(shot: ShotScene, cam: CameraView, width: int, height: int, spp: 
         id_paths[int(item.shape_id)] = item.path
         if item.animated:
             animated.append(AnimatedScenery(key, item, flip))
-    scene.update(emitters(shot.lights, shot.frame.up_axis))
-    id_paths.update({light_id(k): light.path for k, light in enumerate(shot.lights) if has_shape(light)})
+    return animated
+
+
+def _add_agents(scene: dict, id_paths: dict[int, str], shot: ShotScene, time: float) -> tuple[np.ndarray, int]:
+    """Put every agent, posed at ``time``, in ``scene`` as one merged mesh; (agent ids, vertices per body)."""
+    import mitsuba as mi
 
     paths = shot.agent_paths
     agent_ids = np.zeros(0, dtype=np.int32)
@@ -165,9 +185,4 @@ def build_scene(shot: ShotScene, cam: CameraView, width: int, height: int, spp: 
                                       vertex_color=colors, face_roughness=rough,
                                       bsdf=mi.load_dict(agent_bsdf_dict(rough is not None)), smooth=True)
         id_paths.update({int(i): p for i, p in zip(agent_ids, paths)})
-    if not any(k.startswith("light_") for k in scene):
-        # A stage without lights still shows something: a dim grey sky.
-        scene["light_default"] = {"type": "constant", "radiance": {"type": "rgb", "value": [0.5, 0.5, 0.5]}}
-    with single_threaded_build():       # a BVH that does not depend on thread timing
-        loaded = mi.load_dict(scene)
-    return BuiltScene(loaded, mi.traverse(loaded), agent_ids, nv, animated, id_paths)
+    return agent_ids, nv

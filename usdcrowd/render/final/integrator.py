@@ -74,6 +74,7 @@ def register() -> None:
 
 
 def _make_class(mi):
+    """The integrator's class for the active variant (its base class is the variant's)."""
     import drjit as dr
 
     # drjit.syntax recompiles ``sample`` against the module's globals, not this closure.
@@ -89,14 +90,6 @@ def _make_class(mi):
             self.diffuse_share = props.get("diffuse_share", DIFFUSE_SHARE)
             if not 0.0 <= self.diffuse_share < 1.0:
                 raise ValueError(f"diffuse_share must be in [0, 1), not {self.diffuse_share}")
-
-        def _mixture_pdf(self, bsdf_pdf, wo_local, wi_local):
-            """Density of the bounce mixture at ``wo_local``, given the BSDF's own sampling density there.
-
-            The cosine part lives on ``wi_local``'s side of the surface (zero on the other).
-            """
-            cosine = dr.maximum(wo_local.z * dr.sign(wi_local.z), 0.0) * dr.inv_pi
-            return self.diffuse_share * cosine + (1 - self.diffuse_share) * bsdf_pdf
 
         @dr.syntax
         def sample(self, scene, sampler, ray, medium=None, active=True):
@@ -130,35 +123,12 @@ def _make_class(mi):
                 lit = go_on & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
                 transmits = mi.has_flag(bsdf.flags(), mi.BSDFFlags.Transmission)
                 for light in emitters:          # unrolled: one shadow ray per light
-                    ds_l, value = light.sample_direction(si, sampler.next_2d(), lit)
-                    infinite = mi.has_flag(light.flags(), mi.EmitterFlags.Infinite)
-                    shadow = si.spawn_ray(ds_l.d) if infinite else si.spawn_ray_to(ds_l.p)
-                    wl = si.to_local(ds_l.d)
-                    # A BSDF that only reflects sees nothing behind its surface: no shadow ray there (a
-                    # textured dome's samples fall there too).
-                    seen = lit & (ds_l.pdf > 0) & (transmits | (wl.z * si.wi.z > 0))
-                    seen &= ~scene.ray_test(shadow, seen)
-                    f, bsdf_pdf = bsdf.eval_pdf(ctx, si, wl, seen)
-                    bsdf_pdf = self._mixture_pdf(bsdf_pdf, wl, si.wi)
-                    mis = dr.select(ds_l.delta, 1.0, _balance(ds_l.pdf, bsdf_pdf))
-                    result[seen] += beta * f * value * mis
+                    seen, light_value = _shadow_ray(scene, sampler, ctx, si, bsdf, light, lit, transmits, beta,
+                                                    self.diffuse_share)
+                    result[seen] += light_value
 
-                # The bounce: cosine-weighted (u.x < share, rescaled) or the BSDF's own sample.
-                share = self.diffuse_share
-                u = sampler.next_2d()
-                pick = sampler.next_1d()
-                cosine = u.x < share
-                wo_cosine = mi.warp.square_to_cosine_hemisphere(mi.Point2f(u.x / share, u.y))
-                wo_cosine.z = dr.mulsign(wo_cosine.z, si.wi.z)          # on the side the path came from
-                bs, bsdf_weight = bsdf.sample(ctx, si, pick, mi.Point2f((u.x - share) / (1 - share), u.y),
-                                              go_on & ~cosine)
-                # A cut-out's pass-through (null) or a mirror (delta) has no density to mix: its own weight,
-                # over the share of bounces that could draw it (Mitsuba's Delta flags include Null).
-                delta = ~cosine & mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
-                wo = dr.select(cosine, wo_cosine, bs.wo)
-                f, bsdf_pdf = bsdf.eval_pdf(ctx, si, wo, go_on & ~delta)
-                mixture_pdf = self._mixture_pdf(bsdf_pdf, wo, si.wi)
-                beta *= dr.select(delta, bsdf_weight / (1 - share), dr.select(mixture_pdf > 0, f / mixture_pdf, 0.0))
+                wo, delta, mixture_pdf, bounce_weight = _bounce(sampler, ctx, si, bsdf, go_on, self.diffuse_share)
+                beta *= bounce_weight
                 ray = si.spawn_ray(si.to_world(wo))
                 prev_si = dr.detach(si, True)
                 prev_bsdf_pdf = mixture_pdf
@@ -172,6 +142,57 @@ def _make_class(mi):
             return result, mi.Bool(True), []
 
     return AllLightsPath
+
+
+def _shadow_ray(scene, sampler, ctx, si, bsdf, light, lit, transmits, beta, share):
+    """One light's shadow ray from ``si``: (lanes that see it, what it adds there, MIS-weighted against bounces)."""
+    import drjit as dr
+    import mitsuba as mi
+
+    ds_l, value = light.sample_direction(si, sampler.next_2d(), lit)
+    infinite = mi.has_flag(light.flags(), mi.EmitterFlags.Infinite)
+    shadow = si.spawn_ray(ds_l.d) if infinite else si.spawn_ray_to(ds_l.p)
+    wl = si.to_local(ds_l.d)
+    # A BSDF that only reflects sees nothing behind its surface: no shadow ray there (a
+    # textured dome's samples fall there too).
+    seen = lit & (ds_l.pdf > 0) & (transmits | (wl.z * si.wi.z > 0))
+    seen &= ~scene.ray_test(shadow, seen)
+    f, bsdf_pdf = bsdf.eval_pdf(ctx, si, wl, seen)
+    bsdf_pdf = _mixture_pdf(share, bsdf_pdf, wl, si.wi)
+    mis = dr.select(ds_l.delta, 1.0, _balance(ds_l.pdf, bsdf_pdf))
+    return seen, beta * f * value * mis
+
+
+def _bounce(sampler, ctx, si, bsdf, go_on, share):
+    """The next direction, cosine-weighted (u.x < share, rescaled) or the BSDF's own: (wo, delta, pdf, weight)."""
+    import drjit as dr
+    import mitsuba as mi
+
+    u = sampler.next_2d()
+    pick = sampler.next_1d()
+    cosine = u.x < share
+    wo_cosine = mi.warp.square_to_cosine_hemisphere(mi.Point2f(u.x / share, u.y))
+    wo_cosine.z = dr.mulsign(wo_cosine.z, si.wi.z)          # on the side the path came from
+    bs, bsdf_weight = bsdf.sample(ctx, si, pick, mi.Point2f((u.x - share) / (1 - share), u.y), go_on & ~cosine)
+    # A cut-out's pass-through (null) or a mirror (delta) has no density to mix: its own weight,
+    # over the share of bounces that could draw it (Mitsuba's Delta flags include Null).
+    delta = ~cosine & mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
+    wo = dr.select(cosine, wo_cosine, bs.wo)
+    f, bsdf_pdf = bsdf.eval_pdf(ctx, si, wo, go_on & ~delta)
+    mixture_pdf = _mixture_pdf(share, bsdf_pdf, wo, si.wi)
+    weight = dr.select(delta, bsdf_weight / (1 - share), dr.select(mixture_pdf > 0, f / mixture_pdf, 0.0))
+    return wo, delta, mixture_pdf, weight
+
+
+def _mixture_pdf(share, bsdf_pdf, wo_local, wi_local):
+    """Density of the bounce mixture at ``wo_local``, given the BSDF's own sampling density there.
+
+    The cosine part lives on ``wi_local``'s side of the surface (zero on the other).
+    """
+    import drjit as dr
+
+    cosine = dr.maximum(wo_local.z * dr.sign(wi_local.z), 0.0) * dr.inv_pi
+    return share * cosine + (1 - share) * bsdf_pdf
 
 
 def _balance(pdf, other_pdf):

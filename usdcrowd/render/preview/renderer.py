@@ -265,6 +265,7 @@ class PreviewRenderer:
 
     # ----------------------------------------------------------------- setup
     def _build(self) -> None:
+        """Everything drawing needs, made once: programs, body and scenery buffers, targets, lights."""
         import moderngl
 
         ctx = self.ctx
@@ -277,6 +278,26 @@ class PreviewRenderer:
         self.prog_shadow_scenery = ctx.program(vertex_shader=shaders.SHADOW_SCENERY_VS,
                                                fragment_shader=shaders.DEPTH_ONLY_FS)
 
+        self._build_bodies()
+        self._instances = None
+        self._instance_capacity = 0
+        self._slots = None
+        self._slot_capacity = 0
+        self._build_impostors()
+        self._build_scenery()
+        self._build_targets()
+
+        from ...core.srgb import srgb8
+
+        # Background: the sky's colour through the same display transform.
+        sky = self.lights.sky * self.exposure if self.lights.sky.any() else np.array([0.5, 0.55, 0.6])
+        self.background = srgb8(np.clip(sky, 0, 1) * 0.9)
+
+        for prog in self._lit_programs():
+            self._set_lights(prog)
+
+    def _build_bodies(self) -> None:
+        """The body's levels of detail and their vertex arrays (and the coarse mesh that casts shadows)."""
         body = self.scene.body
         self.body = instancing.body_lods(body.points, body.faces, body.joint_indices, body.joint_weights,
                                          cells=self.lod.cells, regions=body.regions)
@@ -288,10 +309,10 @@ class PreviewRenderer:
             coarse = instancing.body_lods(body.points, body.faces, body.joint_indices, body.joint_weights,
                                           cells=(self.lod.shadow_cell,), regions=body.regions).meshes[1]
             (self._shadow_mesh_vao,) = self._skinned_vaos(coarse, (self.prog_shadow_char,))
-        self._instances = None
-        self._instance_capacity = 0
-        self._slots = None
-        self._slot_capacity = 0
+
+    def _build_impostors(self) -> None:
+        """The impostor atlas and its programs, when the level-of-detail settings draw far characters so."""
+        ctx = self.ctx
         self.atlas = None
         if self.lod.impostor_min_px is not None:
             full = self.body.meshes[0].vertices
@@ -313,6 +334,9 @@ class PreviewRenderer:
                 _set(prog, "u_cell_box", 3)
             _set(self.prog_imp, "u_regions", 4)
 
+    def _build_scenery(self) -> None:
+        """Every scenery item's vertex arrays and texture, posed at the first frame, and the box round them."""
+        ctx = self.ctx
         t0 = float(self.scene.time_codes[0]) if len(self.scene.time_codes) else 0.0
         self._scenery = []
         lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
@@ -329,6 +353,9 @@ class PreviewRenderer:
             lo, hi = np.minimum(lo, wp.min(0)), np.maximum(hi, wp.max(0))
         self._scenery_box = (lo, hi)
 
+    def _build_targets(self) -> None:
+        """The framebuffers drawn into: colour, ids and linear depth at the image size, the sun's shadow map."""
+        ctx, moderngl = self.ctx, self._moderngl
         w, h = self.width, self.height
         self.color_tex = ctx.texture((w, h), 4, dtype="f1")
         self.id_tex = ctx.texture((w, h), 1, dtype="u4")
@@ -344,15 +371,6 @@ class PreviewRenderer:
         self.shadow_tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
         self.shadow_fbo = ctx.framebuffer(depth_attachment=self.shadow_tex)
         self.shadow_fbo.clear(depth=1.0)      # without shadows the map stays empty: all lit
-
-        from ...core.srgb import srgb8
-
-        # Background: the sky's colour through the same display transform.
-        sky = self.lights.sky * self.exposure if self.lights.sky.any() else np.array([0.5, 0.55, 0.6])
-        self.background = srgb8(np.clip(sky, 0, 1) * 0.9)
-
-        for prog in self._lit_programs():
-            self._set_lights(prog)
 
     def _skinned_vaos(self, geom, programs) -> tuple:
         """Vertex arrays of one body geometry (position, normal, joint weights) for each program."""

@@ -214,69 +214,88 @@ def run_viewer(scene, width: int, height: int, *, times=None, camera: str | None
         r = PreviewRenderer(scene, width, height, ctx=ctx, lod_settings=lod_settings, overlays=overlays,
                             exposure=exposure)
         viewer = Viewer(r, scene.time_codes if times is None else times, camera, window)
-        running = [True]
-        dragging = [False]
-
-        def on_key(win, key, scancode, action, mods):
-            if action in (glfw.PRESS, glfw.REPEAT) and not viewer.on_key(key, mods):
-                running[0] = False
-
-        def on_button(win, button, action, mods):
-            x, y = glfw.get_cursor_pos(win)
-            if button == glfw.MOUSE_BUTTON_LEFT:
-                dragging[0] = action == glfw.PRESS and y >= height
-                if dragging[0]:
-                    viewer.scrub_to(x, width)
-            if button == glfw.MOUSE_BUTTON_RIGHT:
-                viewer._last_mouse = (x, y) if action == glfw.PRESS else None
-
-        def on_move(win, x, y):
-            if dragging[0]:
-                viewer.scrub_to(x, width)
-            if viewer._last_mouse is not None and viewer.fly is not None:
-                lx, ly = viewer._last_mouse
-                viewer.fly.turn(x - lx, y - ly)
-                viewer._last_mouse = (x, y)
-
-        glfw.set_key_callback(window, on_key)
-        glfw.set_mouse_button_callback(window, on_button)
-        glfw.set_cursor_pos_callback(window, on_move)
-
+        running = _connect_input(window, viewer, width, height)
         drawn = 0
         while running[0] and not glfw.window_should_close(window):
             for frame, key in keys:
                 if frame == drawn and not viewer.on_key(key, 0):
                     running[0] = False
-            dt = viewer.advance()
-            viewer.fly_keys(dt)
-            t0 = _time.perf_counter()
-            cam = viewer.camera()
-            poses = r.poses(viewer.time)
-            # The drawing goes above the scrub strip: blit into that part of the screen.
-            viewer.stats = r.draw(poses, cam, viewer.time, flip_y=False)
-            ctx.screen.use()
-            _blit_above(ctx, r, height)
-            _draw_scrub_bar(ctx, width, viewer.index / max(len(viewer.times) - 1, 1))
-            glfw.swap_buffers(window)
-            ctx.finish()
-            spent = _time.perf_counter() - t0
-            viewer.draw_fps = 0.9 * viewer.draw_fps + 0.1 / max(spent, 1e-6) if drawn else 1 / max(spent, 1e-6)
+            _draw_frame(ctx, window, r, viewer, width, height, drawn)
             glfw.set_window_title(window, viewer.title())
             glfw.poll_events()
             drawn += 1
             if max_frames is not None and drawn >= max_frames:
                 break
         if screenshot:
-            from .output import write_png
-
-            ctx.screen.use()
-            img = np.frombuffer(ctx.screen.read(components=3), np.uint8).reshape(height + SCRUB_PX, width, 3)
-            write_png(img[::-1], screenshot)
+            _save_screenshot(ctx, width, height, screenshot)
         r.release()
     finally:
         glfw.destroy_window(window)
         glfw.terminate()
     return 0
+
+
+def _connect_input(window, viewer: Viewer, width: int, height: int) -> list[bool]:
+    """Hand the window's keys, clicks and mouse moves to ``viewer``; the flag returned turns False to quit."""
+    import glfw
+
+    running = [True]
+    dragging = [False]
+
+    def on_key(win, key, scancode, action, mods):
+        if action in (glfw.PRESS, glfw.REPEAT) and not viewer.on_key(key, mods):
+            running[0] = False
+
+    def on_button(win, button, action, mods):
+        x, y = glfw.get_cursor_pos(win)
+        if button == glfw.MOUSE_BUTTON_LEFT:
+            dragging[0] = action == glfw.PRESS and y >= height
+            if dragging[0]:
+                viewer.scrub_to(x, width)
+        if button == glfw.MOUSE_BUTTON_RIGHT:
+            viewer._last_mouse = (x, y) if action == glfw.PRESS else None
+
+    def on_move(win, x, y):
+        if dragging[0]:
+            viewer.scrub_to(x, width)
+        if viewer._last_mouse is not None and viewer.fly is not None:
+            lx, ly = viewer._last_mouse
+            viewer.fly.turn(x - lx, y - ly)
+            viewer._last_mouse = (x, y)
+
+    glfw.set_key_callback(window, on_key)
+    glfw.set_mouse_button_callback(window, on_button)
+    glfw.set_cursor_pos_callback(window, on_move)
+    return running
+
+
+def _draw_frame(ctx, window, r, viewer: Viewer, width: int, height: int, drawn: int) -> None:
+    """Step the clock and the free-fly camera, draw the frame and the scrub strip, show them; time the drawing."""
+    import glfw
+
+    dt = viewer.advance()
+    viewer.fly_keys(dt)
+    t0 = _time.perf_counter()
+    cam = viewer.camera()
+    poses = r.poses(viewer.time)
+    # The drawing goes above the scrub strip: blit into that part of the screen.
+    viewer.stats = r.draw(poses, cam, viewer.time, flip_y=False)
+    ctx.screen.use()
+    _blit_above(ctx, r, height)
+    _draw_scrub_bar(ctx, width, viewer.index / max(len(viewer.times) - 1, 1))
+    glfw.swap_buffers(window)
+    ctx.finish()
+    spent = _time.perf_counter() - t0
+    viewer.draw_fps = 0.9 * viewer.draw_fps + 0.1 / max(spent, 1e-6) if drawn else 1 / max(spent, 1e-6)
+
+
+def _save_screenshot(ctx, width: int, height: int, path: str) -> None:
+    """The window's last picture (drawing and scrub strip) as a PNG."""
+    from .output import write_png
+
+    ctx.screen.use()
+    img = np.frombuffer(ctx.screen.read(components=3), np.uint8).reshape(height + SCRUB_PX, width, 3)
+    write_png(img[::-1], path)
 
 
 def _blit_above(ctx, renderer, height: int) -> None:
