@@ -179,6 +179,15 @@ def test_frame_like_films_a_new_pair_like_a_reference_camera(tmp_path, capsys):
              ("Learned", "Controller")]
     diff = [abs(theta[0].Get(t) - theta[1].Get(t)) for t in range(1, 241, 4)]
     assert np.mean(diff) < 30, np.mean(diff)
+    # Level, as the controllers are (seed 002's cameras do not roll): the camera's right axis stays
+    # horizontal in every frame, read from the composed transform.
+    from pxr import UsdGeom
+
+    up = np.eye(3)[{"Y": 1, "Z": 2}[UsdGeom.GetStageUpAxis(stage)]]
+    xform = UsdGeom.Xformable(stage.GetPrimAtPath("/World/Cameras/Learned"))
+    right = np.array([np.array(xform.ComputeLocalToWorldTransform(t))[0, :3] for t in range(1, 241)])
+    roll = np.degrees(np.arcsin(np.abs(right @ up) / np.linalg.norm(right, axis=1)))
+    assert roll.max() < 2.0, roll.max()
     del stage
     scene = ShotScene(shot / "shot.usda")
     rows = [scene.agent_row("A"), scene.agent_row("B")]

@@ -267,7 +267,7 @@ def behavior_track(behavior: Behavior, times, fps: float, heads_a, heads_b, yaw_
     if obstacles is not None and len(obstacles):
         eye = clear_of_obstacles(anchor, eye, obstacles)
 
-    cam = _look_without_roll(eye, heads_a, heads_b, np.arctan(size.head_y * half_y))
+    cam = look_without_roll(eye, heads_a, heads_b, np.arctan(size.head_y * half_y))
     p_a, p_b = (_project(cam, h, fov_x, aspect) for h in (heads_a, heads_b))
     # The toric angles of the camera as placed (exact: (pA, pB, theta, phi) rebuild the pose).
     beta, phi = angles_at_a(eye - heads_a, x, y, z)
@@ -331,9 +331,9 @@ def _above_the_line(ac: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray)
     return out * (np.linalg.norm(ac, axis=-1) / np.linalg.norm(out, axis=-1))[:, None]
 
 
-def _look_without_roll(eye: np.ndarray, a: np.ndarray, b: np.ndarray, above: float) -> np.ndarray:
-    """(t, 4, 4) level cameras at ``eye`` that see A and B either side of the screen's centre, their
-    midpoint ``above`` radians above it."""
+def look_without_roll(eye: np.ndarray, a: np.ndarray, b: np.ndarray, above) -> np.ndarray:
+    """(t, 4, 4) level cameras at ``eye`` ((t, 3) float) that see A and B ((t, 3) float) either side of
+    the screen's centre, their midpoint ``above`` radians (float, or (t,) float) above it."""
     to_a, to_b = a - eye, b - eye
     # The horizontal bisector of the two directions: the heads are as far left as right of the centre.
     bis = _unit(to_a[:, :2]) + _unit(to_b[:, :2])

@@ -565,7 +565,7 @@ def frame_like(shot_path, reference: Reference, spans: list[PairSpan] | str, nam
     path, track, features, signals, weights
         As :func:`frame_shot`, and the (m,) expert weights.
     """
-    from ..cameras.behaviors import clear_of_obstacles
+    from ..cameras.behaviors import clear_of_obstacles, look_without_roll
     from ..cameras.moe import CameraMoE, character_features, toric_of_features
     from ..cameras.smoothing import smooth_track
     from ..cameras.toric import toric_to_poses
@@ -594,6 +594,11 @@ def frame_like(shot_path, reference: Reference, spans: list[PairSpan] | str, nam
     if obstacles is not None and len(obstacles):
         # In front of a wall, on the line from the pair: the pair keeps its place on screen.
         m[:, 3, :3] = clear_of_obstacles(0.5 * (signals.heads_a + signals.heads_b), m[:, 3, :3], obstacles)
+    # The network predicts the heads' mean height only, and a toric pose that puts both heads at one
+    # height rolls the camera when they are at different depths. The controllers never roll: the eye
+    # stays where the network put it, turned level with the pair centred at the predicted height.
+    m = look_without_roll(m[:, 3, :3], signals.heads_a, signals.heads_b,
+                          np.arctan(p_a[:, 1] * np.tan(0.5 * fov_x) / aspect))
     if smooth:
         m = smooth_track(m)
     result = _track_features(m, signals, fov_x, aspect)
