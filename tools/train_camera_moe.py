@@ -289,12 +289,13 @@ def _ranges(summary: list[dict]) -> dict:
         values = [line[key] for line in lines]
         return {"min": float(min(values)), "max": float(max(values))}
 
-    return {"steady_same_kind": span(steady, "rollout_same_motion_theta_median_deg")
-            | {"max": float(max(max(line["rollout_own_clip_theta_median_deg"], line[
-                "rollout_same_motion_theta_median_deg"]) for line in steady))},
-            "steady_other_kind": span(steady, "rollout_other_motion_theta_median_deg"),
-            "relative": span([by["relative-track"]], "rollout_own_clip_theta_median_deg")
-            | {"max": float(max(by["relative-track"][f"rollout_{r}_theta_median_deg"] for r in ROLLOUTS))},
+    def over(lines, rollouts):
+        values = [line[f"rollout_{r}_theta_median_deg"] for line in lines for r in rollouts]
+        return {"min": float(min(values)), "max": float(max(values))}
+
+    return {"steady_same_kind": over(steady, ("own_clip", "same_motion")),
+            "steady_other_kind": over(steady, ("other_motion",)),
+            "relative": over([by["relative-track"]], ROLLOUTS),
             "tracks_moe": span([by[b] for b in tracks], "moe_direction_deg"),
             "tracks_shared_bottom": span([by[b] for b in tracks], "shared_bottom_direction_deg")}
 
