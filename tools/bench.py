@@ -144,10 +144,6 @@ def _section_figures(section: str, found) -> dict:
         for (template, n, _camera, label), fps in found.items():
             out.setdefault(f"{template}_{n}", {}).setdefault(label.replace(", ", "_").replace(" ", "_"), []).append(fps)
         return {scene: {label: _min_max(v) for label, v in labels.items()} for scene, labels in out.items()}
-    if section == "dataset":
-        for r in found.values():
-            if isinstance(r, dict) and "bytes_per_frame" in r:
-                r["bytes_per_frame_mb"] = r["bytes_per_frame"] / 1e6
     return found
 
 

@@ -50,8 +50,9 @@ def _make(spec: Path, out: Path, executor: str, workers: int) -> dict:
     seconds = time.perf_counter() - t0
     size = sum(p.stat().st_size for p in (out / "sequences").rglob("*") if p.is_file()
                and p.parent.name in ("exr", "png", "json"))
+    per_frame = size / max(r.frames, 1)
     return {"seconds": seconds, "frames": r.frames, "per_hour": r.frames / seconds * 3600,
-            "bytes_per_frame": size / max(r.frames, 1)}
+            "bytes_per_frame": per_frame, "bytes_per_frame_mb": per_frame / 1e6}
 
 
 def run() -> dict:
@@ -69,7 +70,7 @@ def run() -> dict:
                 continue
             r = runs[name]
             print(f"{name:<7} {r['frames']} frames (4 sequences x 2 cameras x 12) in {r['seconds']:.1f} s: "
-                  f"{r['per_hour']:,.0f} frames/hour, {r['bytes_per_frame'] / 1e6:.2f} MB written per frame")
+                  f"{r['per_hour']:,.0f} frames/hour, {r['bytes_per_frame_mb']:.2f} MB written per frame")
             shutil.rmtree(tmp / name.replace(" ", "_"), ignore_errors=True)
         if "ray x1" in runs and "ray x2" in runs:
             ratio = runs["ray x1"]["seconds"] / runs["ray x2"]["seconds"]
