@@ -27,11 +27,16 @@ import numpy as np
 import torch
 from torch import nn
 
-N_CHAR, N_CAM = 9, 6
+N_CHAR, N_CAM = 10, 8          # features per frame (usdcrowd.cameras.moe); set from the data read
+
+
+def _sizes(n_char: int, n_cam: int) -> None:
+    global N_CHAR, N_CAM
+    N_CHAR, N_CAM = int(n_char), int(n_cam)
 
 
 def absolute(pred: torch.Tensor, base: torch.Tensor, cfg: dict) -> torch.Tensor:
-    """(b, out * 6) predicted features; a residual model's are changes from ``base`` (b, 6), the last sample."""
+    """(b, out * n_cam) predicted features; a residual model's are changes from ``base`` (b, n_cam)."""
     return pred + base.repeat(1, cfg["out"]) if cfg.get("residual") else pred
 
 
@@ -198,9 +203,17 @@ class Windows:
 
 
 def _stats(data) -> dict:
-    char, cam = data["character"], data["camera"]
-    return {"char_mean": char.reshape(-1, N_CHAR).mean(0), "char_std": char.reshape(-1, N_CHAR).std(0) + 1e-6,
-            "cam_mean": cam.reshape(-1, N_CAM).mean(0), "cam_std": cam.reshape(-1, N_CAM).std(0) + 1e-6}
+    """Normalisation, and the range of camera features the training spans (a roll-out stays inside it)."""
+    char, cam = data["character"].reshape(-1, N_CHAR), data["camera"].reshape(-1, N_CAM)
+    return {"char_mean": char.mean(0), "char_std": char.std(0) + 1e-6, "cam_mean": cam.mean(0),
+            "cam_std": cam.std(0) + 1e-6, "cam_lo": cam.min(0), "cam_hi": cam.max(0)}
+
+
+def sample_weights(cfg: dict) -> torch.Tensor:
+    """(out,) loss weight of each predicted sample: the paper's Eq. 6 weighs the first 1 and the rest eta."""
+    w = torch.full((cfg["out"],), float(cfg.get("eta", 1.0)))
+    w[0] = 1.0
+    return w / w.sum() * cfg["out"]
 
 
 def _errors(model, windows: Windows, stats, batch=2048):
@@ -215,13 +228,14 @@ def _errors(model, windows: Windows, stats, batch=2048):
             pred = absolute(pred, base, windows.cfg)
             p = pred.numpy().reshape(len(rows), -1, N_CAM) * stats["cam_std"] + stats["cam_mean"]
             t = y.numpy().reshape(len(rows), -1, N_CAM) * stats["cam_std"] + stats["cam_mean"]
-            # and the angle between predicted and true directions from A to the camera (features 3-5), degrees
-            cos = np.einsum("bsk,bsk->bs", p[..., 3:], t[..., 3:]) / np.maximum(
-                np.linalg.norm(p[..., 3:], axis=-1) * np.linalg.norm(t[..., 3:], axis=-1), 1e-12)
+            # and the angle between predicted and true directions from A to the camera, degrees
+            u = slice(*windows.cfg.get("u", (3, 6)))
+            cos = np.einsum("bsk,bsk->bs", p[..., u], t[..., u]) / np.maximum(
+                np.linalg.norm(p[..., u], axis=-1) * np.linalg.norm(t[..., u], axis=-1), 1e-12)
             angle = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))).mean(axis=1)
             errs.append(np.column_stack([np.abs(p - t).mean(axis=1), angle]))
     model.train()
-    return np.concatenate(errs)                        # (n, 7): 6 features, then the direction's angle
+    return np.concatenate(errs)                        # (n, n_cam + 1): the features, then the direction's angle
 
 
 def _gate_outputs(model, windows: Windows):
@@ -238,6 +252,7 @@ def train(data_path: str, out_dir: str, epochs: int, seed: int, batch: int = 256
     rng = np.random.default_rng(seed)
     data = np.load(data_path)
     cfg = json.loads(str(data["config"]))
+    _sizes(data["character"].shape[-1], data["camera"].shape[-1])
     split = data["test"]                                # 1 for test clips
     keys = [k for k in ("character", "camera", "behavior", "ref_character", "ref_camera") if k in data.files]
     train_d = {k: data[k][split == 0] for k in keys}
@@ -258,6 +273,7 @@ def train(data_path: str, out_dir: str, epochs: int, seed: int, batch: int = 256
             groups.append({"params": gate_params, "lr": lr * cfg.get("gate_lr", 1.0)})
         opt = torch.optim.Adam(groups, lr=lr)
         sched = torch.optim.lr_scheduler.ExponentialLR(opt, 0.95)
+        per_sample = sample_weights(cfg)
         for epoch in range(1, epochs + 1):
             t0 = time.perf_counter()
             order = rng.permutation(len(tr))
@@ -270,7 +286,8 @@ def train(data_path: str, out_dir: str, epochs: int, seed: int, batch: int = 256
                 loss = 0.0
                 for r in range(steps):
                     pred = absolute(model.step(torch.cat([past, chars[r]], 1), w), base, cfg)
-                    loss = loss + torch.mean((pred - ys[r]) ** 2) / steps
+                    sq = ((pred - ys[r]) ** 2).view(len(pred), cfg["out"], N_CAM).mean(dim=(0, 2))
+                    loss = loss + torch.mean(sq * per_sample) / steps
                     samples = pred.view(len(pred), cfg["out"], N_CAM)
                     past = samples[:, -cfg["past"]:].reshape(len(pred), -1)
                     base = samples[:, -1]
@@ -317,6 +334,7 @@ def save_weights(model: MoE, cfg: dict, stats: dict, path, about: dict) -> None:
 def load_weights(path) -> tuple[MoE, dict]:
     data = np.load(path)
     cfg = json.loads(str(data["config"]))
+    _sizes(data["char_mean"].shape[-1], data["cam_mean"].shape[-1])
     model = MoE(cfg)
     sd = {}
     for k in model.state_dict():

@@ -43,7 +43,7 @@ sys.path.insert(0, str(ROOT))
 TORCH_PACKAGES = ["torch==2.13.0", "numpy", "scikit-learn"]
 CONFIG = {"step": 2, "past": 4, "char_past": 12, "char_future": 12, "out": 6, "gate_step": 4, "gate_len": 60,
           "experts": 9, "hidden": 128, "gate_hidden": 32, "noise": 0.3, "blind": 0.2, "residual": True,
-          "pair": 0.8, "gate_lr": 10.0}
+          "pair": 0.8, "gate_lr": 10.0, "u": [4, 7]}
 
 
 def torch_python() -> str:
@@ -89,49 +89,87 @@ def paired_references(clips, rng):
     return chars, cams
 
 
-def around(cam: np.ndarray) -> float:
-    """Degrees the camera turns round A in the ground plane of the pair's frame (signed: its direction)."""
-    azimuth = np.unwrap(np.arctan2(cam[:, 4], cam[:, 3]))
-    return float(np.degrees(azimuth[-1] - azimuth[0]))
-
-
 def retarget_errors(weights: Path, test) -> list[dict]:
-    """Each test clip's behavior, gated from the clip, rolled out: on its own characters (from its first
-    framing), and blind (settled over SETTLE_FRAMES, as `usdcrowd frame --like`) on another clip's
-    characters doing the same kind of motion and on a clip of another kind of motion, the last also from
-    the true first framing ("other_motion_warm"); each compared with the controller (same parameters)
-    filming those characters itself."""
+    """Retargeting as `usdcrowd frame --like` runs it, on held-out clips: each test clip is a reference,
+    gated from itself; its style is rolled out blind on another test clip's characters doing another kind
+    of motion (usdcrowd.cameras.retarget.retarget_poses) and compared, frame by frame, with the controller
+    with the reference's parameters filming those characters (usdcrowd.cameras.retarget.compare). One row
+    per reference: medians and worst cases over its frames."""
     from usdcrowd.cameras.behaviors import BEHAVIORS
-    from usdcrowd.cameras.moe import CameraMoE, camera_angles, turned
-    from usdcrowd.cameras.moe_data import refilm
-    from usdcrowd.jobs.toric_filming import SETTLE_FRAMES
+    from usdcrowd.cameras.moe import CameraMoE
+    from usdcrowd.cameras.moe_data import ASPECT, FOV_X, refilm_track
+    from usdcrowd.cameras.retarget import compare, retarget_poses
 
     model = CameraMoE(weights)
-    orbit = BEHAVIORS.index("orbit")
     rows = []
     for k, ref in enumerate(test):
         w = model.gate(ref.character, ref.camera)
-        same = next(c for c in test[k + 1:] + test[:k] if c.motion == ref.motion)
-        other = next(c for c in test[k + 1:] + test[:k] if c.motion != ref.motion)
-        row = {"behavior": ref.behavior, "shot": ref.shot, "motion": ref.motion,
-               "gate": " ".join(f"{v:.3f}" for v in w)}
-        for name, target, warm in (("own_clip", ref, False), ("same_motion", same, False),
-                                   ("other_motion", other, False), ("other_motion_warm", other, True)):
-            truth = ref.camera if target is ref else refilm(target, ref.params)
-            # On another pair, blind as `usdcrowd frame --like` starts (the new pair's framing is what the model
-            # must find); "_warm" from the truth's first framing, for comparison.
-            cold = target is not ref and not warm
-            pred = model.rollout(w, target.character, None if cold else truth[0], settle=SETTLE_FRAMES if cold else 0)
-            (theta_p, phi_p), (theta_t, phi_t) = camera_angles(pred), camera_angles(truth)
-            row[f"{name}_features"] = float(np.abs(pred - truth).mean())
-            row[f"{name}_theta_deg"] = float(np.degrees(np.abs(theta_p - theta_t)).mean())
-            row[f"{name}_phi_deg"] = float(np.degrees(np.abs(np.angle(np.exp(1j * (phi_p - phi_t))))).mean())
-            # An orbit's phase drifts over 20 s whatever its speed; how far and which way it turns is its style.
-            row[f"{name}_turn_ratio"] = float(turned(pred) / turned(truth)) if ref.behavior == orbit else float("nan")
-            row[f"{name}_same_way"] = float(np.sign(around(pred)) == np.sign(around(truth))) \
-                if ref.behavior == orbit else float("nan")
-        rows.append(row)
+        target = next(c for c in test[k + 1:] + test[:k] if c.motion != ref.motion)
+        poses, _ = retarget_poses(model, w, target.character, target.heads_a, target.heads_b, FOV_X, ASPECT)
+        truth = refilm_track(target, ref.params).cam_to_world
+        d = compare(poses, truth, target.heads_a, target.heads_b, FOV_X, ASPECT)
+        ratio = d["distance_ratio"]
+        rows.append({"behavior": BEHAVIORS[ref.behavior], "shot": ref.shot, "motion": ref.motion,
+                     "target_motion": target.motion,
+                     "distance_ratio_median": float(np.median(ratio)), "distance_ratio_max": float(ratio.max()),
+                     "distance_ratio_min": float(ratio.min()),
+                     "theta_deg_median": float(np.median(d["theta_deg"])), "theta_deg_max": float(d["theta_deg"].max()),
+                     "phi_deg_median": float(np.median(d["phi_deg"])),
+                     "screen_median": float(np.median(d["screen"])), "screen_max": float(d["screen"].max()),
+                     "roll_deg_max": float(d["roll_deg"].max()),
+                     "turn_deg": d["turn_deg"], "truth_turn_deg": d["truth_turn_deg"],
+                     "gate": " ".join(f"{v:.3f}" for v in w)})
     return rows
+
+
+def prediction_summary(errors_csv: Path) -> list[dict]:
+    """Per behavior, one prediction's mean errors (Fig. 9): the direction (degrees) and the screen
+    positions (NDC), mixture of experts and shared bottom."""
+    from usdcrowd.cameras.behaviors import BEHAVIORS
+
+    err = list(csv.DictReader(open(errors_csv)))
+    summary = []
+    for b, name in enumerate(BEHAVIORS):
+        line = {"behavior": name}
+        for model in ("moe", "shared_bottom"):
+            sel = [r for r in err if r["model"] == model and int(r["behavior"]) == b]
+            line[f"{model}_direction_deg"] = float(np.mean([float(r["err_direction_deg"]) for r in sel]))
+            line[f"{model}_screen"] = float(np.mean([float(r[f"err_{k}"]) for r in sel for k in range(4)]))
+        summary.append(line)
+    return summary
+
+
+def retarget_summary(rows: list[dict]) -> list[dict]:
+    """Per behavior and shot size: medians over the references, means, and the worst case."""
+    from usdcrowd.cameras.behaviors import BEHAVIORS, SHOT_SIZES
+
+    out = []
+    for b in BEHAVIORS:
+        for shot in (*SHOT_SIZES, "all"):
+            sel = [r for r in rows if r["behavior"] == b and (shot == "all" or r["shot"] == shot)]
+            if not sel:
+                continue
+            col = lambda k: np.array([r[k] for r in sel])  # noqa: E731
+            line = {"behavior": b, "shot": shot, "clips": len(sel),
+                    "distance_ratio_median": float(np.median(col("distance_ratio_median"))),
+                    "distance_ratio_mean": float(np.mean(col("distance_ratio_median"))),
+                    "distance_ratio_worst": float(col("distance_ratio_max").max()),
+                    "distance_ratio_least": float(col("distance_ratio_min").min()),
+                    "theta_deg_median": float(np.median(col("theta_deg_median"))),
+                    "theta_deg_mean": float(np.mean(col("theta_deg_median"))),
+                    "theta_deg_worst": float(col("theta_deg_max").max()),
+                    "phi_deg_median": float(np.median(col("phi_deg_median"))),
+                    "screen_median": float(np.median(col("screen_median"))),
+                    "screen_worst": float(col("screen_max").max()),
+                    "roll_deg_worst": float(col("roll_deg_max").max())}
+            if b == "orbit":
+                turn, truth = col("turn_deg"), col("truth_turn_deg")
+                speed = np.abs(turn) / np.maximum(np.abs(truth), 1e-9)
+                line.update({"orbit_same_way": float(np.mean(np.sign(turn) == np.sign(truth))),
+                             "orbit_speed_median": float(np.median(speed)),
+                             "orbit_speed_least": float(speed.min()), "orbit_speed_most": float(speed.max())})
+            out.append(line)
+    return out
 
 
 def plots(out: Path, errors_csv: Path, history_csv: Path) -> list[str]:
@@ -200,38 +238,21 @@ def main() -> int:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
-    from usdcrowd.cameras.behaviors import BEHAVIORS
-
-    err = list(csv.DictReader(open(out / "errors.csv")))
-    summary = []
-    for b, name in enumerate(BEHAVIORS):
-        line = {"behavior": name}
-        for model in ("moe", "shared_bottom"):
-            sel = np.array([[float(r[f"err_{k}"]) for k in range(6)] + [float(r["err_direction_deg"])] for r in err
-                            if r["model"] == model and int(r["behavior"]) == b])
-            line[f"{model}_direction_deg"] = float(sel[:, 6].mean())
-            line[f"{model}_screen"] = float(sel[:, :3].mean())
-        ret = [r for r in rows if r["behavior"] == b]
-        for name in ("own_clip", "same_motion", "other_motion", "other_motion_warm"):
-            for what in ("features", "theta_deg", "phi_deg"):
-                line[f"rollout_{name}_{what}"] = float(np.mean([r[f"{name}_{what}"] for r in ret]))
-            line[f"rollout_{name}_theta_median_deg"] = float(np.median([r[f"{name}_theta_deg"] for r in ret]))
-            for what in ("turn_ratio", "same_way"):      # orbits only (NaN for the tracks)
-                v = [r[f"{name}_{what}"] for r in ret]
-                line[f"rollout_{name}_{what}"] = float(np.median(v) if what == "turn_ratio" else np.mean(v))
-        summary.append(line)
-    with open(out / "summary.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(summary[0]))
-        w.writeheader()
-        w.writerows(summary)
-    for line in summary:
+    summary = prediction_summary(out / "errors.csv")
+    retarget = retarget_summary(rows)
+    for name, lines in (("summary.csv", summary), ("retarget_summary.csv", retarget)):
+        with open(out / name, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=list(dict.fromkeys(k for line in lines for k in line)))
+            w.writeheader()
+            w.writerows(lines)
+    for line in summary + retarget:
         print("  ".join(f"{k}={v:.3f}" if isinstance(v, float) else f"{k}={v}" for k, v in line.items()))
     hist = list(csv.DictReader(open(out / "history.csv")))
     sil = [float(r["silhouette"]) for r in hist if r["model"] == "moe"]
     print(f"silhouette of the gating outputs: first epoch {sil[0]:.3f}, last {sil[-1]:.3f}")
     print("plots:", *plots(out, out / "errors.csv", out / "history.csv"))
     if a.record:
-        record_figures(out, summary, sil, rows)
+        record_figures(out, summary, retarget, sil)
     if a.install:
         dest = ROOT / "usdcrowd" / "cameras" / "camera_moe.npz"
         shutil.copy(out / "camera_moe.npz", dest)
@@ -239,66 +260,73 @@ def main() -> int:
     return 0
 
 
-def record_figures(out: Path, summary: list[dict], silhouette: list[float], rows: list[dict]) -> None:
-    """The guide's figures: the summary per behavior, the silhouette's rise, the spread of single orbits."""
+def record_figures(out: Path, summary: list[dict], retarget: list[dict], silhouette: list[float]) -> None:
+    """The guide's figures: one prediction per behavior (Fig. 9), the silhouette's rise (Fig. 10), and
+    retargeting on held-out clips per behavior and shot size, with the table the guide shows."""
     sys.path.insert(0, str(ROOT / "tools"))
     from docfigures import record
 
     docs = ROOT / "docs"
-    shutil.copyfile(out / "summary.csv", docs / "camera_moe_summary.csv")
-    shutil.copyfile(out / "history.csv", docs / "camera_moe_history.csv")
+    for name in ("summary.csv", "retarget_summary.csv", "history.csv"):
+        shutil.copyfile(out / name, docs / f"camera_moe_{name}")
     shutil.copyfile(out / "camera_moe_evaluation.png", docs / "images" / "camera_moe_evaluation.png")
     hist = list(csv.DictReader(open(out / "history.csv")))
-    orbit_turns = [r[f"{name}_turn_ratio"] for r in rows for name in ("own_clip", "same_motion", "other_motion")
-                   if np.isfinite(r[f"{name}_turn_ratio"])]
-    figures = {line["behavior"].replace("-", "_"): {k: v for k, v in line.items() if k != "behavior"}
-               for line in summary}
+    key = lambda text: text.replace("-", "_")  # noqa: E731
+    figures = {key(line["behavior"]): {k: v for k, v in line.items() if k != "behavior"} for line in summary}
+    figures["retarget"] = {f"{key(r['behavior'])}_{key(r['shot'])}": {k: v for k, v in r.items()
+                                                                       if k not in ("behavior", "shot")}
+                           for r in retarget}
     figures["silhouette"] = {"first": silhouette[0], "last": silhouette[-1]}
     figures["training_s"] = sum(float(r["seconds"]) for r in hist)
     figures["training_min"] = figures["training_s"] / 60
-    if orbit_turns:
-        figures["orbit_turn_ratio"] = {"min": float(np.min(orbit_turns)), "max": float(np.max(orbit_turns))}
-    figures["ranges"] = _ranges(summary)
-    record("camera_moe", "tools/train_camera_moe.py", figures=figures, tables={"summary": _summary_table(summary)},
+    figures["ranges"] = _ranges(summary, retarget)
+    record("camera_moe", "tools/train_camera_moe.py", figures=figures,
+           tables={"summary": _summary_table(summary), "retarget": _retarget_table(retarget)},
            images=["docs/images/camera_moe_evaluation.png"])
 
 
-ROLLOUTS = ("own_clip", "same_motion", "other_motion", "other_motion_warm")
-
-
 def _summary_table(summary: list[dict]) -> dict:
-    """The guide's table: one prediction's direction error, then theta error mean / median per roll-out."""
-    def pair(a, b):
-        return " / ".join(f"{v:.1f}" if abs(v) < 50 else f"{v:.0f}" for v in (a, b))
-
-    rows = [[line["behavior"].replace("-", " "), pair(line["moe_direction_deg"], line["shared_bottom_direction_deg"]),
-             *(pair(line[f"rollout_{r}_theta_deg"], line[f"rollout_{r}_theta_median_deg"]) for r in ROLLOUTS)]
-            for line in summary]
-    return {"columns": ["behavior", "direction error, MoE / shared bottom (one prediction, deg)",
-                        "roll-out on its own clip", "on another pair, same kind of motion",
-                        "on another kind of motion", "the same, started from the true framing"], "rows": rows}
+    """One prediction's errors per behavior, mixture of experts against the shared bottom (Fig. 9)."""
+    rows = [[line["behavior"].replace("-", " "),
+             f"{line['moe_direction_deg']:.1f} / {line['shared_bottom_direction_deg']:.1f}",
+             f"{line['moe_screen']:.3f} / {line['shared_bottom_screen']:.3f}"] for line in summary]
+    return {"columns": ["behavior", "direction error, MoE / shared bottom (deg)",
+                        "screen error, MoE / shared bottom (NDC)"], "rows": rows}
 
 
-def _ranges(summary: list[dict]) -> dict:
-    """Ranges the guide's prose quotes: the tracks' medians by roll-out, the one-prediction errors."""
+def _retarget_table(retarget: list[dict]) -> dict:
+    """Retargeting per behavior and shot size: distance ratio, theta, screen, roll, orbits' turn."""
+    def orbit(r):
+        if "orbit_same_way" not in r:
+            return ""
+        return f"{r['orbit_same_way']:.0%}, {r['orbit_speed_median']:.2f}x"
+
+    rows = [[r["behavior"].replace("-", " "), r["shot"], str(r["clips"]),
+             f"{r['distance_ratio_median']:.2f} / {r['distance_ratio_mean']:.2f} / {r['distance_ratio_worst']:.2f}",
+             f"{r['theta_deg_median']:.1f} / {r['theta_deg_mean']:.1f} / {r['theta_deg_worst']:.0f}",
+             f"{r['screen_median']:.3f}", f"{r['roll_deg_worst']:.1f}", orbit(r)]
+            for r in retarget if r["shot"] != "all"]
+    return {"columns": ["behavior", "shot", "clips", "distance ratio, median / mean / worst",
+                        "theta error, median / mean / worst (deg)", "screen error (NDC, median)", "roll, worst (deg)",
+                        "orbits: right way, speed (median)"], "rows": rows}
+
+
+def _ranges(summary: list[dict], retarget: list[dict]) -> dict:
+    """Ranges the guide's prose quotes."""
     by = {line["behavior"]: line for line in summary}
     tracks = [b for b in by if b.endswith("track")]
-    steady = [by[b] for b in ("direct-track", "side-track") if b in by]
+    sizes = [r for r in retarget if r["shot"] != "all"]
 
     def span(lines, key):
         values = [line[key] for line in lines]
         return {"min": float(min(values)), "max": float(max(values))}
 
-    def over(lines, rollouts):
-        values = [line[f"rollout_{r}_theta_median_deg"] for line in lines for r in rollouts]
-        return {"min": float(min(values)), "max": float(max(values))}
-
-    return {"steady_same_kind": over(steady, ("own_clip", "same_motion")),
-            "steady_other_kind": over(steady, ("other_motion",)),
-            "relative": over([by["relative-track"]], ROLLOUTS),
-            "tracks_moe": span([by[b] for b in tracks], "moe_direction_deg"),
-            "tracks_shared_bottom": span([by[b] for b in tracks], "shared_bottom_direction_deg")}
-
+    return {"tracks_moe": span([by[b] for b in tracks], "moe_direction_deg"),
+            "tracks_shared_bottom": span([by[b] for b in tracks], "shared_bottom_direction_deg"),
+            "distance_median": span(sizes, "distance_ratio_median"),
+            "distance_worst": span(sizes, "distance_ratio_worst"),
+            "track_theta_median": span([r for r in sizes if r["behavior"] != "orbit"], "theta_deg_median"),
+            "roll_worst": span(sizes, "roll_deg_worst")}
 
 if __name__ == "__main__":
     raise SystemExit(main())

@@ -13,19 +13,32 @@ here is numpy: using a trained model needs no PyTorch.
 
 Features per frame
 ------------------
-character, 9 (they do not depend on any camera):
+character, 10 (they do not depend on any camera):
     dAB (m), sin and cos of sA, sB and sAB (the paper's shoulder angles,
-    :func:`usdcrowd.cameras.features.pair_orientation`), and the pair's
+    :func:`usdcrowd.cameras.features.pair_orientation`), the pair's
     velocity along AB and across it (m/s, the heads' midpoint, smoothed
-    over half a second).
-camera, 6 (the paper's five, with theta and phi as the unit direction from
-A to the camera in the pair's frame: an orbit crosses the line AB by
-craning over it, where theta turns back and phi sweeps through pi / 2;
-as angles that is a fold a regression cannot time, as a direction it is
-a smooth arc):
-    pA.x, pB.x, the heads' mean screen height, and
-    u = (cos(theta / 2), sin(theta / 2) cos phi, sin(theta / 2) sin phi)
-    (along AB, across it level, up; :mod:`usdcrowd.cameras.toric`).
+    over half a second), and how fast the line AB turns in the world
+    (rad/s, smoothed alike: without it a camera cannot tell an orbit from
+    a pair that turns, and cannot keep an orbit's speed in the world).
+camera, 8 (the paper's toric features, and the main character's size):
+    pA.x, pA.y, pB.x, pB.y (NDC; both heights, as the paper has them),
+    u = (cos(theta / 2), sin(theta / 2) cos phi, sin(theta / 2) sin phi),
+    the unit direction from A to the camera in the pair's frame (along AB,
+    across it level, up; :mod:`usdcrowd.cameras.toric`): an orbit crosses
+    the line AB by craning over it, where theta turns back and phi sweeps
+    through pi / 2; as angles that is a fold a regression cannot time, as
+    a direction it is a smooth arc), and log of the span: the metres the
+    frame's height covers at A's distance (the shot size, independent of
+    the lens).
+
+A camera is built from predicted features (:func:`poses_of_features`) the
+way the controllers build theirs: the eye at A plus the span's distance
+along u, turned without roll to put the heads' midpoint at their predicted
+height. The paper places the camera in toric space from pA, pB, theta
+and phi alone; there the distance grows as 1 / sin(alpha) when the two
+heads come close on screen (a side track's pair one behind the other),
+and a roll-out's small errors became cameras 10-30 times too far. The span
+bounds the distance, and a level camera cannot roll.
 
 The paper's sizes are 60 past and 60 future frames, 30 predicted, hidden
 512 and 9 experts at 60 fps; here the windows are sampled every ``step``
@@ -42,15 +55,17 @@ from pathlib import Path
 
 import numpy as np
 
-N_CHARACTER = 9
-N_CAMERA = 6
+N_CHARACTER = 10
+N_CAMERA = 8
+U = slice(4, 7)     # the camera features' direction from A
+SPAN = 7            # and their log span
 WEIGHTS = Path(__file__).with_name("camera_moe.npz")
-CLIP = 4.0          # standard deviations a fed-back camera feature may reach
+CLIP = 4.0          # standard deviations a fed-back camera feature may reach (and the training's range, if stored)
 
 
 # ------------------------------------------------------------------------------------ features
 def character_features(heads_a, heads_b, yaw_a, yaw_b, fps: float) -> np.ndarray:
-    """(t, 9) float64 character features of A and B (see the module).
+    """(t, 10) float64 character features of A and B (see the module).
 
     Parameters
     ----------
@@ -72,54 +87,90 @@ def character_features(heads_a, heads_b, yaw_a, yaw_b, fps: float) -> np.ndarray
     ab = (heads_b - heads_a)[:, :2]
     along = ab / np.maximum(np.linalg.norm(ab, axis=1, keepdims=True), 1e-9)
     across = np.stack([-along[:, 1], along[:, 0]], -1)
+    heading = np.unwrap(np.arctan2(ab[:, 1], ab[:, 0]))
+    turn = np.gradient(heading) * fps if len(heading) > 1 else np.zeros_like(heading)
+    turn = moving_average(turn, max(1, int(round(0.5 * fps))))
     return np.column_stack([d, np.sin(s_a), np.cos(s_a), np.sin(s_b), np.cos(s_b), np.sin(s_ab), np.cos(s_ab),
-                            np.einsum("ti,ti->t", vel, along), np.einsum("ti,ti->t", vel, across)])
+                            np.einsum("ti,ti->t", vel, along), np.einsum("ti,ti->t", vel, across), turn])
 
 
-def camera_features(p_a, p_b, theta, phi) -> np.ndarray:
-    """(t, 6) float64 camera features from toric coordinates (see the module)."""
+def camera_features(p_a, p_b, theta, phi, span) -> np.ndarray:
+    """(t, 8) float64 camera features (see the module).
+
+    Parameters
+    ----------
+    p_a, p_b : (t, 2) float
+        Screen positions of the heads, NDC.
+    theta, phi : (t,) float
+        Toric angles, radians.
+    span : (t,) float
+        Metres the frame's height covers at A's distance (:func:`frame_span`).
+    """
     p_a, p_b = np.asarray(p_a, dtype=np.float64), np.asarray(p_b, dtype=np.float64)
     half, phi = 0.5 * np.asarray(theta, dtype=np.float64), np.asarray(phi, dtype=np.float64)
-    return np.column_stack([p_a[:, 0], p_b[:, 0], 0.5 * (p_a[:, 1] + p_b[:, 1]), np.cos(half),
-                            np.sin(half) * np.cos(phi), np.sin(half) * np.sin(phi)])
+    return np.column_stack([p_a, p_b, np.cos(half), np.sin(half) * np.cos(phi), np.sin(half) * np.sin(phi),
+                            np.log(np.asarray(span, dtype=np.float64))])
+
+
+def frame_span(eye, head, fov_x, aspect: float) -> np.ndarray:
+    """(t,) metres the frame's height covers at the distance from ``eye`` to ``head`` ((t, 3) each)."""
+    from .behaviors import fov_y
+
+    dist = np.linalg.norm(np.asarray(eye, dtype=np.float64) - np.asarray(head, dtype=np.float64), axis=-1)
+    return 2.0 * dist * np.tan(0.5 * fov_y(np.asarray(fov_x, dtype=np.float64), aspect))
 
 
 def camera_angles(cam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(theta, phi), each (t,), of camera features' direction (normalised first; no range clipping)."""
-    u = np.asarray(cam, dtype=np.float64)[:, 3:6]
+    u = np.asarray(cam, dtype=np.float64)[:, U]
     u = u / np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-12)
     return 2.0 * np.arctan2(np.hypot(u[:, 1], u[:, 2]), u[:, 0]), np.arctan2(u[:, 2], u[:, 1])
 
 
 def turned(cam: np.ndarray) -> float:
-    """Degrees the direction from A to the camera travels over (t, 6) camera features (an orbit's turn)."""
-    u = np.asarray(cam, dtype=np.float64)[:, 3:6]
+    """Degrees the direction from A to the camera travels over (t, 8) camera features (an orbit's turn)."""
+    u = np.asarray(cam, dtype=np.float64)[:, U]
     u = u / np.linalg.norm(u, axis=1, keepdims=True)
     return float(np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", u[1:], u[:-1]), -1.0, 1.0))).sum())
 
 
-def toric_of_features(cam: np.ndarray, fov_x: float, aspect: float):
-    """Toric coordinates (p_a, p_b, theta, phi) of camera features, made valid.
+def poses_of_features(cam: np.ndarray, heads_a, heads_b, fov_x: float, aspect: float) -> np.ndarray:
+    """(t, 4, 4) level cameras built from (t, 8) camera features filming heads ``heads_a``, ``heads_b`` ((t, 3)).
 
-    The two heads share the predicted mean screen height; they are kept at
-    least 0.02 apart horizontally and theta is kept inside (0, 2 (pi - alpha))
-    with a margin, so every frame is a camera (a prediction is not exact).
+    The eye is at A plus the span's distance along the direction u (in the
+    pair's toric frame); the camera turns without roll to put the two heads
+    either side of the centre, their midpoint at the predicted heads' mean
+    height. Distance and roll are so bounded by construction (see the
+    module); the screen positions are what this pose gives, which the
+    predicted pA.x, pB.x only approximate.
     """
-    from .toric import framing_angle
+    from .behaviors import fov_y
+    from .toric import axes
 
     cam = np.asarray(cam, dtype=np.float64)
-    y = np.clip(cam[:, 2], -0.95, 0.95)
-    x_a, x_b = np.clip(cam[:, 0], -0.95, 0.95), np.clip(cam[:, 1], -0.95, 0.95)
-    apart = np.abs(x_b - x_a) < 0.02
-    mid = np.clip(0.5 * (x_a + x_b), -0.94, 0.94)
-    sign = np.where(x_b >= x_a, 1.0, -1.0)
-    x_a = np.where(apart, mid - 0.01 * sign, x_a)
-    x_b = np.where(apart, mid + 0.01 * sign, x_b)
-    p_a, p_b = np.stack([x_a, y], -1), np.stack([x_b, y], -1)
-    alpha = framing_angle(p_a, p_b, fov_x, aspect)
-    margin = np.radians(2.0)
-    theta, phi = camera_angles(cam)
-    return p_a, p_b, np.clip(theta, 2 * margin, 2 * (np.pi - alpha - margin)), phi
+    heads_a, heads_b = np.asarray(heads_a, dtype=np.float64), np.asarray(heads_b, dtype=np.float64)
+    x, y, z, _ = axes(heads_a, heads_b, np.array([0.0, 0.0, 1.0]))
+    u = cam[:, U] / np.maximum(np.linalg.norm(cam[:, U], axis=1, keepdims=True), 1e-12)
+    direction = u[:, :1] * x + u[:, 1:2] * y + u[:, 2:3] * z
+    dist = np.exp(cam[:, SPAN]) / (2.0 * np.tan(0.5 * fov_y(fov_x, aspect)))
+    eye = heads_a + dist[:, None] * direction
+    return level_camera(eye, heads_a, heads_b, 0.5 * (cam[:, 1] + cam[:, 3]), fov_x, aspect)
+
+
+def level_camera(eye, heads_a, heads_b, height, fov_x: float, aspect: float, rounds: int = 4) -> np.ndarray:
+    """(t, 4, 4) cameras at ``eye`` turned without roll, the heads either side of the centre and the mean of
+    their screen heights at ``height`` ((t,) NDC, clipped to +-0.95): the pitch is corrected a few rounds,
+    since heads at different depths do not project their mean height onto their midpoint's."""
+    from .behaviors import _project, fov_y, look_without_roll
+
+    half_y = np.tan(0.5 * fov_y(fov_x, aspect))
+    want = np.arctan(np.clip(height, -0.95, 0.95) * half_y)
+    above = want.copy()
+    for _ in range(rounds):
+        m = look_without_roll(eye, heads_a, heads_b, above)
+        got = 0.5 * (_project(m, heads_a, fov_x, aspect)[:, 1] + _project(m, heads_b, fov_x, aspect)[:, 1])
+        above = above + want - np.arctan(np.where(np.isfinite(got), got, 0.0) * half_y)
+    return look_without_roll(eye, heads_a, heads_b, above)
 
 
 # ---------------------------------------------------------------------------------- the network
@@ -152,6 +203,8 @@ class Config:
     gate_lr: float = 1.0  # training: the gate's learning rate, a multiple of the experts'
     unroll: int = 1       # training: predictions in a row, each fed the one before (as a roll-out)
     residual: bool = False  # the network predicts the camera's change from its last sample
+    u: tuple = (4, 7)     # training: the camera features' direction columns (its error in degrees)
+    eta: float = 1.0      # training: weight of the predicted samples after the first (the paper's Eq. 6: 0.1)
 
     @property
     def n_in(self) -> int:
@@ -162,12 +215,12 @@ class CameraMoE:
     """The gating and prediction networks, from a weights file (numpy arrays, float32).
 
     Arrays (PyTorch's layouts, so a state dict saves straight into it):
-    ``gate.lstm.weight_ih`` (4H, 15), ``weight_hh`` (4H, H), ``bias_ih``,
+    ``gate.lstm.weight_ih`` (4H, 18), ``weight_hh`` (4H, H), ``bias_ih``,
     ``bias_hh`` (4H,) with gates in the order i, f, g, o; ``gate.fc.weight``
     (m, H), ``bias`` (m,); ``experts.w1`` (m, n_in, h), ``b1`` (m, h),
-    ``w2`` (m, h, h), ``b2``, ``w3`` (m, h, out * 6), ``b3``; and the
-    normalisation ``char_mean``, ``char_std`` (9,), ``cam_mean``, ``cam_std``
-    (6,).
+    ``w2`` (m, h, h), ``b2``, ``w3`` (m, h, out * 8), ``b3``; and the
+    normalisation ``char_mean``, ``char_std`` (10,), ``cam_mean``, ``cam_std``,
+    ``cam_lo``, ``cam_hi`` (8,).
     """
 
     def __init__(self, path: str | Path = WEIGHTS):
@@ -188,7 +241,7 @@ class CameraMoE:
 
     # ------------------------------------------------------------------ gating
     def gate_input(self, char: np.ndarray, cam: np.ndarray) -> np.ndarray:
-        """(gate_len, 15) normalised reference features: the middle of the clip, sampled every gate_step frames."""
+        """(gate_len, 18) normalised reference features: the middle of the clip, sampled every gate_step frames."""
         c = self.config
         feats = np.column_stack([(char - self.w["char_mean"]) / self.w["char_std"],
                                  (cam - self.w["cam_mean"]) / self.w["cam_std"]])
@@ -197,11 +250,11 @@ class CameraMoE:
         return feats[np.clip(start + idx, 0, len(feats) - 1)]
 
     def gate(self, char: np.ndarray, cam: np.ndarray) -> np.ndarray:
-        """(m,) expert weights (sum 1) for a reference clip's (t, 9) character and (t, 6) camera features."""
+        """(m,) expert weights (sum 1) for a reference clip's (t, 10) character and (t, 8) camera features."""
         return self.gate_sequence(self.gate_input(char, cam)[None])[0]
 
     def gate_sequence(self, x: np.ndarray) -> np.ndarray:
-        """(b, m) expert weights of (b, gate_len, 15) normalised sequences: the LSTM's last state, FC, softmax."""
+        """(b, m) expert weights of (b, gate_len, 18) normalised sequences: the LSTM's last state, FC, softmax."""
         w = self.w
         h_size = w["gate.lstm.weight_hh"].shape[1]
         h = np.zeros((len(x), h_size))
@@ -216,6 +269,15 @@ class CameraMoE:
         e = np.exp(logits - logits.max(axis=1, keepdims=True))
         return e / e.sum(axis=1, keepdims=True)
 
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(8,) lowest and highest normalised camera features a roll-out may feed back: the range the
+        training data spans (``cam_lo``, ``cam_hi`` in the weights), within CLIP standard deviations."""
+        lo, hi = np.full(N_CAMERA, -CLIP), np.full(N_CAMERA, CLIP)
+        if "cam_lo" in self.w:
+            lo = np.maximum(lo, (self.w["cam_lo"] - self.w["cam_mean"]) / self.w["cam_std"])
+            hi = np.minimum(hi, (self.w["cam_hi"] - self.w["cam_mean"]) / self.w["cam_std"])
+        return lo, hi
+
     # -------------------------------------------------------------- prediction
     def blend(self, weights: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
         """The prediction network's three layers for one expert mix: [(W (in, out), b (out,)), ...]."""
@@ -223,7 +285,7 @@ class CameraMoE:
         return [(np.tensordot(wt, self.w[f"experts.w{k}"], 1), wt @ self.w[f"experts.b{k}"]) for k in (1, 2, 3)]
 
     def predict(self, layers, x: np.ndarray) -> np.ndarray:
-        """(b, out * 6) normalised camera features of the next ``out`` samples from (b, n_in) normalised inputs."""
+        """(b, out * 8) normalised camera features of the next ``out`` samples from (b, n_in) normalised inputs."""
         (w1, b1), (w2, b2), (w3, b3) = layers
         return _elu(_elu(x @ w1 + b1) @ w2 + b2) @ w3 + b3
 
@@ -240,7 +302,7 @@ class CameraMoE:
     def inputs(self, char_n: np.ndarray, past_n: np.ndarray, frame: int) -> np.ndarray:
         """(n_in,) prediction input at ``frame``: normalised character features around it, camera before it.
 
-        ``char_n`` is (t, 9) normalised, ``past_n`` (past, 6) normalised camera samples ending at ``frame``.
+        ``char_n`` is (t, 10) normalised, ``past_n`` (past, 8) normalised camera samples ending at ``frame``.
         """
         c = self.config
         idx = frame + np.arange(-(c.char_past - 1), c.char_future + 1) * c.step
@@ -249,15 +311,15 @@ class CameraMoE:
 
     def rollout(self, weights: np.ndarray, char: np.ndarray, start_cam: np.ndarray | None,
                 settle: int = 0) -> np.ndarray:
-        """(t, 6) camera features filming characters ``char`` (t, 9) in the style of ``weights``.
+        """(t, 8) camera features filming characters ``char`` (t, 10) in the style of ``weights``.
 
         Parameters
         ----------
         weights : (m,) float
             Expert mix (:meth:`gate`).
-        char : (t, 9) float
+        char : (t, 10) float
             The new scene's character features.
-        start_cam : (6,) float or None
+        start_cam : (8,) float or None
             Camera features to start from (held over the first past window);
             None starts blind, the first prediction made from the gate and
             the characters alone (a model trained with ``blind`` samples
@@ -284,16 +346,17 @@ class CameraMoE:
         else:
             cam_n = np.clip((np.asarray(start_cam, dtype=np.float64) - self.w["cam_mean"]) / self.w["cam_std"],
                             -CLIP, CLIP)
+        lo, hi = self.bounds()
         samples = [cam_n] * c.past
         frame, t = 0, len(char_n)
         while frame < t - 1:
             x = self.inputs(char_n, np.array(samples[-c.past:]), frame)
             # Fed back, a prediction must stay within what the network has seen, or a roll-out can diverge.
             pred = self.predict(layers, x[None])[0].reshape(c.out, N_CAMERA)
-            samples.extend(np.clip(pred + samples[-1] if c.residual else pred, -CLIP, CLIP))
+            samples.extend(np.clip(pred + samples[-1] if c.residual else pred, lo, hi))
             frame += c.out * c.step
         known = np.array(samples[c.past - 1:]) * self.w["cam_std"] + self.w["cam_mean"]
         at = np.arange(len(known)) * c.step
         out = np.column_stack([np.interp(np.arange(t), at, known[:, k]) for k in range(N_CAMERA)])
-        out[:, 3:6] /= np.maximum(np.linalg.norm(out[:, 3:6], axis=1), 1e-9)[:, None]
+        out[:, U] /= np.maximum(np.linalg.norm(out[:, U], axis=1), 1e-9)[:, None]
         return out[max(settle, 0):]

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .behaviors import BEHAVIORS, SHOT_SIZES, Behavior, behavior_track
-from .moe import camera_features, character_features
+from .moe import camera_features, character_features, frame_span
 
 FPS = 24.0
 FOV_X = 2.0 * np.arctan(18.0 / 50.0)       # the 50 mm lens of `usdcrowd frame`
@@ -27,8 +27,8 @@ MOTIONS = ("side-by-side", "in-line", "talking", "circling", "walk-then-talk")
 class Clip:
     """One synthetic clip: features per frame and what made it."""
 
-    character: np.ndarray      # (t, 9)
-    camera: np.ndarray         # (t, 6)
+    character: np.ndarray      # (t, 10)
+    camera: np.ndarray         # (t, 8)
     behavior: int              # index into BEHAVIORS
     shot: str
     motion: str
@@ -106,17 +106,26 @@ def make_clip(rng, behavior_index: int, frames: int = 480, kind: str | None = No
     ha, hb, ya, yb = motion(rng, kind, frames)
     behavior = draw_behavior(rng, BEHAVIORS[behavior_index], shot)
     times = np.arange(1, frames + 1, dtype=np.float64)
-    tr = behavior_track(behavior, times, FPS, ha, hb, ya, yb, FOV_X, ASPECT)
-    cam = camera_features(tr.p_a, tr.p_b, tr.theta, tr.phi)
+    cam = track_features(behavior_track(behavior, times, FPS, ha, hb, ya, yb, FOV_X, ASPECT), ha)
     return Clip(character_features(ha, hb, ya, yb, FPS), cam, behavior_index, behavior.shot, kind, ha, hb, ya, yb,
                 behavior)
 
 
-def refilm(clip: Clip, behavior: Behavior) -> np.ndarray:
-    """(t, 6) camera features of ``behavior`` filming the clip's characters (the truth a retargeting aims at)."""
+def track_features(track, heads_a) -> np.ndarray:
+    """(t, 8) camera features of a controller's BehaviorTrack filming A's heads ``heads_a`` (t, 3)."""
+    return camera_features(track.p_a, track.p_b, track.theta, track.phi,
+                           frame_span(track.cam_to_world[:, 3, :3], heads_a, FOV_X, ASPECT))
+
+
+def refilm_track(clip: Clip, behavior: Behavior):
+    """The BehaviorTrack of ``behavior`` filming the clip's characters (the truth a retargeting aims at)."""
     times = np.arange(1, len(clip.yaw_a) + 1, dtype=np.float64)
-    tr = behavior_track(behavior, times, FPS, clip.heads_a, clip.heads_b, clip.yaw_a, clip.yaw_b, FOV_X, ASPECT)
-    return camera_features(tr.p_a, tr.p_b, tr.theta, tr.phi)
+    return behavior_track(behavior, times, FPS, clip.heads_a, clip.heads_b, clip.yaw_a, clip.yaw_b, FOV_X, ASPECT)
+
+
+def refilm(clip: Clip, behavior: Behavior) -> np.ndarray:
+    """(t, 8) camera features of ``behavior`` filming the clip's characters."""
+    return track_features(refilm_track(clip, behavior), clip.heads_a)
 
 
 def make_clips(seed: int, per_behavior: int, frames: int = 480) -> list[Clip]:

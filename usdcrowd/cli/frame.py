@@ -1,4 +1,4 @@
-"""usdcrowd frame SHOT (--behavior B | --like REF.usda) --targets A B|auto --shot SIZE [--smooth] [--switch F C D]"""
+"""usdcrowd frame SHOT (--behavior B | --like REF.usda [REF2.usda --like-from F]) --targets A B|auto --shot SIZE [--smooth] [--switch F C D]"""
 
 from __future__ import annotations
 
@@ -33,11 +33,16 @@ def add_parser(sub):
     p.add_argument("shot", help="the shot stage (shot.usda)")
     how = p.add_mutually_exclusive_group(required=True)
     how.add_argument("--behavior", choices=BEHAVIORS, help="how the camera moves with the pair")
-    how.add_argument("--like", metavar="REFERENCE.usda",
+    how.add_argument("--like", metavar="REFERENCE.usda", nargs="+",
                      help="film the pair the way a camera of another stage films two characters (seed 002's "
-                          "learned behaviors: the behavior mix is read from it and retargeted here)")
-    p.add_argument("--camera", metavar="PATH",
-                   help="with --like: the reference's camera (default: its toric camera, the first if several)")
+                          "learned behaviors: the behavior mix is read from it and retargeted here); with several "
+                          "references, each takes over at its --like-from frame")
+    p.add_argument("--like-from", nargs="+", type=float, default=[], metavar="FRAME",
+                   help="with several --like references: the frame each after the first takes over from (the "
+                        "camera eases from one style into the next over two seconds)")
+    p.add_argument("--camera", metavar="PATH", nargs="+",
+                   help="with --like: the reference's camera (default: its toric camera, the first if several); "
+                        "with several references, one for each or one for all")
     p.add_argument("--like-targets", nargs=2, metavar=("A", "B"),
                    help="with --like: the reference's two characters (default: its toric camera's targets)")
     p.add_argument("--targets", nargs="+", required=True, metavar="NAME",
@@ -107,17 +112,28 @@ def run(args) -> int:
     if args.like:
         from ..jobs.toric_filming import frame_like, read_reference
 
-        reference = read_reference(args.like, args.camera, tuple(args.like_targets) if args.like_targets else None,
-                                   progress=args.progress)
+        if len(args.like_from) != len(args.like) - 1 or list(args.like_from) != sorted(args.like_from):
+            raise UsdcrowdError(f"--like-from takes one frame, in increasing order, for each reference after the "
+                                f"first ({len(args.like) - 1} here), not {len(args.like_from)}")
+        cameras = args.camera or [None]
+        if len(cameras) not in (1, len(args.like)):
+            raise UsdcrowdError(f"--camera takes one camera for all references or one for each ({len(args.like)} "
+                                f"here), not {len(cameras)}")
+        cameras = cameras * len(args.like) if len(cameras) == 1 else cameras
+        references = [read_reference(ref, cam, tuple(args.like_targets) if args.like_targets else None,
+                                     progress=args.progress) for ref, cam in zip(args.like, cameras)]
+        starts = [float("-inf"), *args.like_from]
         path, track, result, signals, weights = frame_like(
-            args.shot, reference, spans, name=args.name, smooth=args.smooth, focal_length=args.focal_length,
-            aspect=width / height, span=args.span, progress=args.progress)
-        what = f"like {reference.camera} of {args.like} ({reference.shot_size})"
-        mix = ", ".join(f"{w:.2f}" for w in weights)
-        detail = f"  experts   {mix} (the gating network's reading of the reference)"
+            args.shot, list(zip(references, starts)), spans, name=args.name, smooth=args.smooth,
+            focal_length=args.focal_length, aspect=width / height, span=args.span, progress=args.progress)
+        what = ", then ".join(f"like {r.camera} of {ref} ({r.shot_size})" + (f" from frame {f:g}" if k else "")
+                              for k, (r, ref, f) in enumerate(zip(references, args.like, starts)))
+        gates = weights if weights.ndim == 2 else weights[None]
+        detail = "\n".join(f"  experts   {', '.join(f'{w:.2f}' for w in g)} (the gating network's reading of "
+                           f"{ref})" for g, ref in zip(gates, args.like))
     else:
-        if args.camera or args.like_targets:
-            raise UsdcrowdError("--camera and --like-targets name the reference of --like")
+        if args.camera or args.like_targets or args.like_from:
+            raise UsdcrowdError("--camera, --like-targets and --like-from name the references of --like")
         behavior = Behavior(args.behavior, args.shot_size, side=1 if args.side == "left" else -1,
                             offset=args.offset, orbit_speed=args.orbit_speed)
         path, track, result, signals = frame_shot(args.shot, behavior, spans, name=args.name, smooth=args.smooth,

@@ -31,7 +31,7 @@ if TYPE_CHECKING:
 FOCAL_LENGTH = 50.0        # mm: a 40 degree horizontal field on 36 mm, within the seed's 30-45 degrees
 APERTURE = 36.0            # mm, horizontal
 TRANSITION = 1.0           # seconds a switch of pair takes
-SETTLE_FRAMES = 48         # a learned camera's blind start, rolled out before the shot begins (2 s at 24 fps)
+STYLE_TRANSITION = 2.0     # seconds a learned camera takes to pass from one reference's style to the next
 
 
 @dataclass(frozen=True)
@@ -457,8 +457,8 @@ class Reference:
     camera: str
     a: str
     b: str
-    character: np.ndarray      # (t, 9)
-    camera_features: np.ndarray  # (t, 6)
+    character: np.ndarray      # (t, 10)
+    camera_features: np.ndarray  # (t, 8)
     shot_size: str
 
 
@@ -478,7 +478,7 @@ def read_reference(shot_path, camera: str | None = None, targets: tuple[str, str
         frame that frames both heads.
     """
     from ..cameras.features import head_and_facing
-    from ..cameras.moe import camera_features, character_features
+    from ..cameras.moe import camera_features, character_features, frame_span
     from ..cameras.toric import ToricError, pose_to_toric
     from .pipeline import frame_progress
     from ..scenario.shot_scene import ShotScene
@@ -495,6 +495,7 @@ def read_reference(shot_path, camera: str | None = None, targets: tuple[str, str
     if rows[0] == rows[1]:
         raise StageError("the reference's two characters are the same agent", file=scene.path, prim=targets[0])
     heads = np.zeros((len(times), 2, 3))
+    eyes = np.zeros((len(times), 3))
     yaws = np.zeros((len(times), 2))
     toric = np.full((len(times), 6), np.nan)
     fov_x, aspect = np.radians(first.fov_x()), first.horizontal_aperture / first.vertical_aperture
@@ -502,6 +503,7 @@ def read_reference(shot_path, camera: str | None = None, targets: tuple[str, str
         for i, t in enumerate(times):
             heads[i], yaws[i] = head_and_facing(scene.agents(t, rows).joints_world)
             view = scene.camera(first.path, t)
+            eyes[i] = view.cam_to_world[3, :3]
             try:
                 p_a, p_b, theta, phi = pose_to_toric(view.cam_to_world, heads[i, 0], heads[i, 1], fov_x, aspect)
                 toric[i] = [*p_a, *p_b, theta, phi]
@@ -514,7 +516,8 @@ def read_reference(shot_path, camera: str | None = None, targets: tuple[str, str
                          prim=first.path)
     last = np.maximum.accumulate(np.where(ok, np.arange(len(ok)), -1))
     toric = toric[np.where(last >= 0, last, int(np.argmax(ok)))]
-    cam = camera_features(toric[:, 0:2], toric[:, 2:4], toric[:, 4], toric[:, 5])
+    cam = camera_features(toric[:, 0:2], toric[:, 2:4], toric[:, 4], toric[:, 5],
+                          frame_span(eyes, heads[:, 0], fov_x, aspect))
     char = character_features(heads[:, 0], heads[:, 1], yaws[:, 0], yaws[:, 1], scene.fps)
     size = first.toric["shot_size"] if first.toric and first.toric["shot_size"] else _shot_size_of(
         heads[:, 0], np.array([scene.camera(first.path, t).cam_to_world for t in times[:: max(1, len(times) // 24)]]),
@@ -549,7 +552,7 @@ def _shot_size_of(heads_a: np.ndarray, cams: np.ndarray, times, fov_x: float, as
     return min(SHOT_SIZES, key=lambda k: abs(np.log(SHOT_SIZES[k].span / span)))
 
 
-def frame_like(shot_path, reference: Reference, spans: list[PairSpan] | str, name: str | None = None,
+def frame_like(shot_path, reference: Reference | list[tuple[Reference, float]], spans: list[PairSpan] | str, name: str | None = None,
                smooth: bool = False, focal_length: float = FOCAL_LENGTH, aspect: float = 16 / 9,
                span: float = 5.0, model=None, progress: bool = True):
     """Add a camera that films the shot's pair the way the reference's camera filmed its own (section 5).
@@ -558,17 +561,24 @@ def frame_like(shot_path, reference: Reference, spans: list[PairSpan] | str, nam
     it shows); the prediction network, with the experts blended by it, is
     rolled out over the new pair's character features, its first framing
     made from the gate and the characters alone (a blind start, settled
-    over :data:`SETTLE_FRAMES` frames before the shot).
+    over :data:`usdcrowd.cameras.retarget.SETTLE_FRAMES` frames before the shot).
+    ``reference`` may be a list of (reference, from time code) pairs: the
+    style switches over time. Each reference's style is rolled out over the
+    whole shot, and the camera passes from one to the next over
+    :data:`STYLE_TRANSITION` seconds (:func:`usdcrowd.cameras.retarget.blend_features`):
+    the network, fed its own past, keeps a camera where it is, so blending
+    the experts alone left it where the first style had put it.
 
     Returns
     -------
     path, track, features, signals, weights
-        As :func:`frame_shot`, and the (m,) expert weights.
+        As :func:`frame_shot`, and the gating network's expert weights: (m,),
+        or (n, m), one row per reference, with several.
     """
-    from ..cameras.behaviors import clear_of_obstacles, look_without_roll
-    from ..cameras.moe import CameraMoE, character_features, toric_of_features
+    from ..cameras.behaviors import clear_of_obstacles
+    from ..cameras.moe import CameraMoE, character_features, level_camera, poses_of_features
+    from ..cameras.retarget import blend_features, retarget_poses, switch_weights
     from ..cameras.smoothing import smooth_track
-    from ..cameras.toric import toric_to_poses
     from ..scenario.shot_scene import ShotScene
 
     model = model or CameraMoE()
@@ -580,30 +590,33 @@ def frame_like(shot_path, reference: Reference, spans: list[PairSpan] | str, nam
     path = _camera_path(scene, name or camera_name("learned", scene.agent_paths[rows[0][1]],
                                                     scene.agent_paths[rows[0][2]], auto=len(rows) > 1))
     signals = target_signals(scene, spans, times, TRANSITION, progress)
-    weights = model.gate(reference.character, reference.camera_features)
+    timeline = reference if isinstance(reference, list) else [(reference, times[0])]
+    reference = timeline[0][0]
+    gates = [model.gate(r.character, r.camera_features) for r, _ in timeline]
     char = character_features(signals.heads_a, signals.heads_b, signals.yaw_a, signals.yaw_b, scene.fps)
+    fov_x = 2.0 * np.arctan(0.5 * APERTURE / focal_length)
     # A model trained with blind samples frames the new pair itself; the reference's first framing is
     # another pair's (an older model starts from it).
-    blind = model.config.blind > 0
-    cam = model.rollout(weights, char, None if blind else reference.camera_features[0],
-                        settle=SETTLE_FRAMES if blind else 0)
-    fov_x = 2.0 * np.arctan(0.5 * APERTURE / focal_length)
-    p_a, p_b, theta, phi = toric_of_features(cam, fov_x, aspect)
-    m = toric_to_poses(signals.heads_a, signals.heads_b, p_a, p_b, theta, phi, fov_x, aspect)
+    cams = [retarget_poses(model, g, char, signals.heads_a, signals.heads_b, fov_x, aspect,
+                           None if model.config.blind > 0 else r.camera_features[0])[1]
+            for g, (r, _) in zip(gates, timeline)]
+    cam = cams[0] if len(cams) == 1 else blend_features(
+        cams, switch_weights([f for _, f in timeline], times, scene.fps, STYLE_TRANSITION))
+    m = poses_of_features(cam, signals.heads_a, signals.heads_b, fov_x, aspect)
     obstacles = shot_obstacles(scene)
     if obstacles is not None and len(obstacles):
-        # In front of a wall, on the line from the pair: the pair keeps its place on screen.
-        m[:, 3, :3] = clear_of_obstacles(0.5 * (signals.heads_a + signals.heads_b), m[:, 3, :3], obstacles)
-    # The network predicts the heads' mean height only, and a toric pose that puts both heads at one
-    # height rolls the camera when they are at different depths. The controllers never roll: the eye
-    # stays where the network put it, turned level with the pair centred at the predicted height.
-    m = look_without_roll(m[:, 3, :3], signals.heads_a, signals.heads_b,
-                          np.arctan(p_a[:, 1] * np.tan(0.5 * fov_x) / aspect))
+        # In front of a wall, on the line from the pair: the pair keeps its place on screen, the camera level.
+        mid = 0.5 * (signals.heads_a + signals.heads_b)
+        eye = clear_of_obstacles(mid, m[:, 3, :3], obstacles)
+        m = level_camera(eye, signals.heads_a, signals.heads_b, 0.5 * (cam[:, 1] + cam[:, 3]), fov_x, aspect)
     if smooth:
         m = smooth_track(m)
     result = _track_features(m, signals, fov_x, aspect)
     track = _camera_track(path, times, result.cam_to_world, focal_length, aspect)
-    written = _author(scene, track, result, signals, "learned", reference.shot_size, smooth,
-                      {"expert_weights": weights, "reference": os.path.relpath(reference.path,
-                                                                                os.path.dirname(scene.path))})
-    return written, track, result, signals, weights
+    here = os.path.dirname(scene.path)
+    extra = {"expert_weights": gates[0], "reference": os.path.relpath(reference.path, here)}
+    if len(timeline) > 1:
+        extra.update({"references": [os.path.relpath(r.path, here) for r, _ in timeline],
+                      "reference_from": [times[0]] + [f for _, f in timeline[1:]], "reference_weights": gates})
+    written = _author(scene, track, result, signals, "learned", reference.shot_size, smooth, extra)
+    return written, track, result, signals, gates[0] if len(gates) == 1 else np.array(gates)

@@ -172,7 +172,9 @@ def add_camera(cameras_path: str | os.PathLike, track: model.CameraTrack, toric:
         ``behavior``, ``shot_size``, ``smoothed`` and per frame ``target_a``,
         ``target_b`` (lists of prim paths), ``p_a``, ``p_b`` ((t, 2) NDC),
         ``theta``, ``phi`` ((t,) radians); for a learned camera also
-        ``expert_weights`` and ``reference`` (the reference stage's path).
+        ``expert_weights`` and ``reference`` (the reference stage's path);
+        for a style switched over time also ``references``, ``reference_from``
+        (time codes) and ``reference_weights`` (one row per reference).
     parents : ParentSpace, optional
         The stage the track was computed on (see :func:`write_camera_tracks`).
     """
@@ -242,6 +244,13 @@ def _toric_values(layer, spec, track: model.CameraTrack, toric: dict) -> None:
         _set(spec, "crowd:toric:expertWeights", T.FloatArray,
              Vt.FloatArray([float(v) for v in toric["expert_weights"]]), uniform=True)
         _set(spec, "crowd:toric:reference", T.Asset, Sdf.AssetPath(toric["reference"]), uniform=True)
+    if toric.get("references"):
+        _set(spec, "crowd:toric:references", T.AssetArray,
+             Sdf.AssetPathArray([Sdf.AssetPath(r) for r in toric["references"]]), uniform=True)
+        _set(spec, "crowd:toric:referenceFrom", T.FloatArray,
+             Vt.FloatArray([float(f) for f in toric["reference_from"]]), uniform=True)
+        _set(spec, "crowd:toric:referenceWeights", T.FloatArray,
+             Vt.FloatArray([float(v) for v in np.ravel(toric["reference_weights"])]), uniform=True)
     times = [float(t) for t in track.times]
     for name, key in (("crowd:toric:targetA", "target_a"), ("crowd:toric:targetB", "target_b")):
         attr = Sdf.AttributeSpec(spec, name, T.String)

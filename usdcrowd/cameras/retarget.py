@@ -1,0 +1,139 @@
+"""Retargeting (seed 002, section 5): a new pair filmed the way a reference filmed its own, and how close it comes.
+
+:func:`retarget_poses` is what ``usdcrowd frame --like`` runs once the
+reference is read: the gate's mix of experts rolled out over the new pair's
+character features from a blind start, each frame's features built into a
+level camera (:func:`usdcrowd.cameras.moe.poses_of_features`).
+:func:`compare` measures a camera against the controller it imitates, frame
+by frame, in the quantities a cinematographer checks: where the camera is
+round the pair (theta, phi), how far (distance ratio), where the heads are
+on screen, the roll, and an orbit's turn.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+SETTLE_FRAMES = 48         # a blind start, rolled out before the shot begins (2 s at 24 fps)
+_UP = np.array([0.0, 0.0, 1.0])
+
+
+def retarget_poses(model, weights: np.ndarray, char: np.ndarray, heads_a, heads_b, fov_x: float, aspect: float,
+                   start_cam: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Cameras filming A and B in the style of ``weights``.
+
+    Parameters
+    ----------
+    model : CameraMoE
+    weights : (m,) float
+        Expert mix (:meth:`CameraMoE.gate` of the reference).
+    char : (t, 10) float
+        The new pair's character features.
+    heads_a, heads_b : (t, 3) float
+        Their heads, metres, Z up.
+    fov_x, aspect : float
+        The new camera's lens (radians) and frame (width / height).
+    start_cam : (8,) float or None
+        Camera features to start from; None (what the command does) starts
+        blind, settled over :data:`SETTLE_FRAMES` frames. A model trained
+        without blind samples needs a start.
+
+    Returns
+    -------
+    poses : (t, 4, 4) float
+        Row-vector camera-to-world matrices.
+    features : (t, 8) float
+        The rolled-out camera features they were built from.
+    """
+    from .moe import poses_of_features
+
+    blind = start_cam is None
+    cam = model.rollout(weights, char, start_cam, settle=SETTLE_FRAMES if blind else 0)
+    return poses_of_features(cam, heads_a, heads_b, fov_x, aspect), cam
+
+
+def switch_weights(starts, times, fps: float, transition: float = 1.0) -> np.ndarray:
+    """(t, n) share of each of ``n`` references in each frame, for references switched over time.
+
+    Parameters
+    ----------
+    starts : sequence of float
+        The time code each reference takes over from (the first's is
+        ignored: it holds from the start), increasing.
+    times : (t,) float
+        The shot's time codes.
+    fps : float
+        Time codes per second.
+    transition : float
+        Seconds over which one reference's share passes to the next, easing
+        in and out (smoothstep: the camera's speed changes without a jolt).
+    """
+    times = np.asarray(times, dtype=np.float64)
+    out = np.zeros((len(times), len(starts)))
+    out[:, 0] = 1.0
+    for k, start in enumerate(starts[1:], 1):
+        ramp = np.clip((times - start) / max(transition * fps, 1e-9), 0.0, 1.0)[:, None]
+        ramp = ramp * ramp * (3.0 - 2.0 * ramp)
+        out = (1.0 - ramp) * out
+        out[:, k] += ramp[:, 0]
+    return out
+
+
+def blend_features(features, shares: np.ndarray) -> np.ndarray:
+    """(t, 8) camera features mixing several roll-outs ((t, 8) each) by per-frame ``shares`` ((t, n)).
+
+    Screen positions and the log span mix linearly; the direction from A
+    mixes and is normalised again, so that a camera passing from one
+    style's place to the next goes round the pair, not through it.
+    """
+    from .moe import U
+
+    stack = np.stack([np.asarray(f, dtype=np.float64) for f in features], axis=1)      # (t, n, 8)
+    out = np.einsum("tn,tnk->tk", shares, stack)
+    out[:, U] /= np.maximum(np.linalg.norm(out[:, U], axis=1, keepdims=True), 1e-9)
+    return out
+
+
+def _angles(eye, heads_a, heads_b):
+    """(theta, phi), each (t,): toric angles of eyes about A and B (the convention of camera_features)."""
+    from .toric import axes
+
+    x, y, z, _ = axes(heads_a, heads_b, _UP)
+    v = eye - heads_a
+    vx, vy, vz = (np.einsum("ti,ti->t", v, k) for k in (x, y, z))
+    return 2.0 * np.arctan2(np.hypot(vy, vz), vx), np.arctan2(vz, vy)
+
+
+def turn_about(eye: np.ndarray, centre: np.ndarray) -> float:
+    """Signed degrees ``eye`` ((t, 3)) goes round ``centre`` ((t, 3)) about the vertical over the frames."""
+    rel = (eye - centre)[:, :2]
+    return float(np.degrees(np.unwrap(np.arctan2(rel[:, 1], rel[:, 0]))[[0, -1]] @ [-1.0, 1.0]))
+
+
+def compare(poses: np.ndarray, truth: np.ndarray, heads_a, heads_b, fov_x: float, aspect: float) -> dict:
+    """Per-frame differences of cameras ``poses`` from the controller's ``truth`` ((t, 4, 4) each).
+
+    Returns
+    -------
+    dict of (t,) float arrays
+        ``distance_ratio`` (to the heads' midpoint, learned over controller),
+        ``theta_deg``, ``phi_deg`` (absolute differences, phi wrapped),
+        ``screen`` (mean distance of the two heads' screen positions, NDC),
+        ``roll_deg`` (the learned camera's right axis out of the horizontal);
+        and floats ``turn_deg``, ``truth_turn_deg``: how far each goes round
+        the midpoint over the frames (signed, counter-clockwise seen from above).
+    """
+    from .behaviors import _project
+
+    heads_a, heads_b = np.asarray(heads_a, dtype=np.float64), np.asarray(heads_b, dtype=np.float64)
+    mid = 0.5 * (heads_a + heads_b)
+    eye, true_eye = poses[:, 3, :3], truth[:, 3, :3]
+    ratio = np.linalg.norm(eye - mid, axis=1) / np.maximum(np.linalg.norm(true_eye - mid, axis=1), 1e-9)
+    (th, ph), (th_t, ph_t) = _angles(eye, heads_a, heads_b), _angles(true_eye, heads_a, heads_b)
+    screen = 0.5 * sum(np.linalg.norm(_project(poses, h, fov_x, aspect) - _project(truth, h, fov_x, aspect), axis=1)
+                       for h in (heads_a, heads_b))
+    right = poses[:, 0, :3]
+    roll = np.degrees(np.arcsin(np.clip(np.abs(right @ _UP) / np.linalg.norm(right, axis=1), 0.0, 1.0)))
+    return {"distance_ratio": ratio, "theta_deg": np.degrees(np.abs(th - th_t)),
+            "phi_deg": np.degrees(np.abs(np.angle(np.exp(1j * (ph - ph_t))))), "screen": screen, "roll_deg": roll,
+            "turn_deg": turn_about(eye, mid), "truth_turn_deg": turn_about(true_eye, mid)}
