@@ -158,6 +158,22 @@ def run(gallery_png: Path | None = None) -> dict:
     return results
 
 
+def table(results: dict) -> dict:
+    """The guide's table: per behavior and size, distance ratio, theta and screen errors, roll, orbits' turn."""
+    rows = []
+    for behavior in BEHAVIORS:
+        for size in SIZES:
+            r = results[behavior.replace("-", "_")][size.replace("-", "_")]
+            turn = (f"{r['turn_deg']:+.0f} vs {r['controller_turn_deg']:+.0f}" if "turn_deg" in r else "")
+            rows.append([behavior.replace("-", " "), size, f"{r['distance_ratio_median']:.2f} / "
+                         f"{r['distance_ratio_min']:.2f}-{r['distance_ratio_max']:.2f}",
+                         f"{r['theta_error_median']:.1f}", f"{r['screen_error_median']:.3f}",
+                         f"{r['roll_max']:.1f}", turn])
+    return {"columns": ["behavior", "shot", "distance ratio, median / range", "theta error, median (deg)",
+                        "screen error, median (NDC)", "roll, worst (deg)", "orbit: learned vs controller turn (deg)"],
+            "rows": rows}
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--record", action="store_true", help="write the figures to docs/data/bench_retarget.json")
@@ -169,7 +185,7 @@ def main(argv=None) -> int:
         sys.path.insert(0, str(ROOT / "tools"))
         from docfigures import record
 
-        record("bench_retarget", "tools/bench_retarget.py", figures=results,
+        record("bench_retarget", "tools/bench_retarget.py", figures=results, tables={"summary": table(results)},
                images=[str(GALLERY.relative_to(ROOT))])
     return 0
 

@@ -5,6 +5,7 @@ Runs in its own venv (torch==2.13.0, numpy, scikit-learn), without usdcrowd:
 
     python tools/camera_moe_torch.py train DATA.npz OUT_DIR [--epochs N] [--seed S]
     python tools/camera_moe_torch.py forward WEIGHTS.npz INPUTS.npz OUT.npz
+    python tools/camera_moe_torch.py time CONFIG_JSON [--samples N]
 
 ``train`` writes OUT_DIR/camera_moe.npz (the weights usdcrowd ships, float32,
 in the layout :class:`usdcrowd.cameras.moe.CameraMoE` reads), history.csv
@@ -355,6 +356,36 @@ def forward(weights: str, inputs: str, out: str) -> None:
     np.savez(out, gate=gate.numpy(), pred=pred.numpy())
 
 
+def time_sizes(config: str, samples: int, batches: int = 3, batch: int = 256, seed: int = 0) -> dict:
+    """Seconds one training batch takes (forward and backward, both networks as trained) for a config's
+    sizes, on random inputs, and what an epoch of ``samples`` would take: the cost of a recipe, measured."""
+    cfg = json.loads(config)
+    _sizes(cfg.get("n_char", N_CHAR), cfg.get("n_cam", N_CAM))
+    torch.manual_seed(seed)
+    model = MoE(cfg)
+    opt = torch.optim.Adam(model.parameters(), lr=1e-3)
+    n_in = cfg["past"] * N_CAM + (cfg["char_past"] + cfg["char_future"]) * N_CHAR
+    g = torch.randn(batch, cfg["gate_len"], N_CHAR + N_CAM)
+    x, y = torch.randn(batch, n_in), torch.randn(batch, cfg["out"] * N_CAM)
+    times = []
+    for k in range(batches + 1):
+        t0 = time.perf_counter()
+        pred, _ = model(g, x)
+        loss = torch.mean((pred - y) ** 2)
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        if k:                                   # the first warms up
+            times.append(time.perf_counter() - t0)
+    per_batch = float(np.median(times))
+    out = {"config": cfg, "n_in": n_in, "batch": batch, "threads": torch.get_num_threads(),
+           "seconds_per_batch": per_batch, "samples": samples,
+           "seconds_per_epoch": per_batch * samples / batch,
+           "parameters": int(sum(p.numel() for p in model.parameters()))}
+    print(json.dumps(out), flush=True)
+    return out
+
+
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="cmd", required=True)
@@ -367,9 +398,15 @@ def main() -> int:
     f.add_argument("weights")
     f.add_argument("inputs")
     f.add_argument("out")
+    c = sub.add_parser("time")
+    c.add_argument("config", help="the sizes, as JSON (the keys of the training config)")
+    c.add_argument("--samples", type=int, default=185_600, help="training samples per epoch")
+    c.add_argument("--batches", type=int, default=3)
     a = p.parse_args()
     if a.cmd == "train":
         train(a.data, a.out, a.epochs, a.seed)
+    elif a.cmd == "time":
+        time_sizes(a.config, a.samples, a.batches)
     else:
         forward(a.weights, a.inputs, a.out)
     return 0

@@ -46,6 +46,12 @@ CONFIG = {"step": 2, "past": 4, "char_past": 12, "char_future": 12, "out": 6, "g
           "pair": 0.8, "gate_lr": 10.0, "u": [4, 7]}
 
 
+# The paper's recipe (section 5.2, appendix A) at its own frame rate (60 fps, every frame): 60 past and 120
+# character frames in, 30 out, hidden 512, a gating LSTM of 512 over 400 frames, 9 experts.
+PAPER_SIZES = {"step": 1, "past": 60, "char_past": 60, "char_future": 60, "out": 30, "gate_step": 1,
+               "gate_len": 400, "experts": 9, "hidden": 512, "gate_hidden": 512}
+
+
 def torch_python() -> str:
     """The venv with PyTorch ($USDCROWD_TORCH_VENV, else made once in the temporary folder)."""
     venv = Path(os.environ.get("USDCROWD_TORCH_VENV", Path(tempfile.gettempdir()) / "usdcrowd-torch-venv"))
@@ -218,10 +224,15 @@ def main() -> int:
     p.add_argument("--record", action="store_true",
                    help="copy summary.csv, history.csv and the plot into docs/ and record the figures the camera "
                         "researcher's guide quotes (docs/data/camera_moe.json)")
+    p.add_argument("--costs", action="store_true",
+                   help="only measure what one training epoch costs with the paper's sizes and with this config "
+                        "(PyTorch, this machine), print it and, with --record, record it (docs/data/camera_moe_costs.json)")
     p.add_argument("--evaluate-only", action="store_true",
                    help="evaluate the weights, CSV and history already in --out (no training)")
     a = p.parse_args()
     CONFIG.update(json.loads(a.config))
+    if a.costs:
+        return costs(a.record)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
@@ -257,6 +268,31 @@ def main() -> int:
         dest = ROOT / "usdcrowd" / "cameras" / "camera_moe.npz"
         shutil.copy(out / "camera_moe.npz", dest)
         print(f"installed {dest} ({dest.stat().st_size / 1e6:.2f} MB)")
+    return 0
+
+
+def costs(record_them: bool) -> int:
+    """Seconds per training epoch (185,600 samples, as the shipped model's) with the paper's sizes and with
+    this config's, measured on this machine: the reason the shipped model is smaller, in numbers."""
+    python = torch_python()
+    out = {}
+    for name, cfg in (("paper", PAPER_SIZES), ("shipped", CONFIG)):
+        r = subprocess.run([python, str(ROOT / "tools" / "camera_moe_torch.py"), "time", json.dumps(cfg)],
+                           check=True, capture_output=True, text=True)
+        out[name] = json.loads(r.stdout.strip().splitlines()[-1])
+        e = out[name]
+        print(f"{name:8} {e['parameters']:>10,} parameters, {e['seconds_per_batch']:.3f} s per batch of 256, "
+              f"{e['seconds_per_epoch'] / 60:.1f} min per epoch, {e['seconds_per_epoch'] * 100 / 3600:.1f} h for "
+              f"the paper's 100 epochs", flush=True)
+    out["ratio"] = out["paper"]["seconds_per_epoch"] / out["shipped"]["seconds_per_epoch"]
+    out["paper"]["hours_100_epochs"] = out["paper"]["seconds_per_epoch"] * 100 / 3600
+    out["paper"]["hours_25_epochs"] = out["paper"]["seconds_per_epoch"] * 25 / 3600
+    if record_them:
+        sys.path.insert(0, str(ROOT / "tools"))
+        from docfigures import record
+
+        record("camera_moe_costs", "tools/train_camera_moe.py", figures=out,
+               command="python tools/train_camera_moe.py --costs --record")
     return 0
 
 

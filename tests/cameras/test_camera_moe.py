@@ -309,3 +309,21 @@ def test_retargeted_cameras_keep_the_controllers_distance_on_held_out_clips(moe)
         assert 0.8 < median < 1.25, (name, median)
         if name in ("direct-track", "side-track"):
             assert np.median([np.median(d["theta_deg"]) for d in runs]) < 10, name
+
+
+@pytest.mark.parametrize("extra, message", [
+    (("--like-from", "120", "200"), "--like-from takes one frame"),
+    (("--camera", "/World/Cameras/RefOrbit", "/World/Cameras/RefSide", "/World/Cameras/RefSide", "--like-from", "9"),
+     "--camera takes one camera for all references or one for each"),
+    (("--like-from", "abc"), "invalid float value"),
+])
+def test_switching_references_refuses_what_does_not_add_up_in_one_line(dialogue_shot, capsys, extra, message):
+    """Two references need one --like-from frame and one camera for each (or one for all): else one line, exit 2,
+    and the shot's cameras unchanged."""
+    cameras = dialogue_shot.parent / "cameras.usda"
+    before = cameras.read_bytes()
+    assert _run("frame", dialogue_shot, "--targets", "A", "B", "--no-progress", "--like", dialogue_shot,
+                dialogue_shot, *extra) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and "Traceback" not in err and len(err.splitlines()) <= 2, err
+    assert cameras.read_bytes() == before
