@@ -1,6 +1,6 @@
 """Train the learned camera behaviors (seed 002, section 5) and evaluate them as the paper does.
 
-    python tools/train_camera_moe.py [--epochs 25] [--per-behavior 400] [--seed 0] [--out build/camera_moe]
+    python tools/train_camera_moe.py [--epochs 50] [--per-behavior 400] [--seed 0] [--out build/camera_moe]
                                      [--install] [--config JSON] [--evaluate-only]
 
 1. makes a seeded dataset with usdcrowd: two-character motions filmed by the
@@ -214,7 +214,7 @@ def plots(out: Path, errors_csv: Path, history_csv: Path) -> list[str]:
 
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--epochs", type=int, default=25)
+    p.add_argument("--epochs", type=int, default=50)
     p.add_argument("--per-behavior", type=int, default=400, help="training clips per behavior (20 s each)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default="build/camera_moe")

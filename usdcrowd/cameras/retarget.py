@@ -79,18 +79,56 @@ def switch_weights(starts, times, fps: float, transition: float = 1.0) -> np.nda
     return out
 
 
+def _slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray, over_the_top: bool = False) -> np.ndarray:
+    """(t, 3) unit vectors ``t`` ((t,) in [0, 1]) of the way along the great circle from ``a`` to ``b``.
+
+    With ``over_the_top`` the way goes through the up direction made
+    orthogonal to ``a`` (half the way there, then on to ``b``): nearly
+    opposite directions have no one great circle between them, and a camera
+    passing to the other side of a pair cranes over it.
+    """
+    a = a / np.linalg.norm(a, axis=1, keepdims=True)
+    b = b / np.linalg.norm(b, axis=1, keepdims=True)
+    if over_the_top:
+        up = np.array([0.0, 0.0, 1.0]) - a[:, 2:3] * a
+        flat = np.linalg.norm(up, axis=1) < 1e-6
+        up[flat] = np.cross(a[flat], [1.0, 0.0, 0.0])
+        top = up / np.linalg.norm(up, axis=1, keepdims=True)
+        return _slerp(_slerp(a, top, np.minimum(2 * t, 1.0)), b, np.maximum(2 * t - 1.0, 0.0))
+    omega = np.arccos(np.clip(np.einsum("ti,ti->t", a, b), -1.0, 1.0))
+    sin = np.sin(omega)
+    near = sin < 1e-6
+    wa = np.where(near, 1.0 - t, np.sin((1.0 - t) * omega) / np.where(near, 1.0, sin))
+    wb = np.where(near, t, np.sin(t * omega) / np.where(near, 1.0, sin))
+    out = wa[:, None] * a + wb[:, None] * b
+    return out / np.linalg.norm(out, axis=1, keepdims=True)
+
+
 def blend_features(features, shares: np.ndarray) -> np.ndarray:
-    """(t, 8) camera features mixing several roll-outs ((t, 8) each) by per-frame ``shares`` ((t, n)).
+    """(t, 8) camera features passing from one roll-out ((t, 8) each) to the next by per-frame ``shares`` ((t, n)
+    from :func:`switch_weights`: each frame mixes at most two neighbours).
 
     Screen positions and the log span mix linearly; the direction from A
-    mixes and is normalised again, so that a camera passing from one
-    style's place to the next goes round the pair, not through it.
+    turns along the great circle between the two (:func:`_slerp`, over
+    the top where they come nearly opposite), so
+    that a camera passing from one style's place to the next goes round the
+    pair, not through it.
     """
     from .moe import U
 
-    stack = np.stack([np.asarray(f, dtype=np.float64) for f in features], axis=1)      # (t, n, 8)
-    out = np.einsum("tn,tnk->tk", shares, stack)
-    out[:, U] /= np.maximum(np.linalg.norm(out[:, U], axis=1, keepdims=True), 1e-9)
+    out = np.array(features[0], dtype=np.float64)
+    for k in range(1, len(features)):
+        nxt = np.asarray(features[k], dtype=np.float64)
+        t = shares[:, k] / np.maximum(shares[:, k - 1] + shares[:, k], 1e-12)
+        t = np.where(shares[:, k:].sum(axis=1) > 0, np.where(shares[:, :k].sum(axis=1) > 0, t, 1.0), 0.0)
+        # One way for the whole transition (switching ways midway would jump): over the top wherever the
+        # two directions come nearly opposite during it.
+        moving = (t > 0) & (t < 1)
+        cos = np.einsum("ti,ti->t", out[moving][:, U], nxt[moving][:, U]) / np.maximum(
+            np.linalg.norm(out[moving][:, U], axis=1) * np.linalg.norm(nxt[moving][:, U], axis=1), 1e-12)
+        u = _slerp(out[:, U], nxt[:, U], t, over_the_top=bool(moving.any() and cos.min() < -0.95))
+        out = (1.0 - t)[:, None] * out + t[:, None] * nxt
+        out[:, U] = u
     return out
 
 
