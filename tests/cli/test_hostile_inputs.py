@@ -262,8 +262,10 @@ def test_an_interrupted_simulate_leaves_nothing_and_says_so(tmp_path):
     assert main(["new", "museum", "-o", str(scenario), "--agents", "2000"]) == 0
     exe = Path(sys.executable).with_name("usdcrowd")
     # 1,200 frames: long enough (tens of seconds) that the signal lands mid-run even on a fast or idle machine.
+    # Ctrl-C's default restored in the child: a run started in the background (nohup, `&`) ignores SIGINT.
     proc = subprocess.Popen([str(exe), "simulate", str(scenario), "-o", str(tmp_path / "shot"), "--no-progress",
-                             "--frames", "1:1200"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                             "--frames", "1:1200"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.time() + 60
     while not (tmp_path / "shot").exists() and time.time() < deadline:
         time.sleep(0.05)
