@@ -329,3 +329,23 @@ def test_switching_references_refuses_what_does_not_add_up_in_one_line(dialogue_
     err = capsys.readouterr().err.strip()
     assert message in err and "Traceback" not in err and len(err.splitlines()) <= 2, err
     assert cameras.read_bytes() == before
+
+
+def test_the_recorded_retargeting_figures_are_what_the_shipped_weights_give():
+    """The pages' retargeting table (docs/data/camera_moe.json, from tools/train_camera_moe.py) is recomputed
+    from the shipped weights on the same 400 held-out clips: every figure the same, so a figure the code no
+    longer gives fails here."""
+    import json
+
+    from tests.helpers.paths import ROOT
+    from tests.helpers.tools import load_tool
+
+    tool = load_tool("train_camera_moe")
+    rows = tool.retarget_summary(tool.retarget_errors(WEIGHTS, make_clips(1000, 100)))
+    recorded = json.loads((ROOT / "docs" / "data" / "camera_moe.json").read_text())["figures"]["retarget"]
+    assert len(recorded) == len(rows) == 16
+    for row in rows:
+        key = f"{row['behavior']}_{row['shot']}".replace("-", "_")
+        for name, value in row.items():
+            if name not in ("behavior", "shot"):
+                assert recorded[key][name] == pytest.approx(value, rel=1e-9, abs=1e-12), (key, name)
