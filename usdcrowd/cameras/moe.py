@@ -137,13 +137,20 @@ def turned(cam: np.ndarray) -> float:
 def poses_of_features(cam: np.ndarray, heads_a, heads_b, fov_x: float, aspect: float) -> np.ndarray:
     """(t, 4, 4) level cameras built from (t, 8) camera features filming heads ``heads_a``, ``heads_b`` ((t, 3)).
 
-    The eye is at A plus the span's distance along the direction u (in the
-    pair's toric frame); the camera turns without roll to put the two heads
-    either side of the centre, their midpoint at the predicted heads' mean
-    height. Distance and roll are so bounded by construction (see the
-    module); the screen positions are what this pose gives, which the
-    predicted pA.x, pB.x only approximate.
+    The eye is where :func:`eyes_of_features` puts it; the camera turns
+    without roll to put the two heads either side of the centre, their
+    midpoint at the predicted heads' mean height (:func:`level_camera`).
+    Distance and roll are so bounded by construction (see the module); the
+    screen positions are what this pose gives, which the predicted pA.x,
+    pB.x only approximate.
     """
+    eye = eyes_of_features(cam, heads_a, heads_b, fov_x, aspect)
+    return level_camera(eye, heads_a, heads_b, screen_height(cam), fov_x, aspect)
+
+
+def eyes_of_features(cam: np.ndarray, heads_a, heads_b, fov_x: float, aspect: float) -> np.ndarray:
+    """(t, 3) camera positions of (t, 8) camera features: A plus the span's distance along the direction u
+    (in the pair's toric frame)."""
     from .behaviors import fov_y
     from .toric import axes
 
@@ -153,8 +160,13 @@ def poses_of_features(cam: np.ndarray, heads_a, heads_b, fov_x: float, aspect: f
     u = cam[:, U] / np.maximum(np.linalg.norm(cam[:, U], axis=1, keepdims=True), 1e-12)
     direction = u[:, :1] * x + u[:, 1:2] * y + u[:, 2:3] * z
     dist = np.exp(cam[:, SPAN]) / (2.0 * np.tan(0.5 * fov_y(fov_x, aspect)))
-    eye = heads_a + dist[:, None] * direction
-    return level_camera(eye, heads_a, heads_b, 0.5 * (cam[:, 1] + cam[:, 3]), fov_x, aspect)
+    return heads_a + dist[:, None] * direction
+
+
+def screen_height(cam: np.ndarray) -> np.ndarray:
+    """(t,) the heads' mean screen height (NDC) of (t, 8) camera features."""
+    cam = np.asarray(cam, dtype=np.float64)
+    return 0.5 * (cam[:, 1] + cam[:, 3])
 
 
 def level_camera(eye, heads_a, heads_b, height, fov_x: float, aspect: float, rounds: int = 4) -> np.ndarray:

@@ -1,9 +1,12 @@
 """Retargeting (seed 002, section 5): a new pair filmed the way a reference filmed its own, and how close it comes.
 
-:func:`retarget_poses` is what ``usdcrowd frame --like`` runs once the
+:func:`retarget_features` is what ``usdcrowd frame --like`` runs once the
 reference is read: the gate's mix of experts rolled out over the new pair's
-character features from a blind start, each frame's features built into a
-level camera (:func:`usdcrowd.cameras.moe.poses_of_features`).
+character features from a blind start; :func:`retarget_poses` builds each
+frame's features into a level camera
+(:func:`usdcrowd.cameras.moe.poses_of_features`), as the command does
+(which first blends references switched over time and keeps the camera
+clear of walls).
 :func:`compare` measures a camera against the controller it imitates, frame
 by frame, in the quantities a cinematographer checks: where the camera is
 round the pair (theta, phi), how far (distance ratio), where the heads are
@@ -18,15 +21,22 @@ SETTLE_FRAMES = 48         # a blind start, rolled out before the shot begins (2
 _UP = np.array([0.0, 0.0, 1.0])
 
 
+def retarget_features(model, weights: np.ndarray, char: np.ndarray, start_cam: np.ndarray | None = None) -> np.ndarray:
+    """(t, 8) camera features filming a pair (character features ``char``, (t, 10)) in the style of ``weights``
+    ((m,), :meth:`CameraMoE.gate` of the reference); ``start_cam`` ((8,) or None): features to start from, None
+    (what the command does) starting blind, settled over :data:`SETTLE_FRAMES` frames (a model trained without
+    blind samples needs a start)."""
+    return model.rollout(weights, char, start_cam, settle=SETTLE_FRAMES if start_cam is None else 0)
+
+
 def retarget_poses(model, weights: np.ndarray, char: np.ndarray, heads_a, heads_b, fov_x: float, aspect: float,
                    start_cam: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Cameras filming A and B in the style of ``weights``.
+    """Cameras filming A and B in the style of ``weights``: :func:`retarget_features` built into cameras.
 
     Parameters
     ----------
     model : CameraMoE
     weights : (m,) float
-        Expert mix (:meth:`CameraMoE.gate` of the reference).
     char : (t, 10) float
         The new pair's character features.
     heads_a, heads_b : (t, 3) float
@@ -34,9 +44,6 @@ def retarget_poses(model, weights: np.ndarray, char: np.ndarray, heads_a, heads_
     fov_x, aspect : float
         The new camera's lens (radians) and frame (width / height).
     start_cam : (8,) float or None
-        Camera features to start from; None (what the command does) starts
-        blind, settled over :data:`SETTLE_FRAMES` frames. A model trained
-        without blind samples needs a start.
 
     Returns
     -------
@@ -47,8 +54,7 @@ def retarget_poses(model, weights: np.ndarray, char: np.ndarray, heads_a, heads_
     """
     from .moe import poses_of_features
 
-    blind = start_cam is None
-    cam = model.rollout(weights, char, start_cam, settle=SETTLE_FRAMES if blind else 0)
+    cam = retarget_features(model, weights, char, start_cam)
     return poses_of_features(cam, heads_a, heads_b, fov_x, aspect), cam
 
 
@@ -134,12 +140,11 @@ def blend_features(features, shares: np.ndarray) -> np.ndarray:
 
 def _angles(eye, heads_a, heads_b):
     """(theta, phi), each (t,): toric angles of eyes about A and B (the convention of camera_features)."""
-    from .toric import axes
+    from .toric import angles_at_a, axes
 
     x, y, z, _ = axes(heads_a, heads_b, _UP)
-    v = eye - heads_a
-    vx, vy, vz = (np.einsum("ti,ti->t", v, k) for k in (x, y, z))
-    return 2.0 * np.arctan2(np.hypot(vy, vz), vx), np.arctan2(vz, vy)
+    beta, phi = angles_at_a(eye - heads_a, x, y, z)
+    return 2.0 * beta, phi
 
 
 def turn_about(eye: np.ndarray, centre: np.ndarray) -> float:

@@ -576,8 +576,8 @@ def frame_like(shot_path, reference: Reference | list[tuple[Reference, float]], 
         or (n, m), one row per reference, with several.
     """
     from ..cameras.behaviors import clear_of_obstacles
-    from ..cameras.moe import CameraMoE, character_features, level_camera, poses_of_features
-    from ..cameras.retarget import blend_features, retarget_poses, switch_weights
+    from ..cameras.moe import CameraMoE, character_features, eyes_of_features, level_camera, screen_height
+    from ..cameras.retarget import blend_features, retarget_features, switch_weights
     from ..cameras.smoothing import smooth_track
     from ..scenario.shot_scene import ShotScene
 
@@ -597,18 +597,16 @@ def frame_like(shot_path, reference: Reference | list[tuple[Reference, float]], 
     fov_x = 2.0 * np.arctan(0.5 * APERTURE / focal_length)
     # A model trained with blind samples frames the new pair itself; the reference's first framing is
     # another pair's (an older model starts from it).
-    cams = [retarget_poses(model, g, char, signals.heads_a, signals.heads_b, fov_x, aspect,
-                           None if model.config.blind > 0 else r.camera_features[0])[1]
+    cams = [retarget_features(model, g, char, None if model.config.blind > 0 else r.camera_features[0])
             for g, (r, _) in zip(gates, timeline)]
     cam = cams[0] if len(cams) == 1 else blend_features(
         cams, switch_weights([f for _, f in timeline], times, scene.fps, STYLE_TRANSITION))
-    m = poses_of_features(cam, signals.heads_a, signals.heads_b, fov_x, aspect)
+    eye = eyes_of_features(cam, signals.heads_a, signals.heads_b, fov_x, aspect)
     obstacles = shot_obstacles(scene)
     if obstacles is not None and len(obstacles):
         # In front of a wall, on the line from the pair: the pair keeps its place on screen, the camera level.
-        mid = 0.5 * (signals.heads_a + signals.heads_b)
-        eye = clear_of_obstacles(mid, m[:, 3, :3], obstacles)
-        m = level_camera(eye, signals.heads_a, signals.heads_b, 0.5 * (cam[:, 1] + cam[:, 3]), fov_x, aspect)
+        eye = clear_of_obstacles(0.5 * (signals.heads_a + signals.heads_b), eye, obstacles)
+    m = level_camera(eye, signals.heads_a, signals.heads_b, screen_height(cam), fov_x, aspect)
     if smooth:
         m = smooth_track(m)
     result = _track_features(m, signals, fov_x, aspect)
