@@ -130,7 +130,7 @@ def run(args) -> int:
                               for k, (r, ref, f) in enumerate(zip(references, args.like, starts)))
         gates = weights if weights.ndim == 2 else weights[None]
         detail = "\n".join(f"  experts   {', '.join(f'{w:.2f}' for w in g)} (the gating network's reading of "
-                           f"{ref})" for g, ref in zip(gates, args.like))
+                           f"{r.camera} of {ref})" for g, r, ref in zip(gates, references, args.like))
     else:
         if args.camera or args.like_targets or args.like_from:
             raise UsdcrowdError("--camera, --like-targets and --like-from name the references of --like")
