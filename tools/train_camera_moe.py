@@ -52,15 +52,21 @@ PAPER_SIZES = {"step": 1, "past": 60, "char_past": 60, "char_future": 60, "out":
                "gate_len": 400, "experts": 9, "hidden": 512, "gate_hidden": 512}
 
 
-def torch_python() -> str:
-    """The venv with PyTorch ($USDCROWD_TORCH_VENV, else made once in the temporary folder)."""
-    venv = Path(os.environ.get("USDCROWD_TORCH_VENV", Path(tempfile.gettempdir()) / "usdcrowd-torch-venv"))
+def tool_venv(name: str, env: str, packages: list[str]) -> str:
+    """The Python of a venv holding ``packages`` ($``env``, else made once in the temporary folder as
+    usdcrowd-NAME-venv, where the tests' venvs are)."""
+    venv = Path(os.environ.get(env, Path(tempfile.gettempdir()) / f"usdcrowd-{name}-venv"))
     python = venv / "bin" / "python"
     if not python.exists():
-        print(f"making the PyTorch venv in {venv} ({' '.join(TORCH_PACKAGES)})", flush=True)
+        print(f"making the {name} venv in {venv} ({' '.join(packages)})", flush=True)
         subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
-        subprocess.run([str(python), "-m", "pip", "install", "-q", *TORCH_PACKAGES], check=True)
+        subprocess.run([str(python), "-m", "pip", "install", "-q", *packages], check=True)
     return str(python)
+
+
+def torch_python() -> str:
+    """The venv with PyTorch ($USDCROWD_TORCH_VENV, else made once in the temporary folder)."""
+    return tool_venv("torch", "USDCROWD_TORCH_VENV", TORCH_PACKAGES)
 
 
 def make_dataset(path: Path, per_behavior: int, seed: int, frames: int = 480):

@@ -349,3 +349,49 @@ def test_the_recorded_retargeting_figures_are_what_the_shipped_weights_give():
         for name, value in row.items():
             if name not in ("behavior", "shot"):
                 assert recorded[key][name] == pytest.approx(value, rel=1e-9, abs=1e-12), (key, name)
+
+
+def _clip_inputs(tmp_path) -> dict:
+    """A folder with no frames, a file named .mp4 that is no video, and a real 8-frame video."""
+    import imageio.v2 as imageio
+
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "broken.mp4").write_bytes(b"not a video")
+    with imageio.get_writer(str(tmp_path / "real.mp4"), format="FFMPEG", fps=24, codec="libx264") as w:
+        for k in range(8):
+            w.append_data(np.full((64, 112, 3), 30 * k, np.uint8))
+    return {"empty": tmp_path / "empty", "broken": tmp_path / "broken.mp4", "real": tmp_path / "real.mp4"}
+
+
+@pytest.mark.parametrize("clip, extra, message", [
+    ("empty", (), "the folder has no frames"),
+    ("broken", (), "cannot read the video"),
+    ("real", ("--camera", "/World/Cameras/RefOrbit"), "is a clip"),
+    ("real", ("--like-lens", "0"), "--like-lens 0 mm is not a lens"),
+    ("real", ("--like-fps", "-3"), "--like-fps -3 is not a frame rate"),
+])
+def test_a_clip_reference_refuses_what_it_cannot_read_in_one_line(dialogue_shot, tmp_path, capsys, clip, extra,
+                                                                    message):
+    """A clip that is no clip, or options that do not fit one: one line naming it, exit 2, cameras unchanged."""
+    path = _clip_inputs(tmp_path)[clip]
+    cameras = dialogue_shot.parent / "cameras.usda"
+    before = cameras.read_bytes()
+    assert _run("frame", dialogue_shot, "--targets", "A", "B", "--no-progress", "--like", path, *extra) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and "Traceback" not in err and len(err.splitlines()) <= 2, err
+    if clip != "real":
+        assert str(path) in err
+    assert cameras.read_bytes() == before
+
+
+def test_a_clip_reference_without_the_video_extra_says_how_to_get_it(dialogue_shot, tmp_path, capsys):
+    pytest.importorskip("imageio_ffmpeg")
+    try:
+        import mediapipe  # noqa: F401
+        pytest.skip("this environment has the video extra")
+    except ImportError:
+        pass
+    assert _run("frame", dialogue_shot, "--targets", "A", "B", "--no-progress", "--like",
+                _clip_inputs(tmp_path)["real"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "pip install 'usdcrowd[video]'" in err and "Traceback" not in err and len(err.splitlines()) == 1, err

@@ -186,6 +186,16 @@ def level_camera(eye, heads_a, heads_b, height, fov_x: float, aspect: float, rou
 
 
 # ---------------------------------------------------------------------------------- the network
+def load_weights(path: str | Path, what: str):
+    """A weights file (npz, no pickles), or a one-line error naming it and ``what`` it holds."""
+    from ..core.errors import UsdcrowdError
+
+    try:
+        return np.load(path, allow_pickle=False)
+    except (OSError, ValueError) as exc:
+        raise UsdcrowdError(f"cannot read {what}'s weights: {exc}", file=str(path)) from None
+
+
 def _sigmoid(x):
     return 0.5 * (1.0 + np.tanh(0.5 * x))
 
@@ -236,12 +246,7 @@ class CameraMoE:
     """
 
     def __init__(self, path: str | Path = WEIGHTS):
-        from ..core.errors import UsdcrowdError
-
-        try:
-            data = np.load(path, allow_pickle=False)
-        except (OSError, ValueError) as exc:
-            raise UsdcrowdError(f"cannot read the camera model's weights: {exc}", file=str(path)) from None
+        data = load_weights(path, "the camera model")
         self.path = str(path)
         self.config = Config(**json.loads(str(data["config"])))
         self.w = {k: data[k].astype(np.float64) for k in data.files if k not in ("config", "about")}

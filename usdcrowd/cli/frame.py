@@ -1,4 +1,4 @@
-"""usdcrowd frame SHOT (--behavior B | --like REF.usda [REF2.usda --like-from F]) --targets A B|auto --shot SIZE [--smooth] [--switch F C D]"""
+"""usdcrowd frame SHOT (--behavior B | --like REF.usda|CLIP.mp4 [REF2 --like-from F]) --targets A B|auto [...]"""
 
 from __future__ import annotations
 
@@ -33,16 +33,22 @@ def add_parser(sub):
     p.add_argument("shot", help="the shot stage (shot.usda)")
     how = p.add_mutually_exclusive_group(required=True)
     how.add_argument("--behavior", choices=BEHAVIORS, help="how the camera moves with the pair")
-    how.add_argument("--like", metavar="REFERENCE.usda", nargs="+",
+    how.add_argument("--like", metavar="REFERENCE", nargs="+",
                      help="film the pair the way a camera of another stage films two characters (seed 002's "
-                          "learned behaviors: the behavior mix is read from it and retargeted here); with several "
-                          "references, each takes over at its --like-from frame")
+                          "learned behaviors: the behavior mix is read from it and retargeted here), or the way a "
+                          "film clip films its two main characters (a video, or a folder of frames: their poses "
+                          "are detected, needs the video extra); with several references, each takes over at its "
+                          "--like-from frame")
     p.add_argument("--like-from", nargs="+", type=float, default=[], metavar="FRAME",
                    help="with several --like references: the frame each after the first takes over from (the "
                         "camera eases from one style into the next over two seconds)")
     p.add_argument("--camera", metavar="PATH", nargs="+",
                    help="with --like: the reference's camera (default: its toric camera, the first if several); "
                         "with several references, one for each or one for all")
+    p.add_argument("--like-lens", type=float, default=50.0, metavar="MM",
+                   help="with a clip reference: the lens it was shot with, mm on a 36 mm aperture (default 50)")
+    p.add_argument("--like-fps", type=float, default=None, metavar="FPS",
+                   help="with a folder of frames as the reference: its frame rate (default 24; a video says its own)")
     p.add_argument("--like-targets", nargs=2, metavar=("A", "B"),
                    help="with --like: the reference's two characters (default: its toric camera's targets)")
     p.add_argument("--targets", nargs="+", required=True, metavar="NAME",
@@ -73,6 +79,25 @@ def add_parser(sub):
     add_force(p, " (cameras.usda changed since usdcrowd wrote it)")
     add_progress(p)
     p.set_defaults(run=run, inputs=("shot", "like"))
+
+
+def _reference(args, path: str, camera: str | None):
+    """A --like reference: a stage's camera, or a clip's poses."""
+    from ..cameras.clip_poses import is_clip
+    from ..core.errors import UsdcrowdError
+    from ..jobs.toric_filming import read_clip_reference, read_reference
+
+    if is_clip(path):
+        if camera is not None or args.like_targets:
+            raise UsdcrowdError(f"--camera and --like-targets name a stage's camera and characters: {path} is a "
+                                "clip (its two main characters are found in it)")
+        if not 1.0 <= args.like_lens <= 2000.0:
+            raise UsdcrowdError(f"--like-lens {args.like_lens:g} mm is not a lens (1 to 2000 mm)")
+        if args.like_fps is not None and not 1.0 <= args.like_fps <= 1000.0:
+            raise UsdcrowdError(f"--like-fps {args.like_fps:g} is not a frame rate (1 to 1000)")
+        return read_clip_reference(path, args.like_lens, args.like_fps, progress=args.progress)
+    return read_reference(path, camera, tuple(args.like_targets) if args.like_targets else None,
+                          progress=args.progress)
 
 
 def run(args) -> int:
@@ -110,7 +135,7 @@ def run(args) -> int:
     args.shot = find_shot(args.shot)
     guard.edit_in_place(Path(args.shot).parent / CAMERAS)
     if args.like:
-        from ..jobs.toric_filming import frame_like, read_reference
+        from ..jobs.toric_filming import frame_like
 
         if len(args.like_from) != len(args.like) - 1 or list(args.like_from) != sorted(args.like_from):
             raise UsdcrowdError(f"--like-from takes one frame, in increasing order, for each reference after the "
@@ -120,8 +145,7 @@ def run(args) -> int:
             raise UsdcrowdError(f"--camera takes one camera for all references or one for each ({len(args.like)} "
                                 f"here), not {len(cameras)}")
         cameras = cameras * len(args.like) if len(cameras) == 1 else cameras
-        references = [read_reference(ref, cam, tuple(args.like_targets) if args.like_targets else None,
-                                     progress=args.progress) for ref, cam in zip(args.like, cameras)]
+        references = [_reference(args, ref, cam) for ref, cam in zip(args.like, cameras)]
         starts = [float("-inf"), *args.like_from]
         path, track, result, signals, weights = frame_like(
             args.shot, list(zip(references, starts)), spans, name=args.name, smooth=args.smooth,
@@ -132,8 +156,9 @@ def run(args) -> int:
         detail = "\n".join(f"  experts   {', '.join(f'{w:.2f}' for w in g)} (the gating network's reading of "
                            f"{r.camera} of {ref})" for g, r, ref in zip(gates, references, args.like))
     else:
-        if args.camera or args.like_targets or args.like_from:
-            raise UsdcrowdError("--camera, --like-targets and --like-from name the references of --like")
+        if args.camera or args.like_targets or args.like_from or args.like_fps is not None or args.like_lens != 50.0:
+            raise UsdcrowdError("--camera, --like-targets, --like-from, --like-lens and --like-fps describe the "
+                                "references of --like")
         behavior = Behavior(args.behavior, args.shot_size, side=1 if args.side == "left" else -1,
                             offset=args.offset, orbit_speed=args.orbit_speed)
         path, track, result, signals = frame_shot(args.shot, behavior, spans, name=args.name, smooth=args.smooth,

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..core import model
 from .. import schema
-from ..core.errors import StageError
+from ..core.errors import StageError, UsdcrowdError
 from ..usd.cameras import CAMERAS as CAMERAS_LAYER
 
 if TYPE_CHECKING:
@@ -523,6 +523,55 @@ def read_reference(shot_path, camera: str | None = None, targets: tuple[str, str
         heads[:, 0], np.array([scene.camera(first.path, t).cam_to_world for t in times[:: max(1, len(times) // 24)]]),
         times, fov_x, aspect)
     return Reference(scene.path, first.path, scene.agent_paths[rows[0]], scene.agent_paths[rows[1]], char, cam, size)
+
+
+def read_clip_reference(path, focal_length: float = FOCAL_LENGTH, fps: float | None = None, progress: bool = False,
+                        char_mean=None) -> Reference:
+    """The cinematic features of a film clip (a video, or a folder of frames), estimated from 2D poses.
+
+    The two main characters' poses are detected and associated
+    (:mod:`usdcrowd.cameras.clip_poses`), brought to the learned model's frame
+    rate, and turned into features by :class:`usdcrowd.cameras.estimator.FeatureEstimator`
+    (section 4). A is the character on the left of the clip's first frame
+    with both. ``focal_length`` is the clip's lens (mm on a 36 mm aperture);
+    ``fps`` the clip's frame rate where the file does not say (a folder).
+
+    Raises
+    ------
+    UsdcrowdError
+        Not readable, the pose detector missing (the ``video`` extra), or two
+        people in too few frames.
+    """
+    from ..cameras import clip_poses
+    from ..cameras.behaviors import SHOT_SIZES
+    from ..cameras.estimator import FeatureEstimator
+    from ..cameras.moe import SPAN, CameraMoE
+    from ..cameras.moe_data import ASPECT, FOV_X, FPS
+    from .pipeline import frame_progress
+
+    frames, clip_fps = clip_poses.read_frames(path)
+    fps = clip_fps or fps or FPS
+    with frame_progress(len(frames), "detect poses", progress) as bar:
+        per_frame = clip_poses.detect(frames, lambda: bar.update(1))
+    joints, found = clip_poses.associate(per_frame)
+    both = float(found.all(axis=1).mean())
+    if both < clip_poses.MIN_FOUND:
+        raise UsdcrowdError(f"two people found in only {100 * both:.0f} % of the clip's {len(frames)} frames "
+                            f"(at least {100 * clip_poses.MIN_FOUND:.0f} % needed)", file=os.fspath(path))
+    h, w = frames[0].shape[:2]
+    joints = clip_poses.to_ndc(clip_poses.fill(joints, found), w, h, focal_length, FOV_X, ASPECT)
+    if abs(fps - FPS) > 1e-6:                 # the estimator's window and the gate's steps are in the model's frames
+        src = np.arange(len(joints)) / fps
+        dst = np.arange(0.0, src[-1] + 1e-9, 1.0 / FPS)
+        flat = joints.reshape(len(joints), -1)
+        joints = np.column_stack([np.interp(dst, src, flat[:, k]) for k in range(flat.shape[1])]).reshape(-1, *joints.shape[1:])
+    if char_mean is None:
+        char_mean = CameraMoE().w["char_mean"]
+    char, cam = FeatureEstimator().features(joints, char_mean)
+    span = float(np.exp(np.median(cam[:, SPAN])))
+    size = min(SHOT_SIZES, key=lambda k: abs(np.log(SHOT_SIZES[k].span / span)))
+    return Reference(os.fspath(path), "its two main characters' poses", "the left one", "the right one", char, cam,
+                     size)
 
 
 def toric_camera(scene) -> str:

@@ -1,0 +1,165 @@
+"""The cinematic feature estimator (seed 002, section 4): a filmed pair's features from 2D poses."""
+
+from __future__ import annotations
+
+import subprocess
+
+import numpy as np
+import pytest
+
+from usdcrowd.cameras import clip_poses
+from usdcrowd.cameras.estimator import BODY, HEAD, WEIGHTS, FeatureEstimator, body_points, frame_inputs, project, windows
+from usdcrowd.cameras.moe import CameraMoE, camera_angles
+from usdcrowd.cameras.moe_data import ASPECT, FOV_X, make_clips, refilm_track
+
+from tests.helpers.paths import TOOLS
+from tests.helpers.tools import load_tool
+
+_TRAINING = load_tool("train_feature_estimator")
+clip_joints, component_errors = _TRAINING.clip_joints, _TRAINING.component_errors
+
+
+@pytest.fixture(scope="module")
+def estimator():
+    return FeatureEstimator()
+
+
+@pytest.fixture(scope="module")
+def held_out_clips():
+    """Two clips of each behavior from the camera model's held-out seed (never trained on)."""
+    return make_clips(1000, 2)
+
+
+def test_the_projected_head_joint_is_where_the_controller_framed_the_head(held_out_clips):
+    """body_points and project against the controller's own toric framing (pA, pB), computed apart."""
+    clip = held_out_clips[3]
+    track = refilm_track(clip, clip.params)
+    body = BODY.copy()
+    body[0, 2] = HEAD                                   # the rig's head point, which the controller frames
+    for heads, yaw, p in ((clip.heads_a, clip.yaw_a, track.p_a), (clip.heads_b, clip.yaw_b, track.p_b)):
+        joints = project(track.cam_to_world, body_points(heads, yaw, body=body), FOV_X, ASPECT)
+        np.testing.assert_allclose(joints[:, 0], p, atol=1e-6)
+        # Facing the camera, a character's left shoulder is on the screen's right.
+        eye = track.cam_to_world[:, 3, :2]
+        facing = np.stack([np.cos(yaw), np.sin(yaw)], -1)
+        toward = np.einsum("ti,ti->t", facing, eye - heads[:, :2]) > 0.3 * np.linalg.norm(eye - heads[:, :2], axis=1)
+        if toward.any():
+            assert (joints[toward, 2, 0] > joints[toward, 3, 0]).all()
+
+
+def test_the_estimated_features_match_held_out_truth(estimator, held_out_clips, rng):
+    """Per component, on clips never trained on, with a detector's noise on the joints: the paper's Fig. 7
+    reports theta within 8 degrees at worst and phi within 2.3."""
+    char_mean = CameraMoE().w["char_mean"]
+    errs = {}
+    for clip in held_out_clips:
+        char, cam = estimator.features(clip_joints(clip, rng), char_mean)
+        for k, v in component_errors(char, cam, clip).items():
+            errs.setdefault(k, []).append(v)
+    med = {k: float(np.median(np.concatenate(v))) for k, v in errs.items()}
+    assert med["theta_deg"] < 5.0 and med["phi_deg"] < 2.0, med
+    assert abs(np.log(med["span_ratio"])) < 0.06 and abs(np.log(med["d_ab_ratio"])) < 0.08, med
+    assert med["s_a_deg"] < 6.0 and med["s_b_deg"] < 6.0 and med["s_ab_deg"] < 6.0, med
+
+
+def test_the_screen_positions_are_read_off_the_joints_and_the_unknown_motion_is_the_mean(estimator, held_out_clips,
+                                                                                          rng):
+    clip = held_out_clips[0]
+    joints = clip_joints(clip, rng, screen_noise=0.0)
+    char_mean = CameraMoE().w["char_mean"]
+    char, cam = estimator.features(joints, char_mean)
+    np.testing.assert_allclose(cam[:, 0:4], joints[:, :, 0].reshape(len(joints), 4))
+    np.testing.assert_allclose(cam[:, 0:4], clip.camera[:, 0:4], atol=0.03)     # the ears' midpoint, not the rig's
+    np.testing.assert_allclose(char[:, 7:10], np.tile(char_mean[7:10], (len(char), 1)))
+    np.testing.assert_allclose(np.linalg.norm(cam[:, 4:7], axis=1), 1.0)
+
+
+def test_a_shift_on_screen_leaves_the_estimate_as_it_is(estimator, held_out_clips, rng):
+    """Centred inputs: moving both characters across the frame (a pan) does not move theta or phi."""
+    clip = held_out_clips[5]
+    joints = clip_joints(clip, rng, screen_noise=0.0)
+    a = estimator.estimate(joints)
+    b = estimator.estimate(joints + np.array([0.2, -0.1]))
+    np.testing.assert_allclose(a, b, atol=1e-9)
+
+
+@pytest.mark.slow
+def test_numpy_inference_equals_pytorchs(estimator, rng, tmp_path):
+    """Batch norm folded into the convolutions, in numpy, against PyTorch's modules (its own venv)."""
+    from tests.helpers.venvs import tool_python
+
+    python = tool_python("torch", ["torch==2.13.0", "numpy", "scikit-learn"], "USDCROWD_TORCH_VENV")
+    x = rng.normal(size=(6, 32, 8))
+    np.savez(tmp_path / "inputs.npz", x=x)
+    subprocess.run([python, str(TOOLS / "feature_estimator_torch.py"), "forward", str(WEIGHTS),
+                    str(tmp_path / "inputs.npz"), str(tmp_path / "out.npz")], check=True)
+    mine = estimator.forward(x / estimator.w["in_std"][None, :, None]) * estimator.w["out_std"] + estimator.w["out_mean"]
+    np.testing.assert_allclose(mine, np.load(tmp_path / "out.npz")["y"], atol=1e-4)
+
+
+def test_windows_hold_the_ends_and_inputs_are_centred_on_the_heads():
+    joints = np.arange(10 * 32, dtype=float).reshape(10, 2, 8, 2)
+    x = frame_inputs(joints)
+    centre = 0.5 * (joints[:, 0, 0] + joints[:, 1, 0])
+    np.testing.assert_allclose(x[:, :2], joints[:, 0, 0] - centre)
+    w = windows(x)
+    assert w.shape == (10, 32, 8)
+    np.testing.assert_allclose(w[0, :, 0], x[0])        # frame 0 - 4, held
+    np.testing.assert_allclose(w[0, :, 4], x[0])
+    np.testing.assert_allclose(w[9, :, 7], x[9])        # frame 9 + 3, held
+    np.testing.assert_allclose(w[5, :, 7], x[8])
+
+
+def _person(x: float, y: float = 300.0) -> np.ndarray:
+    return np.array([[x, y - 100], [x, y], [x + 20, y], [x - 20, y], [x, y + 150], [x + 10, y + 150], [x - 10, y + 150],
+                     [x + 5, y - 100]])
+
+
+def test_association_keeps_each_character_when_the_detector_swaps_or_misses_them():
+    """A is the left one in the first frame with two people; the detector's order does not matter; a frame
+    where one is missing is filled between its neighbours."""
+    frames = []
+    for k in range(6):
+        a, b = _person(100 + 10 * k), _person(600 - 10 * k)
+        frames.append([b, a] if k % 2 else [a, b])
+    frames[3] = [frames[3][1]]                                # only A found
+    frames.insert(0, [])                                      # nobody in the first frame
+    joints, found = clip_poses.associate(frames)
+    assert not found[0].any() and found[4].tolist() == [True, False]
+    filled = clip_poses.fill(joints, found)
+    np.testing.assert_allclose(filled[1:, 0, 0, 0], 100 + 10 * np.arange(6))
+    np.testing.assert_allclose(filled[1:, 1, 0, 0], 600 - 10 * np.arange(6))
+    np.testing.assert_allclose(filled[0], filled[1])          # the start, held
+
+
+def test_pixels_become_the_ndc_of_usdcrowds_camera(held_out_clips):
+    """A frame filmed with usdcrowd's 50 mm lens at 1920 x 1080: pixels back to the projection's NDC; a
+    35 mm lens sees the same pixel further out."""
+    clip = held_out_clips[1]
+    track = refilm_track(clip, clip.params)
+    ndc = project(track.cam_to_world, body_points(clip.heads_a, clip.yaw_a), FOV_X, ASPECT)
+    pixels = np.stack([(ndc[..., 0] + 1) * 960, (1 - ndc[..., 1]) * 540], -1)
+    np.testing.assert_allclose(clip_poses.to_ndc(pixels, 1920, 1080, 50.0, FOV_X, ASPECT), ndc, atol=1e-9)
+    wide = clip_poses.to_ndc(pixels, 1920, 1080, 35.0, FOV_X, ASPECT)
+    np.testing.assert_allclose(wide, ndc * 50.0 / 35.0, atol=1e-9)
+
+
+def test_the_camera_direction_of_estimates_is_a_toric_angle_pair(estimator, held_out_clips, rng):
+    clip = held_out_clips[2]
+    _, cam = estimator.features(clip_joints(clip, rng), CameraMoE().w["char_mean"])
+    theta, phi = camera_angles(cam)
+    assert np.all((theta > 0) & (theta < 2 * np.pi)) and np.all(np.abs(phi) < np.pi)
+
+
+@pytest.mark.slow
+def test_the_recorded_estimator_figures_are_what_the_shipped_weights_give():
+    """docs/data/feature_estimator.json (tools/train_feature_estimator.py --record) recomputed from the shipped
+    weights on the same held-out clips."""
+    import json
+
+    from tests.helpers.paths import ROOT
+
+    recorded = json.loads((ROOT / "docs" / "data" / "feature_estimator.json").read_text())["figures"]
+    fresh = _TRAINING.evaluate(WEIGHTS, make_clips(1000, 50), 0)
+    for k, v in recorded["components"].items():
+        assert fresh["components"][k]["median"] == pytest.approx(v["median"], rel=1e-6), k

@@ -1,0 +1,237 @@
+"""2D poses of a film clip's two main characters (seed 002, section 4 and appendix B).
+
+Per frame, a pose detector finds people; the two main characters are kept,
+associated over time, and their missing frames filled, giving the joints
+:mod:`usdcrowd.cameras.estimator` reads (:data:`~usdcrowd.cameras.estimator.JOINTS`,
+in the NDC of a camera with usdcrowd's lens, see :func:`to_ndc`).
+
+The detector is MediaPipe's BlazePose (the ``video`` extra: ``mediapipe``
+0.10.14, whose wheel bundles the person detector and the landmark model,
+so nothing downloads at run time). It finds one person per call: a second
+is found by painting the first out and looking again (the paper's LCR-Net
+finds several at once). Association follows appendix B: each frame's
+people go to the two characters by the L2 distance between their joints
+and the characters' last known ones; A is the character on the left of the
+first frame where both are seen. Frames where a character is not found are
+filled by linear interpolation, over any gap (the paper fills gaps under 3
+frames and rejects a clip with longer ones; here a clip is refused when
+fewer than :data:`MIN_FOUND` of its frames show both).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+VIDEO_SUFFIXES = (".mp4", ".mov", ".avi", ".mkv", ".webm", ".m4v")
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
+MIN_FOUND = 0.5         # share of frames that must show both characters
+MEDIAPIPE = "mediapipe==0.10.14"
+# BlazePose landmark indices of the estimator's joints: the head is the ears' midpoint, the neck the
+# shoulders', the hip centre the hips'.
+_NOSE, _EARS, _SHOULDERS, _HIPS = 0, (7, 8), (11, 12), (23, 24)
+_PAINT_MARGIN = 0.15    # of the person's landmark box, around it, painted out before looking again
+
+
+def is_clip(path) -> bool:
+    """Whether ``path`` names a film clip (a video file, or a folder of frames) rather than a stage."""
+    p = Path(path)
+    return p.is_dir() or p.suffix.lower() in VIDEO_SUFFIXES
+
+
+def read_frames(path):
+    """(frames, fps): a clip's frames, each (h, w, 3) uint8, and its frame rate (None for a folder).
+
+    Raises
+    ------
+    UsdcrowdError
+        Not readable, or no frames.
+    """
+    from ..core.errors import UsdcrowdError
+
+    p = Path(path)
+    if p.is_dir():
+        files = sorted(f for f in p.iterdir() if f.suffix.lower() in IMAGE_SUFFIXES)
+        if not files:
+            raise UsdcrowdError(f"the folder has no frames ({', '.join(IMAGE_SUFFIXES)})", file=str(p))
+        from PIL import Image
+
+        frames = []
+        for f in files:
+            try:
+                frames.append(np.asarray(Image.open(f).convert("RGB")))
+            except OSError as exc:
+                raise UsdcrowdError(f"cannot read the frame: {exc}", file=str(f)) from None
+        if len({fr.shape for fr in frames}) > 1:
+            raise UsdcrowdError("the folder's frames are not all the same size", file=str(p))
+        return frames, None
+    try:
+        import imageio.v2 as imageio
+    except ImportError as exc:
+        raise UsdcrowdError(f"reading a video needs imageio and imageio-ffmpeg ({exc}): "
+                            "pip install 'usdcrowd[video]'") from None
+    try:
+        reader = imageio.get_reader(os.fspath(p), format="FFMPEG")
+        fps = float(reader.get_meta_data().get("fps") or 0.0) or None
+        frames = [np.asarray(f)[..., :3] for f in reader]
+        reader.close()
+    except Exception as exc:            # imageio and ffmpeg raise many kinds; the user's file is the cause
+        raise UsdcrowdError(f"cannot read the video: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}",
+                            file=str(p)) from None
+    if not frames:
+        raise UsdcrowdError("the video has no frames", file=str(p))
+    return frames, fps
+
+
+def to_ndc(xy_pixels: np.ndarray, width: int, height: int, focal_length: float, reference_fov_x: float,
+           reference_aspect: float) -> np.ndarray:
+    """(..., 2) NDC, in a camera of ``reference_fov_x`` and ``reference_aspect``, of pixel positions in a
+    ``width`` x ``height`` frame shot with a ``focal_length`` mm lens (36 mm wide aperture): the paper's
+    "linear transformation" to the training camera, through each pixel's ray."""
+    from .behaviors import fov_y
+
+    xy = np.asarray(xy_pixels, dtype=np.float64)
+    half = 0.5 * 36.0 / focal_length                                   # tan of half the clip's horizontal view
+    tx = (2.0 * xy[..., 0] / width - 1.0) * half
+    ty = (1.0 - 2.0 * xy[..., 1] / height) * half * height / width
+    return np.stack([tx / np.tan(0.5 * reference_fov_x), ty / np.tan(0.5 * fov_y(reference_fov_x, reference_aspect))],
+                    -1)
+
+
+def _joints_of(landmarks, width: int, height: int) -> np.ndarray:
+    """(8, 2) pixel positions of the estimator's joints from 33 BlazePose landmarks."""
+    lm = np.array([[p.x * width, p.y * height] for p in landmarks])
+    mid = lambda ij: 0.5 * (lm[ij[0]] + lm[ij[1]])  # noqa: E731
+    # BlazePose's left and right are the person's own, as the estimator's joints are.
+    return np.array([mid(_EARS), mid(_SHOULDERS), lm[11], lm[12], mid(_HIPS), lm[23], lm[24], lm[_NOSE]])
+
+
+@contextlib.contextmanager
+def _quiet_stderr():
+    """Standard error closed at the file descriptor: MediaPipe's C++ side logs there (TensorFlow Lite's
+    delegate, its graph) before any logging setting of its applies."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
+class _Detector:
+    """MediaPipe's BlazePose on single images, up to two people per frame."""
+
+    def __init__(self):
+        from ..core.errors import UsdcrowdError
+
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                from mediapipe.python.solutions import pose
+        except ImportError as exc:
+            raise UsdcrowdError(f"a video reference needs the pose detector ({exc}): pip install 'usdcrowd[video]' "
+                                f"({MEDIAPIPE}; it pins protobuf < 5, so keep it in its own environment)") from None
+        with _quiet_stderr():
+            self._pose = pose.Pose(static_image_mode=True, model_complexity=1, min_detection_confidence=0.3)
+
+    def people(self, image: np.ndarray, most: int = 2) -> list[np.ndarray]:
+        """Up to ``most`` people, each (8, 2) pixels: one found, painted out, and looked for again."""
+        h, w = image.shape[:2]
+        image = np.ascontiguousarray(image)
+        found = []
+        for _ in range(most):
+            with warnings.catch_warnings(), _quiet_stderr():   # protobuf's deprecation notice, MediaPipe's logs
+                warnings.simplefilter("ignore")
+                res = self._pose.process(image)
+            if not res.pose_landmarks:
+                break
+            lm = res.pose_landmarks.landmark
+            found.append(_joints_of(lm, w, h))
+            xs, ys = np.array([p.x for p in lm]) * w, np.array([p.y for p in lm]) * h
+            inside = (xs > -0.1 * w) & (xs < 1.1 * w) & (ys > -0.1 * h) & (ys < 1.1 * h)
+            xs, ys = xs[inside], ys[inside]
+            mx, my = _PAINT_MARGIN * np.ptp(xs), _PAINT_MARGIN * np.ptp(ys)
+            x0, x1 = int(max(xs.min() - mx, 0)), int(min(xs.max() + mx, w))
+            y0, y1 = int(max(ys.min() - my, 0)), int(min(ys.max() + my, h))
+            image = image.copy()
+            image[y0:y1, x0:x1] = image.reshape(-1, 3).mean(axis=0).astype(np.uint8)
+        return found
+
+    def close(self):
+        self._pose.close()
+
+
+def associate(per_frame: list[list[np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    """The two characters over time from each frame's people (each (8, 2)).
+
+    Returns
+    -------
+    joints : (t, 2, 8, 2) float
+        A's and B's joints (NaN where not found); A is the one on the left in
+        the first frame with two people.
+    found : (t, 2) bool
+    """
+    t = len(per_frame)
+    joints = np.full((t, 2, 8, 2), np.nan)
+    first = next((k for k, people in enumerate(per_frame) if len(people) >= 2), None)
+    if first is None:
+        return joints, np.zeros((t, 2), bool)
+    pair = sorted(per_frame[first][:2], key=lambda p: p[0, 0])
+    joints[first] = pair
+    last = [pair[0], pair[1]]
+    order = list(range(first + 1, t)) + list(range(first - 1, -1, -1))
+    for k in order:
+        if k == first - 1:                       # going back from the first frame: start from it again
+            last = [joints[first, 0], joints[first, 1]]
+        people = per_frame[k]
+        if not people:
+            continue
+        cost = np.array([[np.linalg.norm(p - q) for q in last] for p in people])      # (people, 2)
+        if len(people) >= 2:
+            # The better of the two ways to give two people to A and B (appendix B's L2 matching).
+            i, j = min(((i, j) for i in range(len(people)) for j in range(len(people)) if i != j),
+                       key=lambda ij: cost[ij[0], 0] + cost[ij[1], 1])
+            joints[k, 0], joints[k, 1] = people[i], people[j]
+        else:
+            who = int(np.argmin(cost[0]))
+            joints[k, who] = people[0]
+        for c in (0, 1):
+            if np.isfinite(joints[k, c]).all():
+                last[c] = joints[k, c]
+    return joints, np.isfinite(joints).all(axis=(2, 3))
+
+
+def fill(joints: np.ndarray, found: np.ndarray) -> np.ndarray:
+    """(t, 2, 8, 2) joints with each character's missing frames interpolated linearly (ends held)."""
+    out = joints.copy()
+    frames = np.arange(len(joints))
+    for c in (0, 1):
+        have = found[:, c]
+        if not have.any():
+            continue
+        flat = joints[:, c].reshape(len(joints), -1)
+        out[:, c] = np.column_stack([np.interp(frames, frames[have], flat[have, k])
+                                     for k in range(flat.shape[1])]).reshape(len(joints), 8, 2)
+    return out
+
+
+def detect(frames, tick=None) -> list[list[np.ndarray]]:
+    """Each frame's people (up to two, each (8, 2) pixels); ``tick()`` is called after each frame."""
+    detector = _Detector()
+    per_frame = []
+    try:
+        for image in frames:
+            per_frame.append(detector.people(image))
+            if tick is not None:
+                tick()
+    finally:
+        detector.close()
+    return per_frame
