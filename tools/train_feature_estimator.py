@@ -187,6 +187,15 @@ def table(results: dict) -> dict:
             "rows": [[names[k], f"{v['median']:.2f}", f"{v['p95']:.2f}"] for k, v in results["components"].items()]}
 
 
+def gate_table(results: dict) -> dict:
+    """Per behavior, how far the gate's expert weights move (L1, median over clips) from those the true
+    features give: with the estimated features, and with the true ones less the motion a picture lacks."""
+    return {"columns": ["reference's behavior", "estimated features", "true features, motion unknown",
+                        "estimated against true with motion unknown"],
+            "rows": [[b.replace("-", " "), f"{v['l1_estimated']:.2f}", f"{v['l1_motion_unknown']:.2f}",
+                      f"{v['l1_estimated_vs_unknown']:.2f}"] for b, v in results["gate"].items()]}
+
+
 def main(argv=None) -> int:
     from train_camera_moe import torch_python
 
@@ -225,7 +234,7 @@ def main(argv=None) -> int:
         from docfigures import record
 
         record("feature_estimator", "tools/train_feature_estimator.py", figures=results,
-               tables={"components": table(results)})
+               tables={"components": table(results), "gate": gate_table(results)})
     return 0
 
 

@@ -570,7 +570,7 @@ def read_clip_reference(path, focal_length: float = FOCAL_LENGTH, fps: float | N
     char, cam = FeatureEstimator().features(joints, char_mean)
     span = float(np.exp(np.median(cam[:, SPAN])))
     size = min(SHOT_SIZES, key=lambda k: abs(np.log(SHOT_SIZES[k].span / span)))
-    return Reference(os.fspath(path), "its two main characters' poses", "the left one", "the right one", char, cam,
+    return Reference(os.fspath(path), "the camera", "the left one", "the right one", char, cam,
                      size)
 
 
