@@ -229,3 +229,22 @@ def test_a_render_on_a_ray_cluster_kills_its_actors_on_ctrl_c(small_shot, tmp_pa
             time.sleep(0.2)
         assert not _renderers_alive(), "a render actor outlived its command on the cluster"
         assert not partials(out)
+
+
+def test_a_part_writer_cut_off_mid_message_ends_quietly():
+    """The coordinator interrupted while it sends a chunk leaves the part writer half a message: the writer
+    ends without a word (the coordinator's one line is all the user sees)."""
+    script = (
+        "import multiprocessing as mp, struct\n"
+        "from usdcrowd.usd.crowd_layer import _part_worker\n"
+        "ctx = mp.get_context('spawn')\n"
+        "here, there = ctx.Pipe()\n"
+        "p = ctx.Process(target=_part_worker, args=(there,))\n"
+        "p.start()\n"
+        "there.close()\n"
+        "here._send(struct.pack('!i', 1000) + b'x' * 10)   # 10 of the 1000 bytes it announces\n"
+        "here.close()\n"
+        "p.join(60)\n"
+        "print(p.exitcode)\n")
+    r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert r.stdout.strip() == "0" and r.stderr == "", r.stderr

@@ -480,6 +480,14 @@ def _part_worker(conn):
         _part_work(conn, *conn.recv())
     except _LOST:
         pass
+    except Exception as exc:
+        # A message cut short ("got end of file during message": the coordinator was interrupted while
+        # sending it), or a failure before the command loop: the coordinator, if it still listens, reports
+        # it; nothing is printed here (a traceback after its one-line message would be noise).
+        try:
+            conn.send(("error", f"{exc.__class__.__name__}: {exc}"))
+        except (*_LOST, OSError):
+            pass
 
 
 def _part_work(conn, layer_paths, scenario, frame, row_sets, authored, default_prim, clip_plan, parents=None):
