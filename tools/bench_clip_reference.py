@@ -89,14 +89,16 @@ def compare_features(est_char, est_cam, truth) -> dict:
             "s_ab_deg": float(np.median(_wrap_deg(ang(char, 5) - ang(t_char, 5))))}
 
 
-def truth_of(shot: Path, name: str):
-    """The stage's reading of the camera a clip was drawn from, A the character on the left at first."""
+def truth_of(shot: Path, name: str, clip_camera: np.ndarray):
+    """The stage's reading of the camera a clip was drawn from, its A the one the clip calls A: the
+    character whose head is where the clip's A's is (over the first second)."""
     from usdcrowd.jobs.toric_filming import read_reference
 
     ref = read_reference(shot, f"/World/Cameras/{name}")
-    if ref.camera_features[0, 0] > ref.camera_features[0, 2]:
-        ref = read_reference(shot, f"/World/Cameras/{name}", ("B", "A"))
-    return ref
+    n = min(24, len(clip_camera), len(ref.camera_features))
+    kept = np.linalg.norm(clip_camera[:n, 0:2] - ref.camera_features[:n, 0:2], axis=1).mean()
+    swapped = np.linalg.norm(clip_camera[:n, 0:2] - ref.camera_features[:n, 2:4], axis=1).mean()
+    return read_reference(shot, f"/World/Cameras/{name}", ("B", "A")) if swapped < kept else ref
 
 
 def run(gallery_png: Path | None = None) -> dict:
@@ -134,10 +136,10 @@ def run(gallery_png: Path | None = None) -> dict:
         truths, gates = {}, {}
         for behavior in BEHAVIORS:
             name = f"Ref_{behavior}".replace("-", "_")
-            truths[behavior] = truth_of(shot, name)
+            est = read[str(clips[behavior])]
+            truths[behavior] = truth_of(shot, name, np.array(est["camera"]))
             unknown = truths[behavior].character.copy()
             unknown[:, 7:10] = model.w["char_mean"][7:10]
-            est = read[str(clips[behavior])]
             gates[behavior] = (model.gate(np.array(est["character"]), np.array(est["camera"])),
                                model.gate(unknown, truths[behavior].camera_features))
         for behavior in BEHAVIORS:

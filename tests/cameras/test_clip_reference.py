@@ -82,12 +82,13 @@ def clip_features(video_python, filmed_dialogue):
             for name, path in clips.items()}
 
 
-def _truth(shot, name):
-    """The stage's features of the camera the clip was drawn from, A the character on the left at first."""
+def _truth(shot, name, clip_camera):
+    """The stage's features of the camera the clip was drawn from, its A the one the clip calls A (the
+    character whose head is where the clip's A's is, over the first second)."""
     ref = read_reference(shot, f"/World/Cameras/Ref_{name}")
-    if ref.camera_features[0, 0] > ref.camera_features[0, 2]:
-        ref = read_reference(shot, f"/World/Cameras/Ref_{name}", ("B", "A"))
-    return ref
+    kept = np.linalg.norm(clip_camera[:24, 0:2] - ref.camera_features[:24, 0:2], axis=1).mean()
+    swapped = np.linalg.norm(clip_camera[:24, 0:2] - ref.camera_features[:24, 2:4], axis=1).mean()
+    return read_reference(shot, f"/World/Cameras/Ref_{name}", ("B", "A")) if swapped < kept else ref
 
 
 def test_frame_like_a_video_films_the_pair_and_records_the_clip(video_python, filmed_dialogue):
@@ -112,7 +113,8 @@ def test_the_clips_features_match_the_stage_it_was_drawn_from(filmed_dialogue, c
     """Per component, the medians over the clip's frames against the stage's truth."""
     shot, _ = filmed_dialogue
     for name in CLIPS:
-        est, truth = clip_features[name], _truth(shot, name)
+        est = clip_features[name]
+        truth = _truth(shot, name, est["camera"])
         n = min(len(est["camera"]), len(truth.camera_features))
         cam, t_cam = est["camera"][:n], truth.camera_features[:n]
         char, t_char = est["character"][:n], truth.character[:n]
@@ -137,7 +139,7 @@ def test_the_gate_reads_each_clip_nearer_its_own_stage_than_the_other(filmed_dia
     model = CameraMoE()
     gates = {}
     for name in CLIPS:
-        truth = _truth(shot, name)
+        truth = _truth(shot, name, clip_features[name]["camera"])
         char = truth.character.copy()
         char[:, 7:10] = model.w["char_mean"][7:10]
         gates[name] = (model.gate(clip_features[name]["character"], clip_features[name]["camera"]),
@@ -178,3 +180,30 @@ def test_a_photo_the_project_did_not_make_reads_as_the_two_shot_it_is(video_pyth
     np.testing.assert_allclose(cam[0, 2:4], marked[1], atol=0.08)
     span = float(np.exp(np.median(cam[:, 7])))
     assert 0.97 / 1.25 < span < 0.97 * 1.25, span
+
+
+def test_an_orbit_read_from_its_clip_turns_a_new_pair_as_the_stage_does(filmed_dialogue, clip_features):
+    """What a user gets: the orbit's style read from the clip and read from the stage, each rolled out on C
+    and D as `frame --like` does; the two cameras turn round the pair the same way and as far (within 30 %)."""
+    from usdcrowd.cameras.features import head_and_facing
+    from usdcrowd.cameras.moe import character_features
+    from usdcrowd.cameras.moe_data import ASPECT, FOV_X
+    from usdcrowd.cameras.retarget import compare, retarget_poses
+    from usdcrowd.scenario.shot_scene import ShotScene
+
+    shot, _ = filmed_dialogue
+    model = CameraMoE()
+    scene = ShotScene(shot)
+    rows = [scene.agent_row("C"), scene.agent_row("D")]
+    heads, yaws = map(np.array, zip(*(head_and_facing(scene.agents(t, rows).joints_world)
+                                      for t in range(1, FRAMES + 1))))
+    char = character_features(heads[:, 0], heads[:, 1], yaws[:, 0], yaws[:, 1], scene.fps)
+    est = clip_features["orbit"]
+    truth = _truth(shot, "orbit", est["camera"])
+    stage_char = truth.character.copy()
+    stage_char[:, 7:10] = model.w["char_mean"][7:10]
+    poses = [retarget_poses(model, model.gate(c, m), char, heads[:, 0], heads[:, 1], FOV_X, ASPECT)[0]
+             for c, m in ((est["character"], est["camera"]), (stage_char, truth.camera_features))]
+    d = compare(poses[0], poses[1], heads[:, 0], heads[:, 1], FOV_X, ASPECT)
+    assert np.sign(d["turn_deg"]) == np.sign(d["truth_turn_deg"]) and abs(d["truth_turn_deg"]) > 45, d["turn_deg"]
+    assert 0.7 < d["turn_deg"] / d["truth_turn_deg"] < 1.3, (d["turn_deg"], d["truth_turn_deg"])

@@ -132,6 +132,19 @@ def test_association_keeps_each_character_when_the_detector_swaps_or_misses_them
     np.testing.assert_allclose(filled[0], filled[1])          # the start, held
 
 
+def test_the_main_character_is_the_larger_on_screen_where_both_are_found():
+    """Appendix B's M: the larger box around the joints, on average over the frames showing both."""
+    small, large = _person(100.0), _person(600.0)
+    large = 600 + 1.5 * (large - 600)
+    joints = np.stack([np.stack([small, large])] * 4)
+    found = np.ones((4, 2), bool)
+    assert clip_poses.main_character(joints, found) == 1
+    assert clip_poses.main_character(joints[:, ::-1], found) == 0
+    joints[0, 0] *= 10                                          # a frame where B was not found does not count
+    found[0, 1] = False
+    assert clip_poses.main_character(joints, found) == 1
+
+
 def test_pixels_become_the_ndc_of_usdcrowds_camera(held_out_clips):
     """A frame filmed with usdcrowd's 50 mm lens at 1920 x 1080: pixels back to the projection's NDC; a
     35 mm lens sees the same pixel further out."""

@@ -12,7 +12,8 @@ is found by painting the first out and looking again (the paper's LCR-Net
 finds several at once). Association follows appendix B: each frame's
 people go to the two characters by the L2 distance between their joints
 and the characters' last known ones; A is the character on the left of the
-first frame where both are seen. Frames where a character is not found are
+first frame where both are seen (the reader then makes the main character A,
+the larger on screen, as appendix B picks it). Frames where a character is not found are
 filled by linear interpolation, over any gap (the paper fills gaps under 3
 frames and rejects a clip with longer ones; here a clip is refused when
 fewer than :data:`MIN_FOUND` of its frames show both).
@@ -221,6 +222,15 @@ def fill(joints: np.ndarray, found: np.ndarray) -> np.ndarray:
         out[:, c] = np.column_stack([np.interp(frames, frames[have], flat[have, k])
                                      for k in range(flat.shape[1])]).reshape(len(joints), 8, 2)
     return out
+
+
+def main_character(joints: np.ndarray, found: np.ndarray) -> int:
+    """0 or 1: which of the two characters is the main one (appendix B): the larger on screen, by the area of
+    the box around its joints ((t, 2, 8, 2) NDC), on average over the frames where both were found."""
+    size = np.ptp(joints, axis=2).prod(axis=-1)                     # (t, 2)
+    both = found.all(axis=1)
+    mean = size[both].mean(axis=0) if both.any() else size.mean(axis=0)
+    return int(mean[1] > mean[0])
 
 
 def detect(frames, tick=None) -> list[list[np.ndarray]]:

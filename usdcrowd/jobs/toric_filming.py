@@ -532,8 +532,8 @@ def read_clip_reference(path, focal_length: float = FOCAL_LENGTH, fps: float | N
     The two main characters' poses are detected and associated
     (:mod:`usdcrowd.cameras.clip_poses`), brought to the learned model's frame
     rate, and turned into features by :class:`usdcrowd.cameras.estimator.FeatureEstimator`
-    (section 4). A is the character on the left of the clip's first frame
-    with both. ``focal_length`` is the clip's lens (mm on a 36 mm aperture);
+    (section 4). A is the main character (appendix B: the larger on screen,
+    on average over the frames where both are found). ``focal_length`` is the clip's lens (mm on a 36 mm aperture);
     ``fps`` the clip's frame rate where the file does not say (a folder).
 
     Raises
@@ -560,6 +560,9 @@ def read_clip_reference(path, focal_length: float = FOCAL_LENGTH, fps: float | N
                             f"(at least {100 * clip_poses.MIN_FOUND:.0f} % needed)", file=os.fspath(path))
     h, w = frames[0].shape[:2]
     joints = clip_poses.to_ndc(clip_poses.fill(joints, found), w, h, focal_length, FOV_X, ASPECT)
+    main = clip_poses.main_character(joints, found)
+    if main == 1:                                 # A is the main character, as a stage's first target is
+        joints = joints[:, ::-1]
     if abs(fps - FPS) > 1e-6:                 # the estimator's window and the gate's steps are in the model's frames
         src = np.arange(len(joints)) / fps
         dst = np.arange(0.0, src[-1] + 1e-9, 1.0 / FPS)
@@ -570,7 +573,7 @@ def read_clip_reference(path, focal_length: float = FOCAL_LENGTH, fps: float | N
     char, cam = FeatureEstimator().features(joints, char_mean)
     span = float(np.exp(np.median(cam[:, SPAN])))
     size = min(SHOT_SIZES, key=lambda k: abs(np.log(SHOT_SIZES[k].span / span)))
-    return Reference(os.fspath(path), "the camera", "the left one", "the right one", char, cam,
+    return Reference(os.fspath(path), "the camera", "the main character", "the other", char, cam,
                      size)
 
 
