@@ -54,9 +54,9 @@ EXPERTS = (4, 6, 9, 12)
 
 
 def _clips(per_behavior: int):
-    from usdcrowd.cameras.moe_data import make_clips
+    from usdcrowd.cameras.moe_data import held_out_clips
 
-    return make_clips(1000, per_behavior)              # the evaluation's held-out seed (train_camera_moe)
+    return held_out_clips(per_behavior)              # the evaluation's (train_camera_moe)
 
 
 # ------------------------------------------------------------------------------------- Fig. 10

@@ -71,10 +71,10 @@ def torch_python() -> str:
 
 def make_dataset(path: Path, per_behavior: int, seed: int, frames: int = 480):
     from usdcrowd.cameras.moe import U
-    from usdcrowd.cameras.moe_data import make_clips
+    from usdcrowd.cameras.moe_data import held_out_clips, make_clips
 
     train = make_clips(seed, per_behavior, frames)
-    test = make_clips(seed + 1000, max(4, per_behavior // 4), frames)
+    test = held_out_clips(max(4, per_behavior // 4), seed, frames)
     clips = train + test
     rng = np.random.default_rng(seed + 2000)
     ref_char, ref_cam = (sum(pair, []) for pair in zip(paired_references(train, rng), paired_references(test, rng)))

@@ -101,10 +101,10 @@ def targets(clip) -> np.ndarray:
 
 def make_dataset(path: Path, per_behavior: int, seed: int):
     from usdcrowd.cameras.estimator import frame_inputs, windows
-    from usdcrowd.cameras.moe_data import make_clips
+    from usdcrowd.cameras.moe_data import held_out_clips, make_clips
 
     rng = np.random.default_rng(seed + 3000)
-    train, test = make_clips(seed, per_behavior), make_clips(seed + 1000, max(4, per_behavior // 4))
+    train, test = make_clips(seed, per_behavior), held_out_clips(max(4, per_behavior // 4), seed)
     xs, ys, flags = [], [], []
     for flag, clips in ((0, train), (1, test)):
         for clip in clips:
@@ -212,10 +212,10 @@ def main(argv=None) -> int:
     weights = a.out / "feature_estimator.npz"
     if a.evaluate_only:
         from usdcrowd.cameras.estimator import WEIGHTS
-        from usdcrowd.cameras.moe_data import make_clips
+        from usdcrowd.cameras.moe_data import held_out_clips
 
         weights = weights if weights.exists() else WEIGHTS
-        test = make_clips(a.seed + 1000, max(4, a.per_behavior // 4))
+        test = held_out_clips(max(4, a.per_behavior // 4), a.seed)
     else:
         print(f"dataset: {a.per_behavior} clips per behavior", flush=True)
         _, test = make_dataset(a.out / "data.npz", a.per_behavior, a.seed)

@@ -9,7 +9,7 @@ import pytest
 
 from usdcrowd.cameras.behaviors import BEHAVIORS
 from usdcrowd.cameras.moe import N_CAMERA, N_CHARACTER, SPAN, U, WEIGHTS, CameraMoE, poses_of_features
-from usdcrowd.cameras.moe_data import ASPECT, FOV_X, make_clip, make_clips, refilm_track
+from usdcrowd.cameras.moe_data import ASPECT, FOV_X, held_out_clips, make_clip, make_clips, refilm_track
 from usdcrowd.cameras.retarget import SETTLE_FRAMES, compare
 from usdcrowd.cli import main
 
@@ -159,7 +159,7 @@ def test_a_roll_out_stays_a_camera_however_it_is_retargeted(moe):
     (Test clips 24, 74 and 84 of the evaluation's seed, retargeted onto another kind of motion; unbounded,
     an earlier model's reached 6,000 standard deviations there.)
     """
-    test = make_clips(1000, 25)
+    test = held_out_clips(25)
     for k in (84, 74, 24):
         ref = test[k]
         other = next(c for c in test[k + 1:] + test[:k] if c.motion != ref.motion)
@@ -294,7 +294,7 @@ def test_retargeted_cameras_keep_the_controllers_distance_on_held_out_clips(moe)
     degrees of theta (median)."""
     from usdcrowd.cameras.retarget import retarget_poses
 
-    test = make_clips(1000, 12)
+    test = held_out_clips(12)
     by = {}
     for k, ref in enumerate(test):
         target = next(c for c in test[k + 1:] + test[:k] if c.motion != ref.motion)
@@ -341,7 +341,7 @@ def test_the_recorded_retargeting_figures_are_what_the_shipped_weights_give():
     from tests.helpers.tools import load_tool
 
     tool = load_tool("train_camera_moe")
-    rows = tool.retarget_summary(tool.retarget_errors(WEIGHTS, make_clips(1000, 100)))
+    rows = tool.retarget_summary(tool.retarget_errors(WEIGHTS, held_out_clips(100)))
     recorded = json.loads((ROOT / "docs" / "data" / "camera_moe.json").read_text())["figures"]["retarget"]
     assert len(recorded) == len(rows) == 16
     for row in rows:

@@ -10,7 +10,8 @@ import pytest
 from usdcrowd.cameras import clip_poses
 from usdcrowd.cameras.estimator import BODY, HEAD, WEIGHTS, FeatureEstimator, body_points, frame_inputs, project, windows
 from usdcrowd.cameras.moe import CameraMoE, camera_angles
-from usdcrowd.cameras.moe_data import ASPECT, FOV_X, make_clips, refilm_track
+from usdcrowd.cameras import moe_data
+from usdcrowd.cameras.moe_data import ASPECT, FOV_X, refilm_track
 
 from tests.helpers.paths import TOOLS
 from tests.helpers.tools import load_tool
@@ -27,7 +28,7 @@ def estimator():
 @pytest.fixture(scope="module")
 def held_out_clips():
     """Two clips of each behavior from the camera model's held-out seed (never trained on)."""
-    return make_clips(1000, 2)
+    return moe_data.held_out_clips(2)
 
 
 def test_the_projected_head_joint_is_where_the_controller_framed_the_head(held_out_clips):
@@ -173,6 +174,6 @@ def test_the_recorded_estimator_figures_are_what_the_shipped_weights_give():
     from tests.helpers.paths import ROOT
 
     recorded = json.loads((ROOT / "docs" / "data" / "feature_estimator.json").read_text())["figures"]
-    fresh = _TRAINING.evaluate(WEIGHTS, make_clips(1000, 50), 0)
+    fresh = _TRAINING.evaluate(WEIGHTS, moe_data.held_out_clips(50), 0)
     for k, v in recorded["components"].items():
         assert fresh["components"][k]["median"] == pytest.approx(v["median"], rel=1e-6), k

@@ -21,6 +21,7 @@ FPS = 24.0
 FOV_X = 2.0 * np.arctan(18.0 / 50.0)       # the 50 mm lens of `usdcrowd frame`
 ASPECT = 16.0 / 9.0
 MOTIONS = ("side-by-side", "in-line", "talking", "circling", "walk-then-talk")
+HELD_OUT = 1000         # a training seed plus this draws the held-out clips (never trained on)
 
 
 @dataclass
@@ -137,3 +138,8 @@ def make_clips(seed: int, per_behavior: int, frames: int = 480) -> list[Clip]:
             clips.append(make_clip(rng, b, frames, kind=MOTIONS[(k + b) % len(MOTIONS)],
                                    shot=list(SHOT_SIZES)[k % len(SHOT_SIZES)]))
     return clips
+
+
+def held_out_clips(per_behavior: int, seed: int = 0, frames: int = 480) -> list[Clip]:
+    """The clips held out from a model trained with ``seed``: its evaluation's, the tests' and the figures'."""
+    return make_clips(seed + HELD_OUT, per_behavior, frames)
