@@ -2,7 +2,7 @@
 
     python tools/bench_clip_reference.py [--record]
 
-On the dialogue example, for each of the four behaviors (medium shot), the
+On the dialogue example, for each of the four behaviors in each shot size, the
 controller films A and B and the GL preview draws that camera to an MP4
 (960 x 540): a clip whose true features are the stage's. The clip is read
 as `usdcrowd frame --like clip.mp4` reads it (in the video venv:
@@ -41,6 +41,12 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tools"))
 
 BEHAVIORS = ("direct-track", "relative-track", "side-track", "orbit")
+SIZES = ("close-up", "medium", "long")
+CASES = [(b, size) for size in SIZES for b in BEHAVIORS]
+
+
+def _key(behavior: str, size: str) -> str:
+    return f"{behavior}_{size}".replace("-", "_")
 FRAMES, SIZE = 240, (960, 540)
 GALLERY = ROOT / "docs" / "images" / "clip_reference_gallery.png"
 GALLERY_FRAME = 120
@@ -56,9 +62,15 @@ def worker(out: str, clips: list[str]) -> None:
     from usdcrowd.cameras.moe_data import ASPECT, FOV_X
     from usdcrowd.jobs.toric_filming import read_clip_reference
 
+    from usdcrowd.core.errors import UsdcrowdError
+
     result = {}
     for path in clips:
-        ref = read_clip_reference(path)
+        try:
+            ref = read_clip_reference(path)
+        except UsdcrowdError as exc:              # refused, as `frame --like` refuses it: part of the result
+            result[path] = {"refused": str(exc).split(": ", 1)[-1]}
+            continue
         frames, _ = clip_poses.read_frames(path)
         people = clip_poses.detect([frames[GALLERY_FRAME]])[0]
         result[path] = {"character": ref.character.tolist(), "camera": ref.camera_features.tolist(),
@@ -118,13 +130,13 @@ def run(gallery_png: Path | None = None) -> dict:
         _usdcrowd("simulate", tmp / "dialogue.usda", "-o", tmp / "shot", "--frames", f"1:{FRAMES}", "--no-progress")
         shot = tmp / "shot" / "shot.usda"
         clips = {}
-        for behavior in BEHAVIORS:
-            name = f"Ref_{behavior}".replace("-", "_")
-            _usdcrowd("frame", shot, "--behavior", behavior, "--targets", "A", "B", "--shot", "medium", "--name", name,
+        for behavior, size in CASES:
+            name = f"Ref_{_key(behavior, size)}"
+            _usdcrowd("frame", shot, "--behavior", behavior, "--targets", "A", "B", "--shot", size, "--name", name,
                       "--no-progress")
             _usdcrowd("preview", shot, "--camera", f"/World/Cameras/{name}", "--resolution", f"{SIZE[0]}x{SIZE[1]}",
                       "-o", tmp / f"{name}.mp4", "--no-progress")
-            clips[behavior] = tmp / f"{name}.mp4"
+            clips[behavior, size] = tmp / f"{name}.mp4"
         subprocess.run([video_python(), __file__, "--worker", str(tmp / "clips.json"), *map(str, clips.values())],
                        check=True)
         read = json.loads((tmp / "clips.json").read_text())
@@ -134,20 +146,26 @@ def run(gallery_png: Path | None = None) -> dict:
         heads, yaws = np.array(heads), np.array(yaws)
         char_cd = character_features(heads[:, 0], heads[:, 1], yaws[:, 0], yaws[:, 1], scene.fps)
         truths, gates = {}, {}
-        for behavior in BEHAVIORS:
-            name = f"Ref_{behavior}".replace("-", "_")
-            est = read[str(clips[behavior])]
-            truths[behavior] = truth_of(shot, name, np.array(est["camera"]))
-            unknown = truths[behavior].character.copy()
+        for case in CASES:
+            est = read[str(clips[case])]
+            if "refused" in est:
+                continue
+            truths[case] = truth_of(shot, f"Ref_{_key(*case)}", np.array(est["camera"]))
+            unknown = truths[case].character.copy()
             unknown[:, 7:10] = model.w["char_mean"][7:10]
-            gates[behavior] = (model.gate(np.array(est["character"]), np.array(est["camera"])),
-                               model.gate(unknown, truths[behavior].camera_features))
-        for behavior in BEHAVIORS:
-            est = read[str(clips[behavior])]
-            r = compare_features(np.array(est["character"]), np.array(est["camera"]), truths[behavior])
-            g_clip, g_stage = gates[behavior]
+            gates[case] = (model.gate(np.array(est["character"]), np.array(est["camera"])),
+                           model.gate(unknown, truths[case].camera_features))
+        for behavior, size in CASES:
+            est = read[str(clips[behavior, size])]
+            if "refused" in est:
+                results[_key(behavior, size)] = {"refused": est["refused"]}
+                print(f"{behavior:<15} {size:<9} refused: {est['refused']}", flush=True)
+                continue
+            r = compare_features(np.array(est["character"]), np.array(est["camera"]), truths[behavior, size])
+            g_clip, g_stage = gates[behavior, size]
             r["gate_l1"] = float(np.abs(g_clip - g_stage).sum())
-            r["gate_l1_other_nearest"] = float(min(np.abs(g_clip - gates[b][1]).sum() for b in BEHAVIORS if b != behavior))
+            r["gate_l1_other_nearest"] = float(min(np.abs(g_clip - gates[b, size][1]).sum()
+                                                   for b in BEHAVIORS if b != behavior and (b, size) in gates))
             r["size"] = est["size"]
             poses = {}
             for k, w in (("clip", g_clip), ("stage", g_stage)):
@@ -156,8 +174,8 @@ def run(gallery_png: Path | None = None) -> dict:
             r.update({"camera_distance_ratio": float(np.median(d["distance_ratio"])),
                       "camera_theta_deg": float(np.median(d["theta_deg"])),
                       "turn_deg": float(d["turn_deg"]), "stage_turn_deg": float(d["truth_turn_deg"])})
-            results[behavior.replace("-", "_")] = r
-            print(f"{behavior:<15} screen {r['screen']:.3f}  theta {r['theta_deg']:5.1f}  phi {r['phi_deg']:4.1f}  "
+            results[_key(behavior, size)] = r
+            print(f"{behavior:<15} {size:<9} screen {r['screen']:.3f}  theta {r['theta_deg']:5.1f}  phi {r['phi_deg']:4.1f}  "
                   f"span x{r['span_ratio']:.2f}  dAB x{r['d_ab_ratio']:.2f}  sA {r['s_a_deg']:5.1f}  "
                   f"sB {r['s_b_deg']:5.1f}  sAB {r['s_ab_deg']:5.1f}  | gate L1 {r['gate_l1']:.2f} "
                   f"(other behaviors >= {r['gate_l1_other_nearest']:.2f})  | camera x{r['camera_distance_ratio']:.2f}, "
@@ -179,31 +197,35 @@ def gallery(tmp: Path, clips: dict, read: dict, path: Path) -> None:
     draw = ImageDraw.Draw(sheet)
     bones = [(0, 1), (1, 2), (1, 3), (1, 4), (4, 5), (4, 6), (0, 7)]
     for k, behavior in enumerate(BEHAVIORS):
-        reader = imageio.get_reader(str(clips[behavior]), format="FFMPEG")
+        reader = imageio.get_reader(str(clips[behavior, "medium"]), format="FFMPEG")
         frame = Image.fromarray(reader.get_data(GALLERY_FRAME)).resize((w, h))
         reader.close()
         d = ImageDraw.Draw(frame)
-        for person, colour in zip(read[str(clips[behavior])]["gallery"], ((255, 60, 60), (60, 160, 255))):
+        for person, colour in zip(read[str(clips[behavior, "medium"])]["gallery"], ((255, 60, 60), (60, 160, 255))):
             px = [((x + 1) * w / 2, (1 - y) * h / 2) for x, y in person]
             for i, j in bones:
                 d.line([px[i], px[j]], fill=colour, width=2)
             for x, y in px:
                 d.ellipse([x - 2, y - 2, x + 2, y + 2], fill=colour)
         sheet.paste(frame, ((k % 2) * w, 20 + (k // 2) * (h + 20)))
-        draw.text(((k % 2) * w + 6, 4 + (k // 2) * (h + 20)), f"{behavior}, frame {GALLERY_FRAME + 1}", fill="black")
+        draw.text(((k % 2) * w + 6, 4 + (k // 2) * (h + 20)), f"{behavior}, medium, frame {GALLERY_FRAME + 1}",
+                  fill="black")
     sheet.save(path)
 
 
 def table(results: dict) -> dict:
     rows = []
-    for behavior in BEHAVIORS:
-        r = results[behavior.replace("-", "_")]
-        rows.append([behavior.replace("-", " "), f"{r['screen']:.3f}", f"{r['theta_deg']:.0f}", f"{r['phi_deg']:.1f}",
+    for behavior, size in CASES:
+        r = results[_key(behavior, size)]
+        if "refused" in r:
+            rows.append([behavior.replace("-", " "), size, f"refused: {r['refused']}"] + [""] * 7)
+            continue
+        rows.append([behavior.replace("-", " "), size, f"{r['screen']:.3f}", f"{r['theta_deg']:.0f}", f"{r['phi_deg']:.1f}",
                      f"{r['span_ratio']:.2f}", f"{r['d_ab_ratio']:.2f}",
                      f"{r['s_a_deg']:.0f} / {r['s_b_deg']:.0f} / {r['s_ab_deg']:.0f}",
                      f"{r['gate_l1']:.2f} ({r['gate_l1_other_nearest']:.2f})",
                      f"{r['camera_distance_ratio']:.2f} / {r['camera_theta_deg']:.0f}"])
-    return {"columns": ["reference clip", "heads on screen (NDC)", "theta (deg)", "phi (deg)", "span (x)", "dAB (x)",
+    return {"columns": ["reference clip", "shot", "heads on screen (NDC)", "theta (deg)", "phi (deg)", "span (x)", "dAB (x)",
                         "sA / sB / sAB (deg)", "gate L1 to the stage's (to the nearest other behavior's)",
                         "camera on C, D: distance x / theta (deg)"],
             "rows": rows}
@@ -221,7 +243,7 @@ def main(argv=None) -> int:
     if a.record:
         from docfigures import record
 
-        worst = {k: max(r[k] for r in results.values()) for k in ("screen", "theta_deg", "phi_deg", "span_ratio",
+        worst = {k: max(r[k] for r in results.values() if "refused" not in r) for k in ("screen", "theta_deg", "phi_deg", "span_ratio",
                                                                    "d_ab_ratio")}
         record("clip_reference", "tools/bench_clip_reference.py", figures={**results, "worst": worst},
                tables={"summary": table(results)},

@@ -146,6 +146,15 @@ def test_the_main_character_is_the_larger_on_screen_where_both_are_found():
     assert clip_poses.main_character(joints, found) == 1
 
 
+def test_a_person_found_off_the_frame_is_neither_kept_nor_painted_out():
+    """A close-up's detector may place a whole person outside the picture: no box (and no crash); a person
+    partly in it is painted out within the frame."""
+    assert clip_poses.paint_box(np.array([[-500.0, 100.0], [-300.0, 50.0]]), 640, 360) is None
+    assert clip_poses.paint_box(np.array([[100.0, 900.0], [200.0, 1200.0]]), 640, 360) is None
+    x0, y0, x1, y1 = clip_poses.paint_box(np.array([[100.0, 100.0], [200.0, 300.0], [-400.0, 100.0]]), 640, 360)
+    assert (x0, y0, x1, y1) == (85, 70, 215, 330)
+
+
 def test_pixels_become_the_ndc_of_usdcrowds_camera(held_out_clips):
     """A frame filmed with usdcrowd's 50 mm lens at 1920 x 1080: pixels back to the projection's NDC; a
     35 mm lens sees the same pixel further out."""

@@ -127,6 +127,20 @@ def _quiet_stderr():
         os.close(saved)
 
 
+def paint_box(landmarks: np.ndarray, width: int, height: int) -> tuple[int, int, int, int] | None:
+    """(x0, y0, x1, y1) pixels to paint out around a person's landmarks ((k, 2) pixels, some maybe off the
+    frame: those within a tenth of the frame of it count), or None when none does."""
+    xs, ys = np.asarray(landmarks, dtype=np.float64).T
+    inside = (xs > -0.1 * width) & (xs < 1.1 * width) & (ys > -0.1 * height) & (ys < 1.1 * height)
+    if not inside.any():
+        return None
+    xs, ys = xs[inside], ys[inside]
+    mx, my = _PAINT_MARGIN * np.ptp(xs), _PAINT_MARGIN * np.ptp(ys)
+    x0, x1 = int(max(xs.min() - mx, 0)), int(min(xs.max() + mx, width))
+    y0, y1 = int(max(ys.min() - my, 0)), int(min(ys.max() + my, height))
+    return (x0, y0, x1, y1) if x1 > x0 and y1 > y0 else None
+
+
 class _Detector:
     """MediaPipe's BlazePose on single images, up to two people per frame."""
 
@@ -155,13 +169,11 @@ class _Detector:
             if not res.pose_landmarks:
                 break
             lm = res.pose_landmarks.landmark
+            box = paint_box(np.array([[p.x * w, p.y * h] for p in lm]), w, h)
+            if box is None:                 # a person wholly off the frame: nothing to keep or paint out
+                break
             found.append(_joints_of(lm, w, h))
-            xs, ys = np.array([p.x for p in lm]) * w, np.array([p.y for p in lm]) * h
-            inside = (xs > -0.1 * w) & (xs < 1.1 * w) & (ys > -0.1 * h) & (ys < 1.1 * h)
-            xs, ys = xs[inside], ys[inside]
-            mx, my = _PAINT_MARGIN * np.ptp(xs), _PAINT_MARGIN * np.ptp(ys)
-            x0, x1 = int(max(xs.min() - mx, 0)), int(min(xs.max() + mx, w))
-            y0, y1 = int(max(ys.min() - my, 0)), int(min(ys.max() + my, h))
+            x0, y0, x1, y1 = box
             image = image.copy()
             image[y0:y1, x0:x1] = image.reshape(-1, 3).mean(axis=0).astype(np.uint8)
         return found
