@@ -80,25 +80,17 @@ def worker(out: str, clips: list[str]) -> None:
     Path(out).write_text(json.dumps(result))
 
 
-def _wrap_deg(a):
-    return np.degrees(np.abs((a + np.pi) % (2 * np.pi) - np.pi))
-
-
 def compare_features(est_char, est_cam, truth) -> dict:
-    """Median errors per component of a clip's features against the stage's (the reference's truth)."""
-    from usdcrowd.cameras.moe import camera_angles
+    """Median errors per component of a clip's features against the stage's (the reference's truth): the
+    heads on screen (NDC), and tools/train_feature_estimator.py's components (ratios either way)."""
+    from train_feature_estimator import component_errors
 
     n = min(len(est_cam), len(truth.camera_features))
-    cam, t_cam, char, t_char = est_cam[:n], truth.camera_features[:n], est_char[:n], truth.character[:n]
-    (theta, phi), (t_theta, t_phi) = camera_angles(cam), camera_angles(t_cam)
-    ang = lambda f, k: np.arctan2(f[:, k], f[:, k + 1])  # noqa: E731
-    ratio = lambda a, b: float(np.exp(np.median(np.abs(np.log(a / b)))))  # noqa: E731
-    return {"screen": float(np.median(np.linalg.norm(cam[:, :4] - t_cam[:, :4], axis=1))),
-            "theta_deg": float(np.median(_wrap_deg(theta - t_theta))), "phi_deg": float(np.median(_wrap_deg(phi - t_phi))),
-            "span_ratio": ratio(np.exp(cam[:, 7]), np.exp(t_cam[:, 7])), "d_ab_ratio": ratio(char[:, 0], t_char[:, 0]),
-            "s_a_deg": float(np.median(_wrap_deg(ang(char, 1) - ang(t_char, 1)))),
-            "s_b_deg": float(np.median(_wrap_deg(ang(char, 3) - ang(t_char, 3)))),
-            "s_ab_deg": float(np.median(_wrap_deg(ang(char, 5) - ang(t_char, 5))))}
+    errors = component_errors(est_char[:n], est_cam[:n], truth.character[:n], truth.camera_features[:n])
+    out = {"screen": float(np.median(np.linalg.norm(est_cam[:n, :4] - truth.camera_features[:n, :4], axis=1)))}
+    for k, v in errors.items():
+        out[k] = float(np.exp(np.median(np.abs(np.log(v)))) if k.endswith("ratio") else np.median(v))
+    return out
 
 
 def truth_of(shot: Path, name: str, clip_camera: np.ndarray):

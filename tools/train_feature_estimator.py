@@ -121,19 +121,19 @@ def _deg(a):
     return np.degrees(np.abs((a + np.pi) % (2 * np.pi) - np.pi))
 
 
-def component_errors(est_char, est_cam, clip) -> dict:
-    """(t,) errors per frame of estimated features against a clip's truth."""
+def component_errors(est_char, est_cam, true_char, true_cam) -> dict:
+    """(t,) errors per frame of estimated (t, 10) character and (t, 8) camera features against true ones."""
     from usdcrowd.cameras.moe import camera_angles
 
     theta, phi = camera_angles(est_cam)
-    t_theta, t_phi = camera_angles(clip.camera)
+    t_theta, t_phi = camera_angles(true_cam)
     ang = lambda f, k: np.arctan2(f[:, k], f[:, k + 1])  # noqa: E731
     return {"theta_deg": _deg(theta - t_theta), "phi_deg": _deg(phi - t_phi),
-            "span_ratio": np.exp(est_cam[:, 7] - clip.camera[:, 7]),
-            "d_ab_ratio": est_char[:, 0] / clip.character[:, 0],
-            "s_a_deg": _deg(ang(est_char, 1) - ang(clip.character, 1)),
-            "s_b_deg": _deg(ang(est_char, 3) - ang(clip.character, 3)),
-            "s_ab_deg": _deg(ang(est_char, 5) - ang(clip.character, 5))}
+            "span_ratio": np.exp(est_cam[:, 7] - true_cam[:, 7]),
+            "d_ab_ratio": est_char[:, 0] / true_char[:, 0],
+            "s_a_deg": _deg(ang(est_char, 1) - ang(true_char, 1)),
+            "s_b_deg": _deg(ang(est_char, 3) - ang(true_char, 3)),
+            "s_ab_deg": _deg(ang(est_char, 5) - ang(true_char, 5))}
 
 
 def evaluate(weights: Path, test, seed: int) -> dict:
@@ -148,7 +148,7 @@ def evaluate(weights: Path, test, seed: int) -> dict:
     gates = {b: [] for b in BEHAVIORS}
     for clip in test:
         char, cam = est.features(clip_joints(clip, rng), model.w["char_mean"])
-        for k, v in component_errors(char, cam, clip).items():
+        for k, v in component_errors(char, cam, clip.character, clip.camera).items():
             per.setdefault(k, []).append(v)
         unknown = clip.character.copy()
         unknown[:, 7:10] = model.w["char_mean"][7:10]

@@ -20,9 +20,9 @@ import pytest
 
 from usdcrowd.cameras.moe import CameraMoE, camera_angles
 from usdcrowd.core.resources import data_dir
-from usdcrowd.jobs.toric_filming import read_reference
 
 from tests.helpers.paths import ROOT
+from tests.helpers.tools import load_tool
 from tests.helpers.venvs import tool_python
 
 pytestmark = pytest.mark.slow
@@ -84,11 +84,8 @@ def clip_features(video_python, filmed_dialogue):
 
 def _truth(shot, name, clip_camera):
     """The stage's features of the camera the clip was drawn from, its A the one the clip calls A (the
-    character whose head is where the clip's A's is, over the first second)."""
-    ref = read_reference(shot, f"/World/Cameras/Ref_{name}")
-    kept = np.linalg.norm(clip_camera[:24, 0:2] - ref.camera_features[:24, 0:2], axis=1).mean()
-    swapped = np.linalg.norm(clip_camera[:24, 0:2] - ref.camera_features[:24, 2:4], axis=1).mean()
-    return read_reference(shot, f"/World/Cameras/Ref_{name}", ("B", "A")) if swapped < kept else ref
+    benchmark's matching: the character whose head is where the clip's A's is)."""
+    return load_tool("bench_clip_reference").truth_of(shot, f"Ref_{name}", clip_camera)
 
 
 def test_frame_like_a_video_films_the_pair_and_records_the_clip(video_python, filmed_dialogue):

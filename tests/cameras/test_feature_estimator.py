@@ -55,7 +55,7 @@ def test_the_estimated_features_match_held_out_truth(estimator, held_out_clips, 
     errs = {}
     for clip in held_out_clips:
         char, cam = estimator.features(clip_joints(clip, rng), char_mean)
-        for k, v in component_errors(char, cam, clip).items():
+        for k, v in component_errors(char, cam, clip.character, clip.camera).items():
             errs.setdefault(k, []).append(v)
     med = {k: float(np.median(np.concatenate(v))) for k, v in errs.items()}
     assert med["theta_deg"] < 5.0 and med["phi_deg"] < 2.0, med

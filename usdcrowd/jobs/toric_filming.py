@@ -543,7 +543,6 @@ def read_clip_reference(path, focal_length: float = FOCAL_LENGTH, fps: float | N
         people in too few frames.
     """
     from ..cameras import clip_poses
-    from ..cameras.behaviors import SHOT_SIZES
     from ..cameras.estimator import FeatureEstimator
     from ..cameras.moe import SPAN, CameraMoE
     from ..cameras.moe_data import ASPECT, FOV_X, FPS
@@ -567,14 +566,12 @@ def read_clip_reference(path, focal_length: float = FOCAL_LENGTH, fps: float | N
         src = np.arange(len(joints)) / fps
         dst = np.arange(0.0, src[-1] + 1e-9, 1.0 / FPS)
         flat = joints.reshape(len(joints), -1)
-        joints = np.column_stack([np.interp(dst, src, flat[:, k]) for k in range(flat.shape[1])]).reshape(-1, *joints.shape[1:])
+        joints = np.column_stack([np.interp(dst, src, col) for col in flat.T]).reshape(-1, *joints.shape[1:])
     if char_mean is None:
         char_mean = CameraMoE().w["char_mean"]
     char, cam = FeatureEstimator().features(joints, char_mean)
-    span = float(np.exp(np.median(cam[:, SPAN])))
-    size = min(SHOT_SIZES, key=lambda k: abs(np.log(SHOT_SIZES[k].span / span)))
     return Reference(os.fspath(path), "the camera", "the main character", "the other", char, cam,
-                     size)
+                     _nearest_shot_size(float(np.exp(np.median(cam[:, SPAN])))))
 
 
 def toric_camera(scene) -> str:
@@ -596,11 +593,17 @@ def toric_camera(scene) -> str:
 
 def _shot_size_of(heads_a: np.ndarray, cams: np.ndarray, times, fov_x: float, aspect: float) -> str:
     """The shot size whose span is nearest (in ratio) the one the camera's distance to A gives."""
-    from ..cameras.behaviors import SHOT_SIZES, fov_y
+    from ..cameras.behaviors import fov_y
 
     idx = np.linspace(0, len(heads_a) - 1, len(cams)).round().astype(int)
     dist = np.linalg.norm(cams[:, 3, :3] - heads_a[idx], axis=1).mean()
-    span = 2 * dist * np.tan(0.5 * fov_y(fov_x, aspect))
+    return _nearest_shot_size(2 * dist * np.tan(0.5 * fov_y(fov_x, aspect)))
+
+
+def _nearest_shot_size(span: float) -> str:
+    """The shot size whose span (metres the frame's height covers at A) is nearest ``span``, in ratio."""
+    from ..cameras.behaviors import SHOT_SIZES
+
     return min(SHOT_SIZES, key=lambda k: abs(np.log(SHOT_SIZES[k].span / span)))
 
 
