@@ -12,7 +12,7 @@ cd "$(dirname "$0")/.."
 APT_PACKAGES="libllvm19 libegl1 libegl-mesa0 libgl1-mesa-dri libgles2 xvfb"
 APT_PACKAGES="$APT_PACKAGES libgl1 libx11-6 libxrender1 libxfixes3 libxi6 libxkbcommon0 libxext6 libsm6"
 PYTHON="${PYTHON:-python3}"
-EXTRAS="${USDCROWD_EXTRAS:-dev,final,preview,distributed,dataset}"
+EXTRAS="${USDCROWD_EXTRAS:-dev,final,preview,edit,distributed,dataset}"
 
 missing=""
 if command -v dpkg-query >/dev/null 2>&1; then

@@ -18,6 +18,7 @@ INTEREST_POINT = "InterestPoint"
 EVENT = "CrowdEvent"
 CAMERA_AGENT_API = "CameraAgentAPI"
 TORIC_CAMERA_API = "ToricCameraAPI"
+CUT_CAMERA_API = "CutCameraAPI"
 SCENERY_API = "CrowdSceneryAPI"
 
 # What a tool without our schemas should see each typed schema as (USD's

@@ -309,11 +309,11 @@ def test_demo_prints_each_step_as_it_starts_with_labelled_progress(tmp_path, cap
                              *([] if progress else ["--no-progress"]))
         assert code == 0, err
         (before_preview, asked_preview), (before_render, asked_render) = seen["preview"], seen["render"]
-        assert before_preview.out.rstrip().splitlines()[-1].startswith("[6] preview ")
-        assert before_render.out.rstrip().splitlines()[-1].startswith("[7] render ")
+        assert before_preview.out.rstrip().splitlines()[-1].startswith("[7] preview ")
+        assert before_render.out.rstrip().splitlines()[-1].startswith("[8] render ")
         assert asked_preview is progress and asked_render is progress
         started = before_preview.out + before_render.out + out
-        for k, name in enumerate(("scenario", "validate", "simulate", "validate", "frame", "preview", "render"), 1):
+        for k, name in enumerate(("scenario", "validate", "simulate", "validate", "frame", "edit", "preview", "render"), 1):
             assert re.search(rf"^\[{k}\] {name} +.* \.\.\.$", started, re.M), (k, started)
         bars = before_preview.err + before_render.err + err
         if progress:

@@ -66,6 +66,7 @@ def run(args) -> int:
         return 1
     print("[4] validate  shot: 0 errors")
     toric = _toric(r, args.progress)
+    edit = _edit(r, out, args.progress)
     preview = _preview(r, out, args.progress, toric)
     final = _final(r, out, args.progress)
     print()
@@ -77,7 +78,7 @@ def run(args) -> int:
     print(f"  crowd     {r.crowd}")
     print(f"  cameras   {r.cameras}")
     print(f"  picture   {r.plot}   (every trajectory, seen from above)")
-    for name, path in {**preview, **final}.items():
+    for name, path in {**edit, **preview, **final}.items():
         print(f"  {name:<9} {path}")
     return 0
 
@@ -89,7 +90,7 @@ def _final(r, out: Path, progress: bool) -> dict:
     from ..core.errors import UsdcrowdError
 
     frames = np.unique(np.linspace(1, r.n_frames, 8).round())
-    _starts(7, "render", f"{len(frames)} frames with ground truth (Mitsuba, 480x270, 32 spp)")
+    _starts(8, "render", f"{len(frames)} frames with ground truth (Mitsuba, 480x270, 32 spp)")
     try:
         from ..render.demo import final_outputs
         from ..render.sequence import render_sequence
@@ -103,9 +104,9 @@ def _final(r, out: Path, progress: bool) -> dict:
                         sequence_files=False)
         paths = final_outputs(r.shot, out / "render", camera=r.camera, frames=frames, resolution=size, spp=spp)
     except UsdcrowdError as exc:          # no Mitsuba here: say so, the rest of the demo stands
-        print(f"[7] render    skipped: {exc}")
+        print(f"[8] render    skipped: {exc}")
         return {}
-    print(f"[7] render    {len(frames)} frames with ground truth, Mitsuba {paths['variant']}")
+    print(f"[8] render    {len(frames)} frames with ground truth, Mitsuba {paths['variant']}")
     return {"frame": paths["frame_png"], "exr": paths["exr"], "render sheet": paths["contact_sheet"],
             "mot": paths["mot"], "coco": paths["coco"]}
 
@@ -129,13 +130,30 @@ def _toric(r, progress: bool) -> str | None:
     return track.path
 
 
+def _edit(r, out: Path, progress: bool) -> dict:
+    """The director's cut of every camera (``usdcrowd edit``): CutCam, the OTIO timeline, the cut's video."""
+    from ..core.errors import UsdcrowdError
+    from ..jobs.editing import edit_shot
+
+    _starts(6, "edit", "a director cuts the cameras into one film")
+    try:
+        e = edit_shot(r.shot, out / "cut", progress=progress)
+    except UsdcrowdError as exc:          # no OpenTimelineIO or no OpenGL here: say so, the rest stands
+        print(f"[6] edit      skipped: {exc}")
+        return {}
+    used = len(set(e.cut.camera.tolist()))
+    print(f"[6] edit      {e.paths['otio']}: {len(e.cut.shots)} shots from {used} of {len(e.cameras)} cameras; "
+          f"{e.paths['cut_camera']} plays it")
+    return {"cut": e.paths["otio"], "cut video": e.paths["mp4"], "cut sheet": e.paths["sheet"]}
+
+
 def _preview(r, out: Path, progress: bool, toric: str | None = None) -> dict:
     """The OpenGL preview of the shot, from the crowd camera, every other frame (and the toric camera's)."""
     import numpy as np
 
     from ..core.errors import UsdcrowdError
 
-    _starts(6, "preview", "OpenGL, every other frame, and a gallery of every camera")
+    _starts(7, "preview", "OpenGL, every other frame, and a gallery of every camera")
     try:
         from ..render.demo import preview_outputs
 
@@ -151,9 +169,9 @@ def _preview(r, out: Path, progress: bool, toric: str | None = None) -> dict:
         toric_paths = (preview_outputs(r.shot, out / "preview" / "toric", camera=toric, frames=frames,
                                     progress=progress) if toric else None)
     except UsdcrowdError as exc:          # no OpenGL here: say so, the rest of the demo stands
-        print(f"[6] preview   skipped: {exc}")
+        print(f"[7] preview   skipped: {exc}")
         return {}
-    print(f"[6] preview   {paths['mp4']} ({len(frames)} frames from {camera}); gallery of "
+    print(f"[7] preview   {paths['mp4']} ({len(frames)} frames from {camera}); gallery of "
           f"{len(r.camera_paths)} cameras" + (f"; the toric camera in {toric_paths['mp4']}" if toric_paths else ""))
     out_paths = {"preview": paths["mp4"], "sheet": paths["contact_sheet"], "gallery": gallery}
     if toric_paths:

@@ -102,6 +102,9 @@ class CameraView:
         For toric cameras (ToricCameraAPI): ``behavior``, ``shot_size``,
         ``smoothed``, ``target_a``, ``target_b``, and the authored ``p_a``,
         ``p_b`` (NDC) and ``theta``, ``phi`` (degrees) at this time.
+    cut : dict or None
+        For a cut camera (CutCameraAPI, ``usdcrowd edit``): ``on_air`` (the
+        camera whose pose it has), ``event``, ``shot`` (from 1) and ``reason``.
     """
 
     path: str
@@ -117,6 +120,7 @@ class CameraView:
     toric: dict | None = None
     f_stop: float = 0.0
     focus_distance: float = 0.0
+    cut: dict | None = None
 
     @property
     def depth_of_field(self) -> bool:
@@ -210,6 +214,8 @@ def camera_record(cam: CameraView, width: int, height: int) -> dict:
         "agent_state": cam.agent_state, "tracked_event": cam.tracked_event,
         # A toric camera's authored intent (seed 002; None for other cameras).
         "toric": cam.toric,
+        # An edited cut's camera on air at this frame and why (None for other cameras).
+        "cut": cam.cut,
     }
 
 

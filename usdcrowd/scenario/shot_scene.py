@@ -175,7 +175,7 @@ class ShotScene:
         return CameraView(str(prim.GetPath()), float(time), m, focal, h_ap, v_ap, near, far,
                           str(state.Get(time)) if state and state.HasValue() else None,
                           str(tracked.Get(time) or "") if tracked and tracked.HasValue() else None,
-                          _toric_of(prim, time), f_stop, focus)
+                          _toric_of(prim, time), f_stop, focus, _cut_of(prim, time))
 
     # --------------------------------------------------------------- scenery
     @cached_property
@@ -658,6 +658,22 @@ def _toric_of(prim, time) -> dict | None:
             "target_b": str(get("targetB", "")), "p_a": [float(v) for v in get("pA", (0.0, 0.0))],
             "p_b": [float(v) for v in get("pB", (0.0, 0.0))], "theta": float(get("theta", 0.0)),
             "phi": float(get("phi", 0.0))}
+
+
+def _cut_of(prim, time) -> dict | None:
+    """A cut camera's record at ``time`` (CutCameraAPI): the camera on air and why, or None for others."""
+    from .. import schema
+
+    if not prim.HasAPI(schema.CUT_CAMERA_API):
+        return None
+
+    def get(name, default):
+        attr = prim.GetAttribute(f"crowd:cut:{name}")
+        value = attr.Get(time) if attr else None
+        return default if value is None else value
+
+    return {"on_air": str(get("camera", "")), "event": str(get("event", "")), "shot": int(get("shot", 0)),
+            "reason": str(get("reason", ""))}
 
 
 def _ancestors_animated(prim) -> bool:

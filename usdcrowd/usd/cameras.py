@@ -158,7 +158,7 @@ def _copy_toric(old, layer, replaced: set[str]) -> None:
 
 
 def add_camera(cameras_path: str | os.PathLike, track: model.CameraTrack, toric: dict | None,
-               parents=None) -> str:
+               parents=None, author=None) -> str:
     """Add (or replace) one camera, toric or plain (``toric`` None), in an existing cameras layer,
     atomically; the others are kept.
 
@@ -177,6 +177,9 @@ def add_camera(cameras_path: str | os.PathLike, track: model.CameraTrack, toric:
         (time codes) and ``reference_weights`` (one row per reference).
     parents : ParentSpace, optional
         The stage the track was computed on (see :func:`write_camera_tracks`).
+    author : callable(layer, spec), optional
+        Authors more on the camera's prim spec, inside the change block
+        (an edited cut's record: :mod:`usdcrowd.usd.cut`).
     """
     from pxr import Sdf
 
@@ -193,6 +196,8 @@ def add_camera(cameras_path: str | os.PathLike, track: model.CameraTrack, toric:
                             parent=parents.of(track.path, track.times) if parents is not None else None)
         if toric is not None:
             _toric_values(layer, spec, track, toric)
+        if author is not None:
+            author(layer, spec)
     _count_cameras(layer)
     return export_layer(layer, final)
 

@@ -1,0 +1,257 @@
+"""What a camera really shows of the people it films: in frame, not hidden, and how large.
+
+Seed 000's metrics call a character seen when its chest is inside the
+frustum (:mod:`.metrics`). A director choosing the camera on air, and a
+measure of how well a tracking camera frames its event, need more: a wall
+or another person between the camera and someone hides them. Here each
+(camera, person) pair is tested with sight lines to the person's chest and
+head: against the scenery's footprints (convex prisms up to their height,
+as the simulation and the cameras know the scenery) and against the other
+people (upright cylinders). A person is visible when either line is clear.
+
+The test is geometric and conservative where it must choose: people are
+cylinders :data:`PERSON_RADIUS` wide and :data:`~.metrics.PERSON_HEIGHT`
+tall, so an arm or a gap between legs does not count. The id pass of a
+render (:mod:`usdcrowd.groundtruth`) is the exact answer for one frame; this
+is the one a whole shot's cameras can afford at every frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core import model
+from .frustum import half_tangents
+from .metrics import CHEST_HEIGHT, PERSON_HEIGHT
+
+HEAD_HEIGHT = 1.6
+PERSON_RADIUS = 0.25
+# Pair-by-occluder tests are done in chunks of about this many (memory, not speed).
+_CHUNK = 500_000
+
+
+@dataclass
+class Prisms:
+    """Scenery footprints padded to one array (degenerate closing edges repeat the first vertex).
+
+    Attributes
+    ----------
+    a, b : (o, k, 2) float64
+        Edge starts and ends, counter-clockwise.
+    height : (o,) float64
+    """
+
+    a: np.ndarray
+    b: np.ndarray
+    height: np.ndarray
+
+    @classmethod
+    def of(cls, obstacles: model.Obstacles, min_height: float = 0.3) -> "Prisms":
+        """Footprints at least ``min_height`` tall (a kerb hides nobody)."""
+        keep = [i for i in range(len(obstacles)) if obstacles.height[i] >= min_height]
+        if not keep:
+            return cls(np.zeros((0, 1, 2)), np.zeros((0, 1, 2)), np.zeros(0))
+        k = max(len(obstacles.polygons[i]) for i in keep)
+        a = np.zeros((len(keep), k, 2))
+        b = np.zeros((len(keep), k, 2))
+        for row, i in enumerate(keep):
+            p = np.asarray(obstacles.polygons[i], dtype=np.float64)
+            closed = np.concatenate([p, np.repeat(p[:1], k - len(p) + 1, axis=0)])
+            a[row], b[row] = closed[:-1], closed[1:]
+        return cls(a, b, np.asarray(obstacles.height, dtype=np.float64)[keep])
+
+    def __len__(self) -> int:
+        return len(self.height)
+
+    def blocks(self, start: np.ndarray, end: np.ndarray) -> np.ndarray:
+        """(m,) bool: the segment from ``start`` to ``end`` ((m, 3) each) passes through a prism.
+
+        Cyrus-Beck clipping of each segment's ground projection against each
+        convex footprint, then the segment's lowest height over the clipped
+        part against the prism's top.
+        """
+        m = len(start)
+        out = np.zeros(m, bool)
+        if m == 0 or len(self) == 0:
+            return out
+        start, end = np.asarray(start, dtype=np.float64), np.asarray(end, dtype=np.float64)
+        # Only the (segment, prism) pairs whose boxes meet, below the prism's top, are clipped.
+        lo_xy, hi_xy = np.minimum(start[:, :2], end[:, :2]), np.maximum(start[:, :2], end[:, :2])
+        low_z = np.minimum(start[:, 2], end[:, 2])
+        near = ((lo_xy[:, None] <= self.box_hi[None]) & (hi_xy[:, None] >= self.box_lo[None])).all(axis=2)
+        near &= low_z[:, None] < self.height[None]
+        seg, obs = np.nonzero(near)
+        step = max(1, _CHUNK // self.a.shape[1])
+        for lo in range(0, len(seg), step):
+            sm, so = seg[lo:lo + step], obs[lo:lo + step]
+            s, e = start[sm], end[sm]
+            a, b = self.a[so], self.b[so]                                 # (p, k, 2)
+            edge = b - a
+            normal = np.stack([edge[..., 1], -edge[..., 0]], -1)        # outward for ccw
+            d = (e - s)[:, None, :2]
+            num = np.einsum("pki,pki->pk", s[:, None, :2] - a, normal)  # > 0: outside this edge's half-plane
+            den = np.einsum("pki,pki->pk", np.broadcast_to(d, a.shape), normal)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t = -num / den
+            entering = den < -1e-12
+            leaving = den > 1e-12
+            parallel_out = (~entering & ~leaving) & (num > 1e-12)
+            t_in = np.maximum(np.where(entering, t, 0.0).max(axis=1), 0.0)
+            t_out = np.minimum(np.where(leaving, t, 1.0).min(axis=1), 1.0)
+            crosses = (t_in < t_out) & ~parallel_out.any(axis=1)
+            z0, dz = s[:, 2], (e - s)[:, 2]
+            low = np.minimum(z0 + t_in * dz, z0 + t_out * dz)
+            hit = crosses & (low < self.height[so])
+            out[sm[hit]] = True
+        return out
+
+    @property
+    def box_lo(self) -> np.ndarray:
+        return np.minimum(self.a.min(axis=1), self.b.min(axis=1))
+
+    @property
+    def box_hi(self) -> np.ndarray:
+        return np.maximum(self.a.max(axis=1), self.b.max(axis=1))
+
+
+@dataclass
+class Views:
+    """How each camera shows each person at one frame.
+
+    Attributes
+    ----------
+    in_frame : (c, n) bool
+        The chest or the head is inside the frustum.
+    visible : (c, n) bool
+        In frame, with a clear sight line to the chest or the head.
+    hidden_by_scenery, hidden_by_people : (c, n) bool
+        In frame, both sight lines blocked by the scenery (or, failing that, by people).
+    height : (c, n) float64
+        A person's height on screen, as a share of the frame's height (0 behind the camera).
+    depth : (c, n) float64
+        Metres along each camera's view axis.
+    """
+
+    in_frame: np.ndarray
+    visible: np.ndarray
+    hidden_by_scenery: np.ndarray
+    hidden_by_people: np.ndarray
+    height: np.ndarray
+    depth: np.ndarray
+
+
+def lens_tangents(tracks: list[model.CameraTrack], frame: int) -> tuple[np.ndarray, np.ndarray]:
+    """(c,) half-angle tangents of each track's lens at sample ``frame``."""
+    tx = np.array([half_tangents(t.focal_length[frame], t.horizontal_aperture, t.vertical_aperture)[0]
+                   for t in tracks])
+    ty = np.array([half_tangents(t.focal_length[frame], t.horizontal_aperture, t.vertical_aperture)[1]
+                   for t in tracks])
+    return tx, ty
+
+
+def views(cam_to_world: np.ndarray, tan_x: np.ndarray, tan_y: np.ndarray, near: np.ndarray, far: np.ndarray,
+          ground: np.ndarray, people: np.ndarray | None = None, prisms: Prisms | None = None,
+          occluders: np.ndarray | None = None) -> Views:
+    """Every camera's view of the ``people`` rows at one frame.
+
+    Parameters
+    ----------
+    cam_to_world : (c, 4, 4) float
+        Canonical metres, row vectors (the camera looks down -Z).
+    tan_x, tan_y, near, far : (c,) float
+        Half-angle tangents of the lens and the clipping range (metres).
+    ground : (n, 3) float
+        Everyone's ground position, metres, Z up.
+    people : (p,) int, optional
+        The rows to test (default: all).
+    prisms : Prisms, optional
+        The scenery (default: none).
+    occluders : (n,) bool, optional
+        Rows that can hide others (default: all; pass the rendered ones:
+        an invisible leader hides nobody).
+
+    Returns
+    -------
+    Views
+        Over (c, p).
+    """
+    ground = np.asarray(ground, dtype=np.float64)
+    rows = np.arange(len(ground)) if people is None else np.asarray(people, dtype=np.int64)
+    occ_rows = np.arange(len(ground)) if occluders is None else np.flatnonzero(occluders)
+    c, p = len(cam_to_world), len(rows)
+    eye = cam_to_world[:, 3, :3]
+    right, up, back = cam_to_world[:, 0, :3], cam_to_world[:, 1, :3], cam_to_world[:, 2, :3]
+    shape = (c, p)
+    if c == 0 or p == 0:
+        z = np.zeros(shape, bool)
+        return Views(z, z.copy(), z.copy(), z.copy(), np.zeros(shape), np.zeros(shape))
+
+    def cam_space(points):                                   # (c, q, 3) -> x, y, depth
+        d = points[None] - eye[:, None]
+        return (np.einsum("cqi,ci->cq", d, right), np.einsum("cqi,ci->cq", d, up),
+                -np.einsum("cqi,ci->cq", d, back))
+
+    targets = {h: ground[rows] + [0.0, 0.0, h] for h in (CHEST_HEIGHT, HEAD_HEIGHT)}
+    inside, clear_s, clear_p = {}, {}, {}
+    for h, pts in targets.items():
+        x, y, z = cam_space(pts)
+        inside[h] = (z > near[:, None]) & (z < far[:, None]) & (np.abs(x) <= tan_x[:, None] * z) & (
+            np.abs(y) <= tan_y[:, None] * z)
+        clear_s[h] = np.ones(shape, bool)
+        clear_p[h] = np.ones(shape, bool)
+        cam_i, who = np.nonzero(inside[h])
+        if len(cam_i) and prisms is not None and len(prisms):
+            clear_s[h][cam_i, who] = ~prisms.blocks(eye[cam_i], pts[who])
+        if len(cam_i):
+            clear_p[h][cam_i, who] = ~_people_block(eye, right, up, back, cam_i, pts[who], rows[who], ground,
+                                                    occ_rows)
+    in_frame = inside[CHEST_HEIGHT] | inside[HEAD_HEIGHT]
+    line = {h: inside[h] & clear_s[h] & clear_p[h] for h in targets}
+    visible = line[CHEST_HEIGHT] | line[HEAD_HEIGHT]
+    by_scenery = in_frame & ~visible & ~((inside[CHEST_HEIGHT] & clear_s[CHEST_HEIGHT]) |
+                                         (inside[HEAD_HEIGHT] & clear_s[HEAD_HEIGHT]))
+    by_people = in_frame & ~visible & ~by_scenery
+    _, _, depth = cam_space(ground[rows] + [0.0, 0.0, CHEST_HEIGHT])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        height = np.where(depth > 1e-6, PERSON_HEIGHT / (2.0 * tan_y[:, None] * depth), 0.0)
+    return Views(in_frame, visible, by_scenery, by_people, height, depth)
+
+
+def _people_block(eye, right, up, back, cam_i, target, owner, ground, occ_rows) -> np.ndarray:
+    """(m,) bool: another person's cylinder stands between camera ``cam_i`` and ``target`` ((m, 3)).
+
+    In each camera's space: an occluder nearer than the target whose
+    cylinder covers the sight line horizontally, and whose feet-to-head
+    span covers the line's height where it passes.
+    """
+    m = len(cam_i)
+    out = np.zeros(m, bool)
+    if len(occ_rows) == 0:
+        return out
+    occ = ground[occ_rows]
+    step = max(1, _CHUNK // len(occ_rows))
+    for lo in range(0, m, step):
+        ci = cam_i[lo:lo + step]
+        e, r, u, f = eye[ci], right[ci], up[ci], -back[ci]
+        d_t = target[lo:lo + step] - e
+        tz = np.einsum("mi,mi->m", d_t, f)
+        tx = np.einsum("mi,mi->m", d_t, r)
+        ty = np.einsum("mi,mi->m", d_t, u)
+        d_o = occ[None] - e[:, None]                                   # (m, q, 3) to the occluders' feet
+        oz = np.einsum("mqi,mi->mq", d_o, f)
+        ox = np.einsum("mqi,mi->mq", d_o, r)
+        oy = np.einsum("mqi,mi->mq", d_o, u)
+        # The sight line at the occluder's depth: horizontally within its radius, vertically between
+        # its feet and its head (up is the camera's; the people stand along the world's Z, close enough
+        # for level cameras, whose up is within a few tens of degrees of it).
+        ratio = oz / np.maximum(tz[:, None], 1e-9)
+        lx = tx[:, None] * ratio
+        ly = ty[:, None] * ratio
+        head_y = oy + PERSON_HEIGHT * u[:, 2:3]
+        hit = (oz > 0.2) & (oz < tz[:, None] - PERSON_RADIUS) & (np.abs(lx - ox) < PERSON_RADIUS) & (
+            ly >= np.minimum(oy, head_y)) & (ly <= np.maximum(oy, head_y))
+        hit &= occ_rows[None] != owner[lo:lo + step, None]
+        out[lo:lo + step] = hit.any(axis=1)
+    return out
