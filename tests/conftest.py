@@ -65,3 +65,35 @@ def gl():
         pytest.skip(str(exc))
     yield ctx
     ctx.release()
+
+
+@pytest.fixture(scope="session")
+def simulated_harbour(tmp_path_factory):
+    """The harbour example simulated over frames 1-360 by the command line (the boat moors at 60), with its
+    camera agents: a shot usdcrowd owns (copy it before writing into it)."""
+    import shutil
+
+    from usdcrowd.cli import main
+
+    stages = data_dir("stages")
+    base = tmp_path_factory.mktemp("simulated_harbour")
+    shutil.copy(stages / "harbour.usda", base / "harbour.usda")
+    shutil.copytree(stages / "maps", base / "maps")
+    assert main(["simulate", str(base / "harbour.usda"), "-o", str(base / "shot"), "--frames", "1:360",
+                 "--no-progress"]) == 0
+    return base / "shot"
+
+
+@pytest.fixture(scope="session")
+def harbour_frames(simulated_harbour):
+    """The simulated harbour read back (crowd, events, scenery) with its cameras' tracks at six frames:
+    (ShotCrowd, tracks, frame indices)."""
+    from usdcrowd.jobs.editing import camera_tracks, candidate_cameras
+    from usdcrowd.jobs.filming import load_shot
+    from usdcrowd.scenario.shot_scene import ShotScene
+
+    sc = load_shot(simulated_harbour / "shot.usda", progress=False)
+    scene = ShotScene(sc.shot)
+    times = np.asarray(sc.scenario.time.codes)
+    idx = np.linspace(0, len(times) - 1, 6).round().astype(int)
+    return sc, camera_tracks(scene, candidate_cameras(scene, None), times[idx]), idx

@@ -134,7 +134,7 @@ def plan_cut(cov: Coverage, events, fps: float, params: EditParams | None = None
     block = np.add.reduceat(value, starts[:-1], axis=1) if t else np.zeros((c, 0))
     cum = np.concatenate([np.zeros((c, 1)), np.cumsum(block, axis=1)], axis=1)      # (c, K + 1)
     cost = params.cut_cost * fps * max(float(value.max(axis=0).mean()) if t else 0.0, 1e-6)
-    allowed, refused = _allowed_cuts(cov, best, framing, starts, params)
+    allowed, refused = _allowed_cuts(cov, best, framing, starts, params, fps)
     lo, hi = params.min_hold * fps, params.max_hold * fps
     plan = _best_partition(cum, starts, allowed, cost, lo, hi)
     held_long = False
@@ -157,29 +157,47 @@ def plan_cut(cov: Coverage, events, fps: float, params: EditParams | None = None
     return Cut(shots, on_air, event, value, best, imp, framing, refused)
 
 
-def _allowed_cuts(cov: Coverage, best: np.ndarray, framing: np.ndarray, starts: np.ndarray, params: EditParams):
-    """(K, c, c) bool: a cut from camera a to b at instant ``starts[k]`` is allowed; and the refusals counted."""
+def _allowed_cuts(cov: Coverage, best: np.ndarray, framing: np.ndarray, starts: np.ndarray, params: EditParams,
+                  fps: float):
+    """(K, c, c) bool: a cut from camera a to b at instant ``starts[k]`` is allowed; and the refusals counted.
+
+    The shots on either side are taken to be of the event each camera framed last before the cut (within
+    a shortest shot's length) and first after it: a camera that has just lost its event is still on a
+    shot of it.
+    """
     c = best.shape[0]
+    t = best.shape[1]
     k_blocks = len(starts) - 1
+    window = max(1, int(round(params.min_hold * fps)))
     allowed = np.ones((k_blocks, c, c), bool)
     allowed[:, np.arange(c), np.arange(c)] = False          # a cut to the same camera is no cut
     refused: dict[str, int] = {}
     for k in range(1, k_blocks):
         f = int(starts[k])
-        ea, eb = best[:, f - 1], best[:, f]
+        ea = np.array([_last_event(best[a, max(0, f - window):f]) for a in range(c)])
+        eb = np.array([_first_event(best[b, f:min(t, f + window)]) for b in range(c)])
         same = (ea[:, None] == eb[None]) & (ea[:, None] >= 0)
         same[np.arange(c), np.arange(c)] = False
         for a, b in zip(*np.nonzero(same)):
             e = int(ea[a])
             if not np.isfinite(cov.centre[e, f]).all():
                 continue
-            rule = broken_rule(cov.eye[a, f - 1], cov.eye[b, f], cov.centre[e, f], cov.line[e, f],
-                               cov.size[a, e, f - 1], cov.size[b, e, f], params)
-            rule = str(rule.item()) if hasattr(rule, "item") else str(rule)
+            rule = str(broken_rule(cov.eye[a, f - 1], cov.eye[b, f], cov.centre[e, f], cov.line[e, f],
+                                   cov.size[a, e, f - 1], cov.size[b, e, f], params).item())
             if rule != OK:
                 allowed[k, a, b] = False
                 refused[rule] = refused.get(rule, 0) + 1
     return allowed, refused
+
+
+def _last_event(events: np.ndarray) -> int:
+    found = events[events >= 0]
+    return int(found[-1]) if len(found) else -1
+
+
+def _first_event(events: np.ndarray) -> int:
+    found = events[events >= 0]
+    return int(found[0]) if len(found) else -1
 
 
 def _best_partition(cum: np.ndarray, starts: np.ndarray, allowed: np.ndarray, cost: float, lo: float, hi: float):

@@ -62,8 +62,10 @@ def broken_rule(eye_a, eye_b, centre, line, size_a, size_b, params: EditParams) 
     (..., 2), sizes (...)); the result is an array of str of their shape.
     """
     angle = angle_about(eye_a, eye_b, centre)
+    size_a, size_b = np.asarray(size_a, dtype=np.float64), np.asarray(size_b, dtype=np.float64)
+    both = (size_a > 0) & (size_b > 0)          # a size unseen is no cut in
     with np.errstate(invalid="ignore", divide="ignore"):
-        ratio = np.maximum(size_a, size_b) / np.maximum(np.minimum(size_a, size_b), 1e-9)
+        ratio = np.where(both, np.maximum(size_a, size_b) / np.where(both, np.minimum(size_a, size_b), 1.0), 1.0)
     jump = (angle < params.min_angle_deg) & (ratio < params.cut_in_ratio)
     sa = side_of_line(eye_a, centre, line, params.line_tolerance_deg)
     sb = side_of_line(eye_b, centre, line, params.line_tolerance_deg)

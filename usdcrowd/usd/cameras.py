@@ -119,6 +119,8 @@ def _write_track(layer, track: model.CameraTrack, frame: StageFrame, over: bool,
         focal.default = fl[0]           # what readers that ask without a time get: a fixed lens has only it
         if len(set(fl)) > 1:
             for i in _changes(fl):
+                if i > 0:       # held until the change: USD interpolates a float between its samples
+                    layer.SetTimeSample(focal.path, float(track.times[i - 1]), fl[i - 1])
                 layer.SetTimeSample(focal.path, float(track.times[i]), fl[i])
     op = Sdf.AttributeSpec(spec, "xformOp:transform", T.Matrix4d)
     poses = np.broadcast_to(in_parent(stage_poses(track.cam_to_world, frame), parent),
@@ -199,7 +201,12 @@ def add_camera(cameras_path: str | os.PathLike, track: model.CameraTrack, toric:
         if author is not None:
             author(layer, spec)
     _count_cameras(layer)
-    return export_layer(layer, final)
+    written = export_layer(layer, final)
+    # A stage this process still holds (the one the camera was computed on) sees the new file too.
+    held = Sdf.Layer.Find(final)
+    if held:
+        held.Reload()
+    return written
 
 
 def camera_specs(layer) -> list[str]:
