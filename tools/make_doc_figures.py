@@ -1,6 +1,6 @@
 """The documentation's pictures and camera figures, made with the command line as a user would make them.
 
-    python tools/make_doc_figures.py [demo] [harbour] [museum] [dataset]    # default: all four
+    python tools/make_doc_figures.py [demo] [harbour] [museum] [dataset] [cut]    # default: all five
 
 - ``demo``: ``usdcrowd demo`` (the museum): the trajectory map, the preview
   sheet, the render contact sheet and the camera gallery.
@@ -10,6 +10,8 @@
 - ``museum``: the README tour's museum (40 visitors, seed 7), ``metrics --counts 4``.
 - ``dataset``: ``usdcrowd dataset docs/dataset_example.toml``, timed, its card,
   and its ground truth scored with TrackEval (against itself and the IoU baseline).
+- ``cut``: the whole harbour simulated, then ``usdcrowd edit``: the director's
+  shots, what the rules refused, and the sheet of the cut.
 
 Each part writes its pictures into docs/images and its figures into
 docs/data (tools/docfigures.py), with the date, commit and machine.
@@ -137,7 +139,39 @@ def dataset() -> None:
            command="python tools/make_doc_figures.py dataset")
 
 
-PARTS = {"demo": demo, "harbour": harbour, "museum": museum, "dataset": dataset}
+def cut() -> None:
+    out = fresh("harbour_cut")
+    out.mkdir(parents=True)
+    shutil.copy(ROOT / "stages" / "harbour.usda", out / "harbour.usda")
+    shutil.copytree(ROOT / "stages" / "maps", out / "maps")
+    usdcrowd("simulate", out / "harbour.usda", "-o", out / "shot", "--no-progress")
+    t0 = time.perf_counter()
+    said = usdcrowd("edit", out / "shot" / "shot.usda", "-o", out / "cut", "--no-progress")
+    seconds = time.perf_counter() - t0
+    with open(out / "cut" / "onair.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    shots: dict[int, list] = {}
+    for r in rows:
+        shots.setdefault(int(r["shot"]), []).append(r)
+    lengths = sorted(len(v) / 24.0 for v in shots.values())
+    refused = dict((rule, int(n)) for n, rule in re.findall(r"(\d+) by the ([\w-]+ rule)", said))
+    figures = {"shots": len(shots), "frames": len(rows), "seconds_edit": seconds,
+               "cameras_used": len({r["camera"] for r in rows}),
+               "cameras": int(re.search(r"of (\d+) cameras", said).group(1)),
+               "shortest_s": lengths[0], "longest_s": lengths[-1],
+               "on_event": sum(bool(r["event"]) for r in rows) / len(rows),
+               "events_on_air": len({r["event"] for r in rows if r["event"]}),
+               "refused_30": refused.get("30-degree rule", 0), "refused_180": refused.get("180-degree rule", 0),
+               "shot": events_of(out / "shot" / "shot.usda")}
+    table = {"columns": ["shot", "frames", "camera", "why it is on air"],
+             "rows": [[str(k), f"{v[0]['time_code']}-{v[-1]['time_code']}", v[0]["camera"].rsplit("/", 1)[-1],
+                       v[0]["reason"]] for k, v in sorted(shots.items())]}
+    images = copy_images([(out / "cut" / "cut_sheet.png", "harbour_cut_sheet.png")])
+    record("harbour_cut", "tools/make_doc_figures.py", figures=figures, tables={"shots": table}, images=images,
+           command="python tools/make_doc_figures.py cut")
+
+
+PARTS = {"demo": demo, "harbour": harbour, "museum": museum, "dataset": dataset, "cut": cut}
 
 
 def main(argv=None) -> int:

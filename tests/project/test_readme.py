@@ -3,9 +3,9 @@ it: the README's tour first, then the pages in the site's order (mkdocs.yml), ea
 
 Each ``$ usdcrowd ...`` line must exit 0, and the first line it prints must
 have the shape the README shows (numbers may differ: they are masked). The
-two commands that make pictures run on two small frames instead of the
-whole shot (``--frames 1:2`` and a small ``--resolution`` are appended,
-and ``--preset preview`` for render), so the suite stays within its time.
+commands that make pictures run small (``--frames 1:2`` and a small
+``--resolution`` are appended, ``--preset preview`` for render, a small
+``--resolution`` for edit's video), so the suite stays within its time.
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ def pages() -> list[Path]:
     nav = yaml.safe_load((ROOT / "mkdocs.yml").read_text())["nav"]
     return [README] + [ROOT / "docs" / page for page in walk(nav)]
 # Appended to the commands that render (the last option given wins in argparse).
-QUICK = {"preview": ["--frames", "1:2", "--resolution", "64x36"],
+QUICK = {"preview": ["--frames", "1:2", "--resolution", "64x36"], "edit": ["--resolution", "64x36"],
          "render": ["--frames", "1:2", "--resolution", "64x36", "--preset", "preview", "--spp", "1"]}
 
 

@@ -14,7 +14,7 @@ FLOORS = [
     {"character", "schema", "interrupts"},
     {"guard", "atomic"},
     {"sim", "events", "scenario"},
-    {"cameras", "usd", "groundtruth", "exchange"},
+    {"cameras", "editing", "usd", "groundtruth", "exchange"},
     {"render"},
     {"jobs"},
     {"dataset"},

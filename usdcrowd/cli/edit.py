@@ -73,9 +73,9 @@ def run(args) -> int:
                   resolution=args.resolution or (640, 360), progress=args.progress, limits=limits_of(args))
     unknown = sorted(set(events) - {p for p in r.events} - {p.rsplit("/", 1)[-1] for p in r.events})
     cut = r.cut
-    seconds = [s.frames / r.fps for s in cut.shots]
+    lengths = [s.frames for s in cut.shots]
     print(f"wrote {args.output}: {len(cut.shots)} shots from {len(set(cut.camera.tolist()))} of "
-          f"{len(r.cameras)} cameras, {len(r.times) / r.fps:.1f} s (shots {min(seconds):.1f}-{max(seconds):.1f} s)")
+          f"{len(r.cameras)} cameras over {len(r.times)} frames (shots of {min(lengths)} to {max(lengths)} frames)")
     for k, (s, why) in enumerate(zip(cut.shots, r.reasons), 1):
         print(f"  {k:>3} {r.times[s.start]:>6g}-{r.times[s.end - 1]:<6g} {r.cameras[s.camera].rsplit('/', 1)[-1]:<16} "
               f"{why}")
