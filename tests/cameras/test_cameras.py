@@ -275,3 +275,67 @@ def test_cameras_run_with_no_event_and_with_no_character(platoon_scene):
     assert all(np.isfinite(tr.cam_to_world).all() for tr in quiet)
     empty = film(np.zeros((12, 0, 3)), times[:12], FPS, cams, model.EventTable(), seed=1)
     assert all(np.isfinite(tr.cam_to_world).all() for tr in empty)
+
+
+def test_a_scouts_decisions_read_nobody_outside_its_view(platoon_scene, rng):
+    """Seed 000's cameras know only what they see: moving every character outside a scout's frustum
+    changes neither what it decides (the event it takes) nor how it turns and moves (the crowd's centre
+    for containment, the paper's one piece of shared knowledge, is given unchanged)."""
+    import copy
+
+    from usdcrowd.cameras.steering import CameraAgents
+    from usdcrowd.cameras.placement import crowd_extent
+
+    pos, times, _ = platoon_scene
+    # Three cameras round the crowd, looking past it (75 degrees off its centre): part of it in view.
+    ev = make_event("/World/Events/Platoon", GROUP, pos, np.arange(20), 0, len(times) - 1, times)
+    cams = generated_agents(3, np.zeros(3), 25.0)
+    eye = cams.cam_to_world[:, 3, :3].copy()
+    a = np.radians(75.0)
+    inward = -eye[:, :2] / np.linalg.norm(eye[:, :2], axis=1, keepdims=True)
+    past = inward @ np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]])
+    cams.cam_to_world[:] = look_at(eye, eye + np.column_stack([past * 10.0, np.zeros(3)]))
+    agents = CameraAgents(cams, model.EventTable([ev]), model.Obstacles.empty(), seed=4, fps=FPS)
+    dt = 1.0 / (FPS * agents.params.substeps)
+    checked, took = 0, False
+    for k in range(1, len(times)):
+        p = pos[k].copy()
+        centre, radius = crowd_extent(p)
+        scouts = np.flatnonzero(agents.tracked < 0)
+        fwd, right, up = axes(agents.q)
+
+        def seen_by_a_scout(q):
+            seen = np.zeros(len(q), bool)
+            for c in scouts:
+                rel = q + [0.0, 0.0, agents.params.look_height] - agents.p[c]
+                z = rel @ fwd[c]
+                seen |= (z > 0) & (np.abs(rel @ right[c]) <= agents.tan_x[c] * z) & (
+                    np.abs(rel @ up[c]) <= agents.tan_y[c] * z)
+            return seen
+
+        # A camera tracking an event (taken before or at this frame) knows the event's people.
+        decided = copy.deepcopy(agents)
+        decided.update_modes(float(times[k]), p)
+        followed = np.zeros(len(p), bool)
+        if (decided.tracked >= 0).any():
+            followed[ev.members] = True
+        moved = p.copy()
+        moved[:, :2] += rng.uniform(-15.0, 15.0, (len(p), 2))
+        unseen = ~seen_by_a_scout(p) & ~seen_by_a_scout(moved) & ~followed     # out of view before and after
+        moved[~unseen] = p[~unseen]
+        a, b = copy.deepcopy(agents), copy.deepcopy(agents)
+        for one, where in ((a, p), (b, moved)):
+            one.update_modes(float(times[k]), where)
+            for _ in range(one.params.substeps):
+                one.step(float(times[k]), where, centre, radius, dt)
+        for c in scouts:
+            assert a.tracked[c] == b.tracked[c] and a.mode[c] == b.mode[c], (k, c)
+            np.testing.assert_array_equal(a.q[c], b.q[c])
+            np.testing.assert_array_equal(a.p[c], b.p[c])
+        checked += len(scouts) * unseen.any()
+        agents.update_modes(float(times[k]), p)
+        took |= bool((agents.tracked >= 0).any())
+        for _ in range(agents.params.substeps):
+            agents.step(float(times[k]), p, centre, radius, dt)
+    assert checked > 50
+    assert took                                 # and what they saw, they took

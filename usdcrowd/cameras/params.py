@@ -66,11 +66,12 @@ class CameraParams:
     wander_speed : float
         Share of the maximum speed used while wandering.
     wander_look_distance : float
-        Metres ahead along the wandering direction a scouting camera aims at
-        (at most twice this, at least 3 m, and no further than the crowd).
-    scout_dwell : float
-        Seconds a scouting camera looks at one character before its
-        wandering aim moves on (drawn from 0.5 to 1.5 times this).
+        Metres ahead along its wandering direction a scouting camera aims at
+        (at ``look_height``): the wandering torque.
+    wander_turn : float
+        Radians per second a scout's wandering direction turns toward the
+        crowd's centre while it is beyond the containment radius or points
+        out of the scene's bounds.
     contain_margin : float
         Metres beyond the crowd's extent where containment starts pulling back.
     min_track_seconds : float
@@ -106,6 +107,6 @@ class CameraParams:
     wander_jitter: float = 1.5
     wander_speed: float = 0.6
     wander_look_distance: float = 15.0
-    scout_dwell: float = 2.5
+    wander_turn: float = 0.8
     contain_margin: float = 10.0
     min_track_seconds: float = 3.0

@@ -6,9 +6,12 @@ them one time step at a time (Algorithms 1 and 2): forces from
 orientations. Camera-camera terms and camera-obstacle terms come from
 KD-trees, never all pairs.
 
-Modes: a scouting camera wanders and pans; when a running event's centre
-enters its frustum it starts tracking it, preferring events no other camera
-follows. A tracking camera whose event ends scouts again. A camera whose
+Modes: a scouting camera wanders and looks along its own wandering
+direction (the paper's wandering torque); when one of a running event's
+people enters its frustum it starts tracking it, preferring events no other
+camera follows. A scout knows only what it sees: nothing it decides reads a
+character outside its frustum (tested); the crowd's centre, which the
+paper's containing force pulls toward, is the one thing all cameras know. A tracking camera whose event ends scouts again. A camera whose
 ``crowd:camera:target`` is authored tracks only that event (or agent) while
 it runs, and scouts before and after. Every camera starts scouting (an
 authored ``crowd:camera:mode`` of tracking means nothing without a target),
@@ -101,9 +104,6 @@ class CameraAgents:
         self.rng = np.random.default_rng(seed)
         fwd = axes(self.q)[0] if c else np.zeros((0, 3))
         self.wander = np.arctan2(fwd[:, 1], fwd[:, 0]) if c else np.zeros(0)
-        # The character each scouting camera looks at, and until when.
-        self.focus = np.zeros(c, np.int64)
-        self.focus_until = np.full(c, -np.inf)
         self.visible = None if visible is None else np.asarray(visible, bool)
         self.visible_rows = None if visible is None else np.flatnonzero(visible)
         self.bounds = None if bounds is None else np.asarray(bounds, dtype=np.float64)
@@ -176,16 +176,22 @@ class CameraAgents:
         free = np.flatnonzero(((self.mode == SCOUTING) | shared) & ~pinned)
         if len(free) == 0 or not running:
             return
-        centres = np.array([self._event_state(k, time, positions)[0].mean(axis=0) for k in running])
-        centres[:, 2] += self.params.look_height
+        # An event is seen when one of its people (a rendered one) is in the camera's frustum within
+        # scout_range: what the camera knows of an event is what it sees of it.
         fwd, right, up = axes(self.q[free])
-        d = centres[None] - self.p[free, None]                       # (f, e, 3)
-        z = np.einsum("fek,fk->fe", d, fwd)
-        x = np.einsum("fek,fk->fe", d, right)
-        y = np.einsum("fek,fk->fe", d, up)
-        dist = np.linalg.norm(d, axis=2)
-        seen = (z > 0.5) & (dist < self.params.scout_range) & (np.abs(x) <= self.tan_x[free, None] * z) & (
-            np.abs(y) <= self.tan_y[free, None] * z)
+        seen = np.zeros((len(free), len(running)), bool)
+        dist = np.full((len(free), len(running)), np.inf)
+        for j, k in enumerate(running):
+            pts = self._event_state(k, time, positions)[0] + [0.0, 0.0, self.params.look_height]
+            d = pts[None] - self.p[free, None]                        # (f, m, 3)
+            z = np.einsum("fmk,fk->fm", d, fwd)
+            x = np.einsum("fmk,fk->fm", d, right)
+            y = np.einsum("fmk,fk->fm", d, up)
+            r = np.linalg.norm(d, axis=2)
+            inside = (z > 0.5) & (r < self.params.scout_range) & (np.abs(x) <= self.tan_x[free, None] * z) & (
+                np.abs(y) <= self.tan_y[free, None] * z)
+            seen[:, j] = inside.any(axis=1)
+            dist[:, j] = np.where(inside, r, np.inf).min(axis=1)
         run = np.asarray(running)
         for row, cam in enumerate(free):
             cand = np.flatnonzero(seen[row])
@@ -222,7 +228,7 @@ class CameraAgents:
         if len(self) == 0:
             return
         fwd, right, _ = axes(self.q)
-        look, height, force = self._aims(time, positions, fwd, dt)
+        look, height, force = self._aims(time, positions, fwd, dt, crowd_centre, crowd_radius)
         force += self._forces(look, height, fwd, right, crowd_centre, crowd_radius)
         # Algorithm 1, with Reynolds' limits on force and speed.
         t = self.table
@@ -236,7 +242,8 @@ class CameraAgents:
         self.w = _clamp(self.w + self.params.angular_gain * tau * dt, t.max_angular_speed)
         self.q = _level(integrate(self.q, self.w, dt))
 
-    def _aims(self, time: float, positions: np.ndarray, fwd: np.ndarray, dt: float):
+    def _aims(self, time: float, positions: np.ndarray, fwd: np.ndarray, dt: float, crowd_centre: np.ndarray,
+              crowd_radius: float):
         """Where each camera looks, how high it wants to be, and its framing or wandering force.
 
         Returns
@@ -278,14 +285,15 @@ class CameraAgents:
                                                    prm.crane_gain)
         if len(scouting):
             self.wander[scouting] += self.rng.normal(0.0, prm.wander_jitter * np.sqrt(dt), len(scouting))
+            self._head_back(scouting, crowd_centre, crowd_radius, dt)
             force[scouting] += prm.w_wander * forces.wandering(self.v[scouting], self.wander[scouting],
                                                                t.max_speed[scouting], prm.wander_speed)
-            # Wandering torque's target: the direction wanders from one character to
-            # another (re-drawn every scout_dwell seconds, nearer ones likelier), so
-            # scouts search the crowd, not the sky.
-            if len(positions):
-                self._refocus(scouting, time, positions, dt)
-                look[scouting] = positions[self.focus[scouting]] + [0.0, 0.0, prm.look_height]
+            # The wandering torque (section 4.4): aim at a point along the camera's own wandering
+            # direction, at people's height; a scout knows nobody it has not seen.
+            ahead = np.column_stack([np.cos(self.wander[scouting]), np.sin(self.wander[scouting]),
+                                     np.zeros(len(scouting))])
+            look[scouting] = self.p[scouting] * [1.0, 1.0, 0.0] + prm.wander_look_distance * ahead + [
+                0.0, 0.0, prm.look_height]
         return look, height, force
 
     def _forces(self, look, height, fwd, right, crowd_centre, crowd_radius) -> np.ndarray:
@@ -322,23 +330,25 @@ class CameraAgents:
                                                pairs, prm.avoid_near, prm.avoid_range)
         return tau
 
-    def _refocus(self, cams: np.ndarray, time: float, positions: np.ndarray, dt: float) -> None:
-        """Draw a new character to look at for scouts whose dwell is over."""
-        due = cams[self.focus_until[cams] <= time]
-        if len(due) == 0:
-            return
-        rows = self.visible_rows if self.visible_rows is not None and len(self.visible_rows) else np.arange(
-            len(positions))
-        if len(rows) == 0:
-            return                     # nobody to look at: the aim stays ahead
+    def _head_back(self, cams: np.ndarray, centre: np.ndarray, radius: float, dt: float) -> None:
+        """Turn the wandering direction of scouts toward the crowd's centre while they are beyond the
+        containment radius (the paper's containing force brings the camera back, and its wandering
+        torque looks where it goes) or while it points out of the scene's bounds (a scout would
+        otherwise stand at the edge looking out)."""
         prm = self.params
-        # A handful of candidates per camera: O(cameras), whatever the crowd's size.
-        cand = rows[self.rng.integers(0, len(rows), (len(due), 16))]
-        d = np.linalg.norm(positions[cand, :2] - self.p[due, None, :2], axis=2)
-        w = np.where(d < prm.scout_range, 1.0 / (d + 2.0), 1e-6)
-        pick = (w.cumsum(1) / w.sum(1, keepdims=True) > self.rng.random((len(due), 1))).argmax(1)
-        self.focus[due] = cand[np.arange(len(due)), pick]
-        self.focus_until[due] = time + prm.scout_dwell * self.fps * self.rng.uniform(0.5, 1.5, len(due))
+        d = centre[None, :2] - self.p[cams, :2]
+        back = np.linalg.norm(d, axis=1) > radius + prm.contain_margin
+        if self.bounds is not None:
+            ahead = self.p[cams, :2] + prm.wander_look_distance * np.column_stack(
+                [np.cos(self.wander[cams]), np.sin(self.wander[cams])])
+            lo, hi = self.bounds[0] + prm.bounds_margin, self.bounds[1] - prm.bounds_margin
+            back |= ((ahead < lo) | (ahead > hi)).any(axis=1)
+        if not back.any():
+            return
+        cams, d = cams[back], d[back]
+        turn = np.angle(np.exp(1j * (np.arctan2(d[:, 1], d[:, 0]) - self.wander[cams])))
+        step = prm.wander_turn * dt
+        self.wander[cams] += np.clip(turn, -step, step)
 
     def _brake_at_bounds(self, force: np.ndarray, dt: float) -> np.ndarray:
         """``force`` (c, 3) changed so that no camera heads for the scene's bounds faster than it can stop
