@@ -72,6 +72,12 @@ class CameraParams:
         Radians per second a scout's wandering direction turns toward the
         crowd's centre while it is beyond the containment radius or points
         out of the scene's bounds.
+    occlusion_lookahead : float
+        Seconds ahead a tracking camera checks whether people walking on
+        will hide its event (it cranes up before they do).
+    lift_hold : float
+        Seconds a tracking camera takes to come down from the top of its
+        elevation range once its event is in clear view again.
     contain_margin : float
         Metres beyond the crowd's extent where containment starts pulling back.
     min_track_seconds : float
@@ -108,5 +114,7 @@ class CameraParams:
     wander_speed: float = 0.6
     wander_look_distance: float = 15.0
     wander_turn: float = 0.8
+    occlusion_lookahead: float = 1.5
+    lift_hold: float = 8.0
     contain_margin: float = 10.0
     min_track_seconds: float = 3.0

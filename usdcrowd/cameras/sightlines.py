@@ -9,9 +9,10 @@ head: against the scenery's footprints (convex prisms up to their height,
 as the simulation and the cameras know the scenery) and against the other
 people (upright cylinders). A person is visible when either line is clear.
 
-The test is geometric and conservative where it must choose: people are
-cylinders :data:`PERSON_RADIUS` wide and :data:`~.metrics.PERSON_HEIGHT`
-tall, so an arm or a gap between legs does not count. The id pass of a
+The test is geometric and conservative where it must choose: a person is a
+body :data:`PERSON_RADIUS` in radius up to the shoulders and a head
+:data:`HEAD_RADIUS` in radius up to :data:`~.metrics.PERSON_HEIGHT`, so an
+arm or a gap between legs does not count. The id pass of a
 render (:mod:`usdcrowd.groundtruth`) is the exact answer for one frame; this
 is the one a whole shot's cameras can afford at every frame.
 """
@@ -27,7 +28,9 @@ from .frustum import half_tangents
 from .metrics import CHEST_HEIGHT, PERSON_HEIGHT
 
 HEAD_HEIGHT = 1.6
+SHOULDER_HEIGHT = 1.45
 PERSON_RADIUS = 0.25
+HEAD_RADIUS = 0.12
 # Pair-by-occluder tests are done in chunks of about this many (memory, not speed).
 _CHUNK = 500_000
 
@@ -220,11 +223,14 @@ def views(cam_to_world: np.ndarray, tan_x: np.ndarray, tan_y: np.ndarray, near: 
 
 
 def _people_block(eye, right, up, back, cam_i, target, owner, ground, occ_rows) -> np.ndarray:
-    """(m,) bool: another person's cylinder stands between camera ``cam_i`` and ``target`` ((m, 3)).
+    """(m,) bool: another person stands between camera ``cam_i`` and ``target`` ((m, 3)).
 
-    In each camera's space: an occluder nearer than the target whose
-    cylinder covers the sight line horizontally, and whose feet-to-head
-    span covers the line's height where it passes.
+    A person is a body up to the shoulders (:data:`PERSON_RADIUS` wide) and a
+    narrower head above them: a sight line over a shoulder, between two
+    heads, is clear (a packed group seen from a little above shows its
+    heads). Tested where the line passes each nearer person's axis: the
+    line's offset across the view (the camera's right, level for these
+    cameras) and its height above that person's feet.
     """
     m = len(cam_i)
     out = np.zeros(m, bool)
@@ -234,24 +240,20 @@ def _people_block(eye, right, up, back, cam_i, target, owner, ground, occ_rows) 
     step = max(1, _CHUNK // len(occ_rows))
     for lo in range(0, m, step):
         ci = cam_i[lo:lo + step]
-        e, r, u, f = eye[ci], right[ci], up[ci], -back[ci]
-        d_t = target[lo:lo + step] - e
+        e, r, f = eye[ci], right[ci], -back[ci]
+        tgt = target[lo:lo + step]
+        d_t = tgt - e
         tz = np.einsum("mi,mi->m", d_t, f)
         tx = np.einsum("mi,mi->m", d_t, r)
-        ty = np.einsum("mi,mi->m", d_t, u)
-        d_o = occ[None] - e[:, None]                                   # (m, q, 3) to the occluders' feet
+        d_o = occ[None] - e[:, None]                                   # (m, q, 3) to the others' feet
         oz = np.einsum("mqi,mi->mq", d_o, f)
         ox = np.einsum("mqi,mi->mq", d_o, r)
-        oy = np.einsum("mqi,mi->mq", d_o, u)
-        # The sight line at the occluder's depth: horizontally within its radius, vertically between
-        # its feet and its head (up is the camera's; the people stand along the world's Z, close enough
-        # for level cameras, whose up is within a few tens of degrees of it).
-        ratio = oz / np.maximum(tz[:, None], 1e-9)
-        lx = tx[:, None] * ratio
-        ly = ty[:, None] * ratio
-        head_y = oy + PERSON_HEIGHT * u[:, 2:3]
-        hit = (oz > 0.2) & (oz < tz[:, None] - PERSON_RADIUS) & (np.abs(lx - ox) < PERSON_RADIUS) & (
-            ly >= np.minimum(oy, head_y)) & (ly <= np.maximum(oy, head_y))
+        along = oz / np.maximum(tz[:, None], 1e-9)                      # where the line passes them
+        across = np.abs(tx[:, None] * along - ox)
+        above = e[:, 2:3] + (tgt[:, 2:3] - e[:, 2:3]) * along - occ[None, :, 2]
+        body = (above >= 0.0) & (above <= SHOULDER_HEIGHT) & (across < PERSON_RADIUS)
+        head = (above > SHOULDER_HEIGHT) & (above <= PERSON_HEIGHT) & (across < HEAD_RADIUS)
+        hit = (oz > 0.2) & (oz < tz[:, None] - PERSON_RADIUS) & (body | head)
         hit &= occ_rows[None] != owner[lo:lo + step, None]
         out[lo:lo + step] = hit.any(axis=1)
     return out

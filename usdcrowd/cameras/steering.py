@@ -28,6 +28,7 @@ from scipy.spatial import cKDTree
 from ..core import model
 from . import forces, torques
 from .frustum import half_tangents
+from .sightlines import Prisms, views
 from .orientation import axes, integrate, level_from_forward, matrix_to_quat
 from .params import CameraParams
 
@@ -126,8 +127,15 @@ class CameraAgents:
         self.tracked = np.full(c, -1)
         self.since = np.zeros(c)
         self.obstacles = _ObstacleSet.of(obstacles, self.params.obstacle_min_height)
+        self._prisms = Prisms.of(obstacles, self.params.obstacle_min_height)
         self._tree = None           # this step's kd-tree of camera positions (forces and torques share it)
         self.time = None
+        # Share of its event's people each tracking camera sees, measured once per time code.
+        self.seen_share = np.ones(c)
+        self.crowded = np.zeros(c)
+        self.lift = np.zeros(c)           # share of its elevation range a tracking camera holds, for sight
+        self._seen_time = None
+        self._seen_positions = None
 
     def __len__(self) -> int:
         return len(self.p)
@@ -165,6 +173,7 @@ class CameraAgents:
         alive = set(running)
         ended = (self.tracked >= 0) & ~np.isin(self.tracked, list(alive))
         self.mode[ended], self.tracked[ended] = SCOUTING, -1
+        self.lift[self.tracked < 0] = 0.0
         pinned = self.pinned >= 0
         on = pinned & np.isin(self.pinned, list(alive)) & (self.tracked < 0)
         self.mode[on], self.tracked[on], self.since[on] = TRACKING, self.pinned[on], time
@@ -230,10 +239,12 @@ class CameraAgents:
         fwd, right, _ = axes(self.q)
         look, height, force = self._aims(time, positions, fwd, dt, crowd_centre, crowd_radius)
         force += self._forces(look, height, fwd, right, crowd_centre, crowd_radius)
-        # Algorithm 1, with Reynolds' limits on force and speed.
+        # Algorithm 1, with Reynolds' limits on force and speed; the crane's vertical move comes first
+        # within them (Reynolds' prioritised allocation): a camera rising over people who hide its event
+        # is not held down by its horizontal moves.
         t = self.table
-        force = _clamp(self.params.force_gain * force, t.max_force)
-        force = _clamp(self._brake_at_bounds(force, dt), t.max_force)
+        force = _clamp_vertical_first(self.params.force_gain * force, t.max_force)
+        force = _clamp_vertical_first(self._brake_at_bounds(force, dt), t.max_force)
         self.v = _clamp(self.v + force * dt, t.max_speed)
         self.p = self.p + self.v * dt
         self._constrain()
@@ -283,6 +294,16 @@ class CameraAgents:
             force[tracking] += prm.w_framing * f
             height[tracking] = forces.crane_height(n_members, radius, t.elevation[tracking], prm.crane_members,
                                                    prm.crane_gain)
+            # Beyond the paper: a camera that sees under half its event's people (hidden by others or by
+            # scenery) cranes up, toward the top of its elevation range, to look over them.
+            self._measure_sight(time, positions)
+            hidden = np.maximum(np.clip(1.5 * (1.0 - self.seen_share[tracking]), 0.0, 1.0),
+                                0.5 * self.crowded[tracking])
+            # Up at once, down slowly: coming down the moment the view clears would lose it again.
+            self.lift[tracking] = np.maximum(hidden, self.lift[tracking] - dt / prm.lift_hold)
+            lo, hi = t.elevation[tracking, 0], t.elevation[tracking, 1]
+            top = np.maximum(lo, hi - 0.5)          # short of the ceiling: arriving, not stopped by it
+            height[tracking] = np.maximum(height[tracking], lo + self.lift[tracking] * (top - lo))
         if len(scouting):
             self.wander[scouting] += self.rng.normal(0.0, prm.wander_jitter * np.sqrt(dt), len(scouting))
             self._head_back(scouting, crowd_centre, crowd_radius, dt)
@@ -295,6 +316,53 @@ class CameraAgents:
             look[scouting] = self.p[scouting] * [1.0, 1.0, 0.0] + prm.wander_look_distance * ahead + [
                 0.0, 0.0, prm.look_height]
         return look, height, force
+
+    def _measure_sight(self, time: float, positions: np.ndarray) -> None:
+        """``seen_share``: for each tracking camera, the share of its event's (rendered) people it sees
+        unhidden by scenery or by people near the event (:mod:`.sightlines`); once per time code."""
+        if self._seen_time == time:
+            return
+        last, self._seen_time = self._seen_time, time
+        previous, self._seen_positions = self._seen_positions, np.asarray(positions, dtype=np.float64).copy()
+        ahead = positions
+        if previous is not None and previous.shape == positions.shape and time > last:
+            ahead = positions + (positions - previous) * (self.params.occlusion_lookahead * self.fps / (time - last))
+        self.seen_share[:] = 1.0
+        self.crowded[:] = 0.0
+        tracking = np.flatnonzero(self.tracked >= 0)
+        if len(tracking) == 0 or len(positions) == 0:
+            return
+        people = self.visible_rows if self.visible_rows is not None else np.arange(len(positions))
+        tree = cKDTree(positions[people, :2]) if len(people) else None
+        mats = self.cam_to_world()
+        t = self.table
+        for cam in tracking:
+            pts, r = self._event_state(self.tracked[cam], time, positions)
+            rows = self.events[self.tracked[cam]].members_at(time)
+            if self.visible is not None:
+                rows = rows[self.visible[rows]]
+            if len(rows) == 0 or tree is None:
+                continue
+            # Who can hide them: people between the camera and the event (within the circle round the
+            # middle of the way that holds the camera and the event's area).
+            centre = pts[:, :2].mean(axis=0)
+            # A crowd round the event (others within 3 m of its area) may close in at any moment: the
+            # camera stays higher there (half-way up its range with ten or more).
+            around = len(tree.query_ball_point(centre, r + 3.0)) - len(rows)
+            self.crowded[cam] = min(1.0, max(0, around) / 10.0)
+            half = 0.5 * np.linalg.norm(centre - self.p[cam, :2])
+            near = people[tree.query_ball_point(0.5 * (centre + self.p[cam, :2]), half + r + 1.0)]
+            occ = np.zeros(len(positions), bool)
+            occ[near] = True
+            seen = 1.0
+            # Now, and where everyone will be in a moment if they walk on: a crane move takes time, so
+            # the camera starts rising before a crowd walks in front of its event.
+            for where in (positions, ahead):
+                v = views(mats[cam:cam + 1], self.tan_x[cam:cam + 1], self.tan_y[cam:cam + 1],
+                          np.array([t.near[cam]]), np.array([t.far[cam]]), where, people=rows,
+                          prisms=self._prisms, occluders=occ)
+                seen = min(seen, float(v.visible[0].mean()))
+            self.seen_share[cam] = seen
 
     def _forces(self, look, height, fwd, right, crowd_centre, crowd_radius) -> np.ndarray:
         """(c, 3) obstacle avoidance, crane, separation and containment (section 4.3), weighted."""
@@ -422,6 +490,16 @@ def _extremes(camera_xy: np.ndarray, pts: np.ndarray):
     if len(pts) == 1:
         return pts[0], pts[0]
     return extreme_pair(camera_xy, pts)
+
+
+def _clamp_vertical_first(v: np.ndarray, limit: np.ndarray) -> np.ndarray:
+    """(c, 3) ``v`` within ``limit`` (c,) in length, its vertical part kept first, the horizontal one
+    shortened to what is left."""
+    out = v.copy()
+    out[:, 2] = np.clip(v[:, 2], -limit, limit)
+    room = np.sqrt(np.maximum(limit ** 2 - out[:, 2] ** 2, 0.0))
+    out[:, :2] = _clamp(v[:, :2], room)
+    return out
 
 
 def _clamp(v: np.ndarray, limit: np.ndarray) -> np.ndarray:

@@ -1,0 +1,140 @@
+"""How well tracking cameras frame their events, frame by frame.
+
+Seed 000 counts a camera's work by the activity metric (:mod:`.metrics`):
+people near it, in its frustum. A viewer asks more of a camera that says it
+tracks an event: are the event's people on screen, not hidden by a wall or
+by others, and large enough to see; and how long after taking the event
+does the camera get there? Per tracking frame this measures the share of
+the event's (rendered) people visible (:mod:`.sightlines`) and their median
+height on screen, and per take the time to frame it (at least half its
+people visible).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core import model
+from .sightlines import Prisms, lens_tangents, views
+
+# A take is framed from the first frame at least this share of its people is visible.
+FRAMED_SHARE = 0.5
+# Seconds a camera is given to reach an event it has just taken.
+SETTLE_SECONDS = 2.0
+
+
+@dataclass
+class TrackingQuality:
+    """One camera agent's tracking, measured.
+
+    Attributes
+    ----------
+    camera : str
+    times : (t,) float64
+    event : list[str]
+        Per frame, the event tracked ("" while scouting).
+    share : (t,) float64
+        Share of the tracked event's people visible (NaN while scouting or when none takes part).
+    size : (t,) float64
+        Their median height on screen, share of the frame's height (0 when none is visible).
+    since : (t,) float64
+        Seconds since the camera took the event it tracks (NaN while scouting).
+    takes : list of (str, float, float)
+        (event, time code taken, seconds to frame it or NaN if it never was).
+    """
+
+    camera: str
+    times: np.ndarray
+    event: list
+    share: np.ndarray
+    size: np.ndarray
+    since: np.ndarray
+    takes: list
+
+    @property
+    def settled(self) -> np.ndarray:
+        """(t,) bool: tracking, with someone taking part, at least SETTLE_SECONDS after taking the event."""
+        return np.nan_to_num(self.since, nan=-1.0) >= SETTLE_SECONDS - 1e-9
+
+    def summary(self) -> dict:
+        """Frames tracking, settled frames, the share of those framed and blank, median size, times to frame."""
+        s = self.settled & ~np.isnan(self.share)
+        share = self.share[s]
+        ttf = np.array([t for _, _, t in self.takes], dtype=np.float64)
+        return {"tracking_frames": int((~np.isnan(self.since)).sum()), "settled_frames": int(s.sum()),
+                "framed": float(np.mean(share >= FRAMED_SHARE)) if s.any() else float("nan"),
+                "blank": float(np.mean(share == 0)) if s.any() else float("nan"),
+                "mean_share": float(np.mean(share)) if s.any() else float("nan"),
+                "median_size": float(np.median(self.size[s][share > 0])) if (share > 0).any() else float("nan"),
+                "takes": len(self.takes), "never_framed": int(np.isnan(ttf).sum()),
+                "median_seconds_to_frame": float(np.nanmedian(ttf)) if np.isfinite(ttf).any() else float("nan")}
+
+
+def tracking_quality(tracks: list[model.CameraTrack], positions, events: model.EventTable, visible: np.ndarray,
+                     obstacles: model.Obstacles, fps: float) -> list[TrackingQuality]:
+    """Measure every camera agent of ``tracks`` (those with a per-frame state) over the shot.
+
+    Parameters
+    ----------
+    tracks : list[CameraTrack]
+        Sampled at the shot's frames; cameras without ``tracked`` are skipped.
+    positions : (t, n, 3) float array-like
+        Ground positions per frame (a FrameStore works).
+    events : EventTable
+    visible : (n,) bool
+    obstacles : Obstacles
+    fps : float
+    """
+    agents = [tr for tr in tracks if tr.tracked is not None]
+    if not agents:
+        return []
+    times = np.asarray(agents[0].times, dtype=np.float64)
+    visible = np.asarray(visible, bool)
+    rows = np.flatnonzero(visible)
+    col = np.full(len(visible), -1)
+    col[rows] = np.arange(len(rows))
+    by_path = {e.path: e for e in events}
+    prisms = Prisms.of(obstacles)
+    c, t = len(agents), len(times)
+    share = np.full((c, t), np.nan)
+    size = np.zeros((c, t))
+    near = np.array([tr.near for tr in agents])
+    far = np.array([tr.far for tr in agents])
+    for i in range(t):
+        if not any(tr.tracked[i] for tr in agents):
+            continue
+        mats = np.stack([tr.cam_to_world[i] for tr in agents])
+        tx, ty = lens_tangents(agents, i)
+        v = views(mats, tx, ty, near, far, np.asarray(positions[i], dtype=np.float64), people=rows, prisms=prisms,
+                  occluders=visible)
+        for k, tr in enumerate(agents):
+            e = by_path.get(tr.tracked[i])
+            if e is None:
+                continue
+            idx = col[e.members_at(times[i])]
+            idx = idx[idx >= 0]
+            if len(idx) == 0:
+                continue
+            seen = v.visible[k, idx]
+            share[k, i] = seen.mean()
+            size[k, i] = float(np.median(v.height[k, idx][seen])) if seen.any() else 0.0
+    out = []
+    for k, tr in enumerate(agents):
+        since = np.full(t, np.nan)
+        takes = []
+        start = None
+        for i in range(t):
+            if not tr.tracked[i]:
+                start = None
+                continue
+            if start is None or tr.tracked[i] != tr.tracked[i - 1]:
+                start = i
+                takes.append([tr.tracked[i], float(times[i]), float("nan")])
+            since[i] = (times[i] - times[start]) / fps
+            if np.isnan(takes[-1][2]) and share[k, i] >= FRAMED_SHARE:
+                takes[-1][2] = float(since[i])
+        out.append(TrackingQuality(tr.path, times, list(tr.tracked), share[k], size[k], since,
+                                   [tuple(x) for x in takes]))
+    return out
