@@ -74,6 +74,10 @@ def avoidance(position: np.ndarray, forward: np.ndarray, right: np.ndarray, half
     # (-alpha, up) for a camera on the right is a turn to the left, away from
     # it. Here a positive rate about +Z turns left.
     on_right = np.einsum("ij,ij->i", position[i] - position[c], right[c]) > 0
-    rate = np.where(on_right, 1.0, -1.0) * max_rate[c]
-    np.add.at(out, c, rate[:, None] * _UP - omega[c])
+    # One pan per camera, away from the side most overlapping cameras are on (summed per pair, three
+    # overlapping cameras would turn one three times as hard, off its event).
+    side = np.zeros(len(omega))
+    np.add.at(side, c, np.where(on_right, 1.0, -1.0))
+    hit = np.unique(c)
+    out[hit] = np.sign(side[hit])[:, None] * max_rate[hit, None] * _UP - omega[hit]
     return out

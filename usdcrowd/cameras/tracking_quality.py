@@ -138,3 +138,16 @@ def tracking_quality(tracks: list[model.CameraTrack], positions, events: model.E
         out.append(TrackingQuality(tr.path, times, list(tr.tracked), share[k], size[k], since,
                                    [tuple(x) for x in takes]))
     return out
+
+
+def pooled(qualities: list[TrackingQuality]) -> dict:
+    """Every camera's settled tracking frames and takes together: the shares framed and blank, the mean
+    share visible, and the median seconds to frame a take (NaN where nothing was tracked)."""
+    share = np.concatenate([q.share[q.settled & ~np.isnan(q.share)] for q in qualities]) if qualities else np.zeros(0)
+    ttf = np.array([t for q in qualities for _, _, t in q.takes], dtype=np.float64)
+    return {"cameras": len(qualities), "settled_frames": int(len(share)),
+            "framed": float(np.mean(share >= FRAMED_SHARE)) if len(share) else float("nan"),
+            "blank": float(np.mean(share == 0)) if len(share) else float("nan"),
+            "mean_share": float(np.mean(share)) if len(share) else float("nan"),
+            "takes": int(len(ttf)), "never_framed": int(np.isnan(ttf).sum()),
+            "median_seconds_to_frame": float(np.nanmedian(ttf)) if np.isfinite(ttf).any() else float("nan")}

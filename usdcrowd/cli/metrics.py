@@ -29,10 +29,21 @@ def run(args) -> int:
 
     results = evaluate_shot(args.shot, args.output, counts=args.counts, seed=args.seed, progress=args.progress,
                             limits=limits_of(args))
-    print(f"wrote {args.output}: summary.csv, activity_N / viewed_N .csv and .png")
+    print(f"wrote {args.output}: summary.csv, activity_N / viewed_N .csv and .png, tracking_N.csv")
     print(f"  {'cameras':>7} {'kind':<11} {'active share':>12} {'active/idle':>11} {'viewed share':>12}")
-    for n, r in results.items():
-        for kind, s in r.items():
+    counts = list(results)
+    for n in counts:
+        for kind in ("autonomous", "static"):
+            s = results[n][kind]
             print(f"  {n:>7} {kind:<11} {s['mean_active_share']:>12.3f} {s['mean_active_idle_ratio']:>11.3f} "
                   f"{s['mean_viewed_share']:>12.3f}")
+    print("  tracking cameras (2 s after taking an event): frames with half its people or more visible, "
+          "with none, seconds to frame it (median)")
+    for n in counts:
+        q = results[n]["tracking"]
+        print(f"  {n:>7} autonomous  framed {q['framed']:6.1%}  blank {q['blank']:6.1%}  "
+              f"{q['median_seconds_to_frame']:.2f} s over {q['takes']} takes")
+    gallery = results[counts[0]].get("gallery")
+    if gallery:
+        print(f"  gallery {gallery}")
     return 0

@@ -196,10 +196,15 @@ def evaluate_shot(shot_path: str | os.PathLike, out_dir: str | os.PathLike, coun
     Writes one CSV per figure (per-frame series), summary.csv, and the plots
     ``activity_N.png`` (Figures 12 and 13) and ``viewed_N.png`` (14 and 15).
 
+    Also measures how well the autonomous cameras frame what they track
+    (``tracking_N.csv``, per camera; :mod:`usdcrowd.cameras.tracking_quality`) and
+    shows it (``tracking_gallery.png``, with OpenGL).
+
     Returns
     -------
     dict
-        ``{N: {"autonomous": summary, "static": summary}}``.
+        ``{N: {"autonomous": summary, "static": summary, "tracking": pooled tracking quality}}``,
+        and the first N's ``"gallery"`` where one was drawn.
     """
     from tqdm import tqdm
 
@@ -209,9 +214,12 @@ def evaluate_shot(shot_path: str | os.PathLike, out_dir: str | os.PathLike, coun
     from .pipeline import film_cameras
     from .plots import coverage_plot
 
+    from ..cameras.tracking_quality import pooled, tracking_quality
+
     for n in counts:
         check_camera_count(n, f"--counts {n}")
     sc = load_shot(shot_path, progress=progress, limits=limits)
+    tracking, gallery = {}, None
     out = output_dir(out_dir, "metrics")
     active = active_mask(sc.events, sc.scenario.time.codes, len(sc.scenario.agents))
     visible = sc.scenario.agents.visible
@@ -225,7 +233,14 @@ def evaluate_shot(shot_path: str | os.PathLike, out_dir: str | os.PathLike, coun
             steps.set_description(f"metrics {n} autonomous")
             tracks = film_cameras(sc.scenario, sc.positions, sc.events, sc.default_prim, progress, count=n, static=0,
                                   seed=seed, summary=summary)
-            series = {"autonomous": coverage([t for t in tracks if t.state is not None], sc.positions, active, visible)}
+            agents = [t for t in tracks if t.state is not None]
+            series = {"autonomous": coverage(agents, sc.positions, active, visible)}
+            quality = tracking_quality(agents, sc.positions, sc.events, visible, sc.scenario.obstacles,
+                                       sc.scenario.time.fps)
+            tracking[n] = pooled(quality)
+            _write_tracking_csv(out / f"tracking_{n}.csv", quality)
+            if n == counts[0]:
+                gallery = _tracking_gallery(sc.shot, out / "tracking_gallery.png", agents, quality, progress)
             steps.update(1)
             steps.set_description(f"metrics {n} static")
             tracks = film_cameras(sc.scenario, sc.positions, sc.events, sc.default_prim, False, count=0, static=n,
@@ -236,23 +251,81 @@ def evaluate_shot(shot_path: str | os.PathLike, out_dir: str | os.PathLike, coun
             steps.set_description(f"metrics {n} plots")
             results[n] = {k: s.summary() for k, s in series.items()}
             for name, column in (("activity", "active_share"), ("viewed", "viewed_share")):
-                with atomic_path(out / f"{name}_{n}.csv") as tmp, open(tmp, "w", newline="") as fh:
-                    w = csv.writer(fh)
-                    w.writerow(["time_code", "autonomous_score_active", "autonomous_score_idle", "autonomous_active",
-                                "autonomous_active_viewed", "static_score_active", "static_score_idle",
-                                "static_active", "static_active_viewed"])
-                    a, s = series["autonomous"], series["static"]
-                    for k in range(len(a.times)):
-                        w.writerow([f"{a.times[k]:g}", f"{a.score_active[k]:.6g}", f"{a.score_idle[k]:.6g}",
-                                    int(a.n_active[k]), int(a.n_active_viewed[k]), f"{s.score_active[k]:.6g}",
-                                    f"{s.score_idle[k]:.6g}", int(s.n_active[k]), int(s.n_active_viewed[k])])
+                _write_series_csv(out / f"{name}_{n}.csv", series)
                 coverage_plot(series, column, n, out / f"{name}_{n}.png", sc.scenario.time.fps)
             steps.update(1)
+    for n in counts:
+        results[n]["tracking"] = tracking[n]
+    if gallery:
+        results[counts[0]]["gallery"] = gallery
     with atomic_path(out / "summary.csv") as tmp, open(tmp, "w", newline="") as fh:
         w = csv.writer(fh)
-        keys = list(next(iter(next(iter(results.values())).values())).keys())
+        keys = list(results[counts[0]]["autonomous"].keys())
         w.writerow(["cameras", "kind"] + keys)
-        for n, r in results.items():
-            for kind, s in r.items():
-                w.writerow([n, kind] + [f"{s[k]:.6g}" for k in keys])
+        for n in counts:
+            for kind in ("autonomous", "static"):
+                w.writerow([n, kind] + [f"{results[n][kind][k]:.6g}" for k in keys])
     return results
+
+
+def _write_series_csv(path, series: dict) -> None:
+    """The autonomous and static cameras' per-frame scores side by side (Figures 12 to 15's data)."""
+    from ..atomic import atomic_path
+
+    with atomic_path(path) as tmp, open(tmp, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["time_code", "autonomous_score_active", "autonomous_score_idle", "autonomous_active",
+                    "autonomous_active_viewed", "static_score_active", "static_score_idle",
+                    "static_active", "static_active_viewed"])
+        a, s = series["autonomous"], series["static"]
+        for k in range(len(a.times)):
+            w.writerow([f"{a.times[k]:g}", f"{a.score_active[k]:.6g}", f"{a.score_idle[k]:.6g}",
+                        int(a.n_active[k]), int(a.n_active_viewed[k]), f"{s.score_active[k]:.6g}",
+                        f"{s.score_idle[k]:.6g}", int(s.n_active[k]), int(s.n_active_viewed[k])])
+
+
+def _write_tracking_csv(path, quality) -> None:
+    """One row per camera agent: how well it framed what it tracked (:mod:`usdcrowd.cameras.tracking_quality`)."""
+    from ..atomic import atomic_path
+
+    keys = ["tracking_frames", "settled_frames", "framed", "blank", "mean_share", "median_size", "takes",
+            "never_framed", "median_seconds_to_frame"]
+    with atomic_path(path) as tmp, open(tmp, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["camera"] + keys)
+        for q in quality:
+            s = q.summary()
+            w.writerow([q.camera] + [f"{s[k]:.6g}" if isinstance(s[k], float) else s[k] for k in keys])
+
+
+def _tracking_gallery(shot: str, out_png, tracks, quality, progress: bool, per_camera: int = 4):
+    """Settled tracking frames of each camera agent, labelled with what they show; None without OpenGL."""
+    from ..core.errors import UsdcrowdError
+    from ..core.view import CameraView
+
+    picks = []
+    for tr, q in zip(tracks, quality):
+        frames = np.flatnonzero(q.settled & ~np.isnan(q.share))
+        for i in frames[np.unique(np.linspace(0, len(frames) - 1, per_camera).round().astype(int))] if len(
+                frames) else []:
+            picks.append((tr, q, int(i)))
+    if not picks:
+        return None
+    try:
+        from ..render.preview.output import contact_sheet, write_png
+        from ..render.preview.renderer import PreviewRenderer
+
+        r = PreviewRenderer(shot, 480, 270)
+    except (ImportError, UsdcrowdError):
+        return None                     # no OpenGL here: the numbers stand without their picture
+    try:
+        thumbs, labels = [], []
+        for tr, q, i in picks:
+            view = CameraView(tr.path, float(tr.times[i]), tr.cam_to_world[i], float(tr.focal_length[i]),
+                              tr.horizontal_aperture, tr.vertical_aperture, tr.near, tr.far)
+            thumbs.append(r.render(float(tr.times[i]), view).color)
+            labels.append(f"{tr.path.rsplit('/', 1)[-1]} {tr.times[i]:g} {q.event[i].rsplit('/', 1)[-1]}: "
+                          f"{q.share[i]:.0%} visible, {q.size[i]:.0%} tall")
+    finally:
+        r.release()
+    return write_png(contact_sheet(thumbs, labels, columns=per_camera, thumb_width=480), out_png)
