@@ -75,6 +75,12 @@ class CameraParams:
     occlusion_lookahead : float
         Seconds ahead a tracking camera checks whether people walking on
         will hide its event (it cranes up before they do).
+    sight_interval : float
+        Seconds between a tracking camera's checks of what hides its event.
+    sight_people : int
+        At most this many of an event's people are checked (evenly picked).
+    sight_occluders : int
+        The people nearest the event (within 3 m of its area) who may hide it, at most this many.
     lift_hold : float
         Seconds a tracking camera takes to come down from the top of its
         elevation range once its event is in clear view again.
@@ -115,6 +121,9 @@ class CameraParams:
     wander_look_distance: float = 15.0
     wander_turn: float = 0.8
     occlusion_lookahead: float = 1.5
+    sight_interval: float = 0.25
+    sight_people: int = 12
+    sight_occluders: int = 64
     lift_hold: float = 8.0
     contain_margin: float = 10.0
     min_track_seconds: float = 3.0

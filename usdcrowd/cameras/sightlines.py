@@ -257,3 +257,52 @@ def _people_block(eye, right, up, back, cam_i, target, owner, ground, occ_rows) 
         hit &= occ_rows[None] != owner[lo:lo + step, None]
         out[lo:lo + step] = hit.any(axis=1)
     return out
+
+
+def seen_points(eye: np.ndarray, axes3: tuple, tan_x: np.ndarray, tan_y: np.ndarray, near: np.ndarray,
+                far: np.ndarray, ground: np.ndarray, owner: np.ndarray, candidates: tuple,
+                prisms: Prisms | None = None) -> np.ndarray:
+    """(m,) bool: each person ``owner[k]`` is in frame of camera ``k`` with a clear line to chest or head.
+
+    The batched form of :func:`views` for many (camera, person) pairs at once
+    (the camera agents' own check, every few frames): each pair has its
+    camera's eye ``(m, 3)`` and axes (right, up, forward: three (m, 3)
+    arrays), lens tangents and clipping range ``(m,)``; ``ground`` (n, 3) is
+    everyone's position; ``candidates`` = (pair index (q,), row (q,)) says
+    who may hide whom (the caller bounds the work by choosing them).
+    """
+    right, up, fwd = axes3
+    m = len(eye)
+    out = np.zeros(m, bool)
+    if m == 0:
+        return out
+    cand_pair, cand_row = (np.asarray(a, dtype=np.int64) for a in candidates)
+    for h in (CHEST_HEIGHT, HEAD_HEIGHT):
+        pts = ground[owner] + [0.0, 0.0, h]
+        d = pts - eye
+        z = np.einsum("mi,mi->m", d, fwd)
+        inside = (z > near) & (z < far) & (np.abs(np.einsum("mi,mi->m", d, right)) <= tan_x * z) & (
+            np.abs(np.einsum("mi,mi->m", d, up)) <= tan_y * z)
+        test = inside & ~out
+        if not test.any():
+            continue
+        clear = test.copy()
+        k = np.flatnonzero(test)
+        if prisms is not None and len(prisms):
+            clear[k] &= ~prisms.blocks(eye[k], pts[k])
+        use = test[cand_pair] & (cand_row != owner[cand_pair])
+        pair, who = cand_pair[use], cand_row[use]
+        if len(pair):
+            e, f_, r_ = eye[pair], fwd[pair], right[pair]
+            tz, tx = np.einsum("mi,mi->m", d[pair], f_), np.einsum("mi,mi->m", d[pair], r_)
+            o = ground[who] - e
+            oz, ox = np.einsum("mi,mi->m", o, f_), np.einsum("mi,mi->m", o, r_)
+            along = oz / np.maximum(tz, 1e-9)
+            across = np.abs(tx * along - ox)
+            above = e[:, 2] + (pts[pair, 2] - e[:, 2]) * along - ground[who, 2]
+            hit = (oz > 0.2) & (oz < tz - PERSON_RADIUS) & (
+                ((above >= 0.0) & (above <= SHOULDER_HEIGHT) & (across < PERSON_RADIUS))
+                | ((above > SHOULDER_HEIGHT) & (above <= PERSON_HEIGHT) & (across < HEAD_RADIUS)))
+            clear[pair[hit]] = False
+        out |= clear
+    return out

@@ -28,7 +28,7 @@ from scipy.spatial import cKDTree
 from ..core import model
 from . import forces, torques
 from .frustum import half_tangents
-from .sightlines import Prisms, views
+from .sightlines import Prisms, seen_points
 from .orientation import axes, integrate, level_from_forward, matrix_to_quat
 from .params import CameraParams
 
@@ -319,50 +319,64 @@ class CameraAgents:
 
     def _measure_sight(self, time: float, positions: np.ndarray) -> None:
         """``seen_share``: for each tracking camera, the share of its event's (rendered) people it sees
-        unhidden by scenery or by people near the event (:mod:`.sightlines`); once per time code."""
-        if self._seen_time == time:
+        unhidden by scenery or by the people round the event, now and where everyone will be in a
+        moment if they walk on (a crane move takes time: the camera starts rising before a crowd walks
+        in front of its event); ``crowded``: how many others stand round its event (ten or more: 1).
+
+        Every ``sight_interval`` seconds, on at most ``sight_people`` of an event's people and the
+        ``sight_occluders`` nearest others round it: the cost stays flat whatever the crowd's size.
+        """
+        prm = self.params
+        if self._seen_time is not None and 0 <= time - self._seen_time < prm.sight_interval * self.fps - 1e-6:
             return
         last, self._seen_time = self._seen_time, time
         previous, self._seen_positions = self._seen_positions, np.asarray(positions, dtype=np.float64).copy()
-        ahead = positions
-        if previous is not None and previous.shape == positions.shape and time > last:
-            ahead = positions + (positions - previous) * (self.params.occlusion_lookahead * self.fps / (time - last))
         self.seen_share[:] = 1.0
         self.crowded[:] = 0.0
         tracking = np.flatnonzero(self.tracked >= 0)
         if len(tracking) == 0 or len(positions) == 0:
             return
-        people = self.visible_rows if self.visible_rows is not None else np.arange(len(positions))
-        tree = cKDTree(positions[people, :2]) if len(people) else None
-        mats = self.cam_to_world()
-        t = self.table
+        ahead = positions
+        if previous is not None and previous.shape == positions.shape and time > last:
+            ahead = positions + (positions - previous) * (prm.occlusion_lookahead * self.fps / (time - last))
+        occluders = np.zeros(len(positions), bool)
+        occluders[self.visible_rows if self.visible_rows is not None else slice(None)] = True
+        occ_rows = np.flatnonzero(occluders)
+        tree = cKDTree(positions[occ_rows, :2]) if len(occ_rows) else None
+        cams, owners, cand_pair, cand_row = [], [], [], []
+        n_pairs = 0
         for cam in tracking:
             pts, r = self._event_state(self.tracked[cam], time, positions)
             rows = self.events[self.tracked[cam]].members_at(time)
-            if self.visible is not None:
-                rows = rows[self.visible[rows]]
+            rows = rows[occluders[rows]]
             if len(rows) == 0 or tree is None:
                 continue
-            # Who can hide them: people between the camera and the event (within the circle round the
-            # middle of the way that holds the camera and the event's area).
+            if len(rows) > prm.sight_people:
+                rows = rows[np.linspace(0, len(rows) - 1, prm.sight_people).round().astype(int)]
             centre = pts[:, :2].mean(axis=0)
-            # A crowd round the event (others within 3 m of its area) may close in at any moment: the
-            # camera stays higher there (half-way up its range with ten or more).
-            around = len(tree.query_ball_point(centre, r + 3.0)) - len(rows)
-            self.crowded[cam] = min(1.0, max(0, around) / 10.0)
-            half = 0.5 * np.linalg.norm(centre - self.p[cam, :2])
-            near = people[tree.query_ball_point(0.5 * (centre + self.p[cam, :2]), half + r + 1.0)]
-            occ = np.zeros(len(positions), bool)
-            occ[near] = True
-            seen = 1.0
-            # Now, and where everyone will be in a moment if they walk on: a crane move takes time, so
-            # the camera starts rising before a crowd walks in front of its event.
-            for where in (positions, ahead):
-                v = views(mats[cam:cam + 1], self.tan_x[cam:cam + 1], self.tan_y[cam:cam + 1],
-                          np.array([t.near[cam]]), np.array([t.far[cam]]), where, people=rows,
-                          prisms=self._prisms, occluders=occ)
-                seen = min(seen, float(v.visible[0].mean()))
-            self.seen_share[cam] = seen
+            dist, idx = tree.query(centre, k=min(prm.sight_occluders, len(occ_rows)), distance_upper_bound=r + 3.0)
+            near = occ_rows[np.atleast_1d(idx)[np.isfinite(np.atleast_1d(dist))]]
+            self.crowded[cam] = min(1.0, max(0, len(near) - len(rows)) / 10.0)
+            cams.append(np.full(len(rows), cam))
+            owners.append(rows)
+            pair = n_pairs + np.arange(len(rows))
+            cand_pair.append(np.repeat(pair, len(near)))
+            cand_row.append(np.tile(near, len(rows)))
+            n_pairs += len(rows)
+        if not cams:
+            return
+        cam_of, owner = np.concatenate(cams), np.concatenate(owners)
+        candidates = (np.concatenate(cand_pair), np.concatenate(cand_row))
+        fwd, right, up = axes(self.q)
+        t = self.table
+        seen = np.ones(len(owner), bool)
+        for where in (positions, ahead):
+            seen &= seen_points(self.p[cam_of], (right[cam_of], up[cam_of], fwd[cam_of]), self.tan_x[cam_of],
+                                self.tan_y[cam_of], t.near[cam_of], t.far[cam_of], where, owner, candidates,
+                                self._prisms)
+        counted = np.unique(cam_of)
+        self.seen_share[counted] = (np.bincount(cam_of, weights=seen, minlength=len(self))[counted]
+                                    / np.bincount(cam_of, minlength=len(self))[counted])
 
     def _forces(self, look, height, fwd, right, crowd_centre, crowd_radius) -> np.ndarray:
         """(c, 3) obstacle avoidance, crane, separation and containment (section 4.3), weighted."""
