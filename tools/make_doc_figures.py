@@ -73,7 +73,8 @@ def events_of(shot: Path) -> dict:
 
 
 def metrics_table(folder: Path) -> tuple[dict, dict]:
-    """summary.csv of ``usdcrowd metrics`` as figures and a table."""
+    """summary.csv of ``usdcrowd metrics`` as figures and a table; tracking_N.csv pooled per N as
+    figures ``tracking_N`` and a table of every camera agent."""
     with open(folder / "summary.csv", newline="") as fh:
         rows = list(csv.DictReader(fh))
     figures = {f"{r['kind']}_{r['cameras']}": {k: float(v) for k, v in r.items() if k not in ("kind", "cameras")}
@@ -82,7 +83,29 @@ def metrics_table(folder: Path) -> tuple[dict, dict]:
              "rows": [[f"{r['cameras']} {r['kind']}", f"{float(r['mean_active_share']):.2f}",
                        f"{float(r['mean_active_idle_ratio']):.2f}", f"{100 * float(r['mean_viewed_share']):.0f} %"]
                       for r in rows]}
-    return figures, table
+    tracking_rows = []
+    for n in sorted({int(r["cameras"]) for r in rows}):
+        with open(folder / f"tracking_{n}.csv", newline="") as fh:
+            cams = list(csv.DictReader(fh))
+        settled = [int(c["settled_frames"]) for c in cams]
+        total = max(sum(settled), 1)
+        figures[f"tracking_{n}"] = {
+            "settled_frames": sum(settled),
+            "framed": sum(float(c["framed"]) * k for c, k in zip(cams, settled) if k) / total,
+            "blank": sum(float(c["blank"]) * k for c, k in zip(cams, settled) if k) / total,
+            "worst_framed": min(float(c["framed"]) for c, k in zip(cams, settled) if k),
+            "worst_blank": max(float(c["blank"]) for c, k in zip(cams, settled) if k),
+            "takes": sum(int(c["takes"]) for c in cams)}
+        tracking_rows += [[f"{n} autonomous", c["camera"].rsplit("/", 1)[-1], c["settled_frames"],
+                           f"{100 * float(c['framed']):.1f} %" if int(c["settled_frames"]) else "-",
+                           f"{100 * float(c['blank']):.1f} %" if int(c["settled_frames"]) else "-",
+                           f"{100 * float(c['median_size']):.0f} %" if c["median_size"] != "nan" else "-",
+                           f"{float(c['median_seconds_to_frame']):.2f}" if c["median_seconds_to_frame"] != "nan"
+                           else "-"] for c in cams]
+    tracking = {"columns": ["cameras", "camera", "tracking frames 2 s after taking the event",
+                            "half its people or more visible", "none visible", "their height on screen (median)",
+                            "seconds to frame it (median)"], "rows": tracking_rows}
+    return figures, {"metrics": table, "tracking": tracking}
 
 
 def demo() -> None:
@@ -101,12 +124,13 @@ def harbour() -> None:
     usdcrowd("demo", "--template", "harbour", "-o", out, "--no-progress")
     shot = out / "shot" / "shot.usda"
     usdcrowd("metrics", shot, "-o", out / "metrics", "--counts", "4,8", "--no-progress")
-    figures, table = metrics_table(out / "metrics")
+    figures, tables = metrics_table(out / "metrics")
     images = copy_images([(out / "metrics" / "activity_4.png", "harbour_activity_4.png"),
                           (out / "metrics" / "viewed_4.png", "harbour_viewed_4.png"),
+                          (out / "metrics" / "tracking_gallery.png", "harbour_tracking_gallery.png"),
                           (out / "preview" / "gallery.png", "harbour_camera_gallery.png")])
     record("harbour_cameras", "tools/make_doc_figures.py", figures={**figures, "shot": events_of(shot)},
-           tables={"metrics": table}, images=images, command="python tools/make_doc_figures.py harbour")
+           tables=tables, images=images, command="python tools/make_doc_figures.py harbour")
 
 
 def museum() -> None:
@@ -114,9 +138,9 @@ def museum() -> None:
     usdcrowd("new", "museum", "-o", out / "museum.usda", "--agents", "40", "--seed", "7")
     usdcrowd("simulate", out / "museum.usda", "-o", out / "shot", "--no-progress")
     usdcrowd("metrics", out / "shot" / "shot.usda", "-o", out / "metrics", "--counts", "4", "--no-progress")
-    figures, table = metrics_table(out / "metrics")
+    figures, tables = metrics_table(out / "metrics")
     record("museum_cameras", "tools/make_doc_figures.py",
-           figures={**figures, "shot": events_of(out / "shot" / "shot.usda")}, tables={"metrics": table},
+           figures={**figures, "shot": events_of(out / "shot" / "shot.usda")}, tables=tables,
            command="python tools/make_doc_figures.py museum")
 
 

@@ -339,3 +339,42 @@ def test_a_scouts_decisions_read_nobody_outside_its_view(platoon_scene, rng):
             agents.step(float(times[k]), p, centre, radius, dt)
     assert checked > 50
     assert took                                 # and what they saw, they took
+
+
+def test_people_hidden_by_a_wall_or_by_others_are_not_seen_by_the_metrics():
+    """Seed 000's viewed share with occlusion counted: one camera, three people in a row behind it, a wall
+    before the third; without the scenery all three are seen, with it the wall and the front person hide."""
+    from usdcrowd.cameras.metrics import coverage
+
+    t = 4
+    times = np.arange(1, t + 1, dtype=np.float64)
+    pos = np.zeros((t, 3, 3))
+    pos[:, 0, :2], pos[:, 1, :2], pos[:, 2, :2] = [8.0, 0.0], [12.0, 0.05], [8.0, 4.0]
+    mats = np.repeat(look_at([0.0, 0.0, 1.6], [10.0, 1.5, 1.1]), t, axis=0)
+    track = model.CameraTrack("/Cam", times, mats, np.full(t, 24.0), 36.0, 20.25, 0.1, 500.0)
+    active = np.ones((t, 3), bool)
+    wall = model.Obstacles(["/Wall"], [np.array([[5.0, 2.0], [5.4, 2.0], [5.4, 4.0], [5.0, 4.0]])], np.array([3.0]))
+    open_view = coverage([track], pos, active)
+    hidden = coverage([track], pos, active, obstacles=wall)
+    assert (open_view.n_active_viewed == 3).all()
+    assert (hidden.n_active_viewed == 1).all()                    # the one in front: the others are hidden
+    no_wall = coverage([track], pos, active, obstacles=model.Obstacles.empty())
+    assert (no_wall.n_active_viewed == 2).all()                   # the wall's person again, not the one behind
+
+
+def test_static_cameras_placed_on_the_first_frame_know_only_where_the_crowd_starts(platoon_scene):
+    from usdcrowd.cameras.placement import static_cameras
+
+    pos, times, _ = platoon_scene
+    moving = pos.copy()
+    moving[:, :, 0] += np.linspace(0, 60.0, len(times))[:, None]      # everyone walks 60 m along +X
+    start = static_cameras(moving[:1], 2, times)
+    whole = static_cameras(moving[::10], 2, times)
+    def aim(tr):                                   # where the view's centre meets the ground
+        eye, fwd = tr.cam_to_world[0, 3], -tr.cam_to_world[0, 2, :3]
+        return (eye[:3] + fwd * (-eye[2] / fwd[2]))[:2]
+
+    lo, hi = moving[0, :, :2].min(axis=0), moving[0, :, :2].max(axis=0)
+    inside = lambda p: bool(((p >= lo - 5.0) & (p <= hi + 5.0)).all())  # noqa: E731
+    assert all(inside(aim(tr)) for tr in start), [aim(tr) for tr in start]
+    assert not all(inside(aim(tr)) for tr in whole), [aim(tr) for tr in whole]

@@ -201,6 +201,14 @@ def test_metrics_command_writes_figures_and_csvs(harbour_shot, tmp_path, capsys)
         assert (out / name).stat().st_size > 0, name
     rows = (out / "activity_2.csv").read_text().splitlines()
     assert len(rows) == 1 + 240 and rows[0].startswith("time_code,")      # time codes, like every CSV we write
+    # Static cameras both ways: placed knowing the whole shot, and on its first frame (where the workers
+    # start: they see fewer of the people who take part later).
+    import csv
+
+    kinds = {r["kind"]: r for r in csv.DictReader(open(out / "summary.csv", newline=""))}
+    assert set(kinds) == {"autonomous", "static", "static_start"}
+    assert kinds["static_start"]["mean_active_share"] != kinds["static"]["mean_active_share"]
+    assert (out / "tracking_2.csv").stat().st_size > 0
 
 
 def test_refilming_a_shot_without_detected_events_detects_them_beside_the_cameras(harbour_shot, tmp_path, capsys):

@@ -9,8 +9,9 @@
 "Seen" is geometric: the character's chest inside the camera's frustum,
 within ``max_distance``, and at least ``min_pixels`` tall in a frame of
 ``image_width`` pixels (a person a few pixels high is not filmed, only in
-the picture). Occlusion by scenery or other people is not counted (the paper
-does not say it was).
+the picture). The paper does not say occlusion was counted; here it is when
+the scenery is given (``usdcrowd metrics`` does): someone hidden from a
+camera by scenery or by others (:mod:`.sightlines`) is not seen by it.
 """
 
 from __future__ import annotations
@@ -106,7 +107,7 @@ def active_mask(events: model.EventTable, times: np.ndarray, n_agents: int) -> n
 
 def coverage(tracks: list[model.CameraTrack], positions: np.ndarray, active: np.ndarray,
              visible: np.ndarray | None = None, max_distance: float = 100.0, min_pixels: float = 24.0,
-             image_width: int = 640) -> CoverageSeries:
+             image_width: int = 640, obstacles: model.Obstacles | None = None) -> CoverageSeries:
     """Algorithm 7 and the viewed ratio for a group of cameras.
 
     Parameters
@@ -126,6 +127,9 @@ def coverage(tracks: list[model.CameraTrack], positions: np.ndarray, active: np.
         image ``image_width`` wide (0: no limit).
     image_width : int
         Pixels across the horizontal aperture.
+    obstacles : Obstacles, optional
+        With them, occlusion counts: a person hidden from a camera by
+        scenery or by other people (:mod:`.sightlines`) is not seen by it.
     """
     t, n = positions.shape[:2]
     vis = np.ones(n, bool) if visible is None else np.asarray(visible, bool)
@@ -146,6 +150,11 @@ def coverage(tracks: list[model.CameraTrack], positions: np.ndarray, active: np.
     n_act = active[:, vis].sum(axis=1)
     n_seen = np.zeros(t, dtype=np.int64)
     rows = np.flatnonzero(vis)
+    prisms = None
+    if obstacles is not None:
+        from .sightlines import Prisms
+
+        prisms = Prisms.of(obstacles)
     for k in range(t):
         chest = np.asarray(positions[k, rows], dtype=np.float64) + [0.0, 0.0, CHEST_HEIGHT]
         tree = cKDTree(chest)
@@ -160,12 +169,38 @@ def coverage(tracks: list[model.CameraTrack], positions: np.ndarray, active: np.
         depth = np.einsum("ij,ij->i", chest[who] - eye[cam], -mats[k, cam, 2, :3])
         inside &= f_px[cam] * PERSON_HEIGHT >= min_pixels * np.maximum(depth, 1e-9)
         cam, who, dist = cam[inside], who[inside], dist[inside]
+        if obstacles is not None and len(cam):
+            unhidden = _unhidden(mats[k], tan_x, tan_y, near, cam, who, np.asarray(positions[k], dtype=np.float64),
+                                 rows, prisms)
+            cam, who, dist = cam[unhidden], who[unhidden], dist[unhidden]
         act = active[k, rows[who]]
         w = 1.0 / np.maximum(dist, 1e-3)
         s_act[k] = w[act].sum()
         s_idle[k] = w[~act].sum()
         n_seen[k] = len(np.unique(who[act]))
     return CoverageSeries(np.asarray(tracks[0].times, dtype=np.float64), s_act, s_idle, n_act, n_seen)
+
+
+def _unhidden(mats, tan_x, tan_y, near, cam, who, ground, rows, prisms) -> np.ndarray:
+    """(m,) bool: person ``rows[who]`` has a clear sight line from camera ``cam`` (scenery and people).
+
+    Who may hide a person seen by a camera is someone else that camera sees in
+    its frustum (anyone hiding them stands in front of them, in view).
+    """
+    from .sightlines import seen_points
+
+    order = np.argsort(cam, kind="stable")
+    first = np.searchsorted(cam[order], np.arange(len(mats)))
+    last = np.searchsorted(cam[order], np.arange(len(mats)), side="right")
+    pair_idx, occ = [], []
+    for c in np.unique(cam):
+        mine = order[first[c]:last[c]]
+        pair_idx.append(np.repeat(mine, len(mine)))
+        occ.append(np.tile(rows[who[mine]], len(mine)))
+    eye = mats[cam, 3, :3]
+    right, up, back = mats[cam, 0, :3], mats[cam, 1, :3], mats[cam, 2, :3]
+    return seen_points(eye, (right, up, -back), tan_x[cam], tan_y[cam], near[cam], np.full(len(cam), np.inf),
+                       ground, rows[who], (np.concatenate(pair_idx), np.concatenate(occ)), prisms)
 
 
 def _mean(values: np.ndarray) -> float:

@@ -30,12 +30,13 @@ def run(args) -> int:
     results = evaluate_shot(args.shot, args.output, counts=args.counts, seed=args.seed, progress=args.progress,
                             limits=limits_of(args))
     print(f"wrote {args.output}: summary.csv, activity_N / viewed_N .csv and .png, tracking_N.csv")
-    print(f"  {'cameras':>7} {'kind':<11} {'active share':>12} {'active/idle':>11} {'viewed share':>12}")
+    print(f"  {'cameras':>7} {'kind':<12} {'active share':>12} {'active/idle':>11} {'viewed share':>12}")
+    print("  (static: placed knowing where the crowd goes over the whole shot; static_start: on its first frame)")
     counts = list(results)
     for n in counts:
-        for kind in ("autonomous", "static"):
+        for kind in ("autonomous", "static", "static_start"):
             s = results[n][kind]
-            print(f"  {n:>7} {kind:<11} {s['mean_active_share']:>12.3f} {s['mean_active_idle_ratio']:>11.3f} "
+            print(f"  {n:>7} {kind:<12} {s['mean_active_share']:>12.3f} {s['mean_active_idle_ratio']:>11.3f} "
                   f"{s['mean_viewed_share']:>12.3f}")
     print("  tracking cameras (2 s after taking an event): frames with half its people or more visible, "
           "with none, seconds to frame it (median)")

@@ -234,7 +234,7 @@ def evaluate_shot(shot_path: str | os.PathLike, out_dir: str | os.PathLike, coun
             tracks = film_cameras(sc.scenario, sc.positions, sc.events, sc.default_prim, progress, count=n, static=0,
                                   seed=seed, summary=summary)
             agents = [t for t in tracks if t.state is not None]
-            series = {"autonomous": coverage(agents, sc.positions, active, visible)}
+            series = {"autonomous": coverage(agents, sc.positions, active, visible, obstacles=sc.scenario.obstacles)}
             quality = tracking_quality(agents, sc.positions, sc.events, visible, sc.scenario.obstacles,
                                        sc.scenario.time.fps)
             tracking[n] = pooled(quality)
@@ -243,10 +243,11 @@ def evaluate_shot(shot_path: str | os.PathLike, out_dir: str | os.PathLike, coun
                 gallery = _tracking_gallery(sc.shot, out / "tracking_gallery.png", agents, quality, progress)
             steps.update(1)
             steps.set_description(f"metrics {n} static")
-            tracks = film_cameras(sc.scenario, sc.positions, sc.events, sc.default_prim, False, count=0, static=n,
-                                  seed=seed, summary=summary)
-            series["static"] = coverage([t for t in tracks if t.state is None and "/Static" in t.path], sc.positions,
-                                        active, visible)
+            for kind, where in (("static", "shot"), ("static_start", "start")):
+                tracks = film_cameras(sc.scenario, sc.positions, sc.events, sc.default_prim, False, count=0,
+                                      static=n, seed=seed, summary=summary, static_from=where)
+                series[kind] = coverage([t for t in tracks if t.state is None and "/Static" in t.path],
+                                        sc.positions, active, visible, obstacles=sc.scenario.obstacles)
             steps.update(1)
             steps.set_description(f"metrics {n} plots")
             results[n] = {k: s.summary() for k, s in series.items()}
@@ -263,7 +264,7 @@ def evaluate_shot(shot_path: str | os.PathLike, out_dir: str | os.PathLike, coun
         keys = list(results[counts[0]]["autonomous"].keys())
         w.writerow(["cameras", "kind"] + keys)
         for n in counts:
-            for kind in ("autonomous", "static"):
+            for kind in ("autonomous", "static", "static_start"):
                 w.writerow([n, kind] + [f"{results[n][kind][k]:.6g}" for k in keys])
     return results
 
@@ -274,14 +275,12 @@ def _write_series_csv(path, series: dict) -> None:
 
     with atomic_path(path) as tmp, open(tmp, "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(["time_code", "autonomous_score_active", "autonomous_score_idle", "autonomous_active",
-                    "autonomous_active_viewed", "static_score_active", "static_score_idle",
-                    "static_active", "static_active_viewed"])
-        a, s = series["autonomous"], series["static"]
-        for k in range(len(a.times)):
-            w.writerow([f"{a.times[k]:g}", f"{a.score_active[k]:.6g}", f"{a.score_idle[k]:.6g}",
-                        int(a.n_active[k]), int(a.n_active_viewed[k]), f"{s.score_active[k]:.6g}",
-                        f"{s.score_idle[k]:.6g}", int(s.n_active[k]), int(s.n_active_viewed[k])])
+        w.writerow(["time_code"] + [f"{kind}_{col}" for kind in series
+                                    for col in ("score_active", "score_idle", "active", "active_viewed")])
+        times = next(iter(series.values())).times
+        for k in range(len(times)):
+            w.writerow([f"{times[k]:g}"] + [v for s in series.values() for v in (
+                f"{s.score_active[k]:.6g}", f"{s.score_idle[k]:.6g}", int(s.n_active[k]), int(s.n_active_viewed[k]))])
 
 
 def _write_tracking_csv(path, quality) -> None:

@@ -249,8 +249,8 @@ class _Collected:
 
 def film_cameras(scenario: model.Scenario, positions, events: model.EventTable, default_prim: str,
                  progress: bool, count: int | None = None, static: int = 0,
-                 seed: int | None = None, summary: tuple[np.ndarray, np.ndarray] | None = None
-                 ) -> list[model.CameraTrack]:
+                 seed: int | None = None, summary: tuple[np.ndarray, np.ndarray] | None = None,
+                 static_from: str = "shot") -> list[model.CameraTrack]:
     """The shot's cameras: the overview, the camera agents (the scenario's, or ``count``), static ones.
 
     Parameters
@@ -262,6 +262,11 @@ def film_cameras(scenario: model.Scenario, positions, events: model.EventTable, 
         ones beyond them. Default: the scenario's.
     static : int
         Static cameras at strategic positions (seed 000's baseline).
+    static_from : str
+        Where the static cameras learn where the crowd goes: ``"shot"``, the
+        whole shot (hindsight: seed 000's "strategic positions ... to ensure
+        that they would not lose sight of the crowd"), or ``"start"``, its
+        first frame only (what anyone knows before the shot).
     summary : ((t, 3), (t,)) float, optional
         The crowd's centroid and spread per frame (:func:`cameras.overview.crowd_summary`),
         when already known.
@@ -291,7 +296,7 @@ def film_cameras(scenario: model.Scenario, positions, events: model.EventTable, 
                            scenario.agents.visible, seed=scenario.seed if seed is None else seed,
                            progress=bar.update, bounds=scenario.bounds)
     if static:
-        tracks += static_cameras(sample, static, times, root,
+        tracks += static_cameras(sample if static_from == "shot" else positions[:1], static, times, root,
                                  bounds=scenario.bounds, seed=scenario.seed if seed is None else seed)
     return tracks
 

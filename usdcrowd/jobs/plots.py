@@ -123,13 +123,16 @@ def _draw_scale_bar(draw, span: float, scale: float, width: int, height: int, la
     draw.text((width - 10 - 7 * len(label), y0 - 7), label, fill=_TEXT)
 
 
+KIND_NAMES = {"static": "static (placed knowing the whole shot)", "static_start": "static (placed on the first frame)"}
+
+
 def coverage_plot(series: dict, column: str, n_cameras: int, out_png: str | os.PathLike, fps: float) -> str:
-    """Seed 000's Figures 12 to 15: a per-frame share over time, autonomous above static.
+    """Seed 000's Figures 12 to 15: a per-frame share over time, autonomous above static (each placement).
 
     Parameters
     ----------
     series : dict[str, CoverageSeries]
-        ``{"autonomous": ..., "static": ...}``.
+        ``{"autonomous": ..., "static": ..., "static_start": ...}``, one panel each.
     column : str
         "active_share" (active score / all seen, Figures 12 and 13) or
         "viewed_share" (active characters viewed / all active, 14 and 15).
@@ -140,7 +143,7 @@ def coverage_plot(series: dict, column: str, n_cameras: int, out_png: str | os.P
     import matplotlib.pyplot as plt
 
     label = {"active_share": "active / (active + idle) score", "viewed_share": "active characters viewed"}[column]
-    fig, axes = plt.subplots(2, 1, figsize=(8, 5), sharex=True, constrained_layout=True)
+    fig, axes = plt.subplots(len(series), 1, figsize=(8, 2.5 * len(series)), sharex=True, constrained_layout=True)
     names = ("active", "idle") if column == "active_share" else ("viewed", "not viewed")
     for ax, (kind, s) in zip(axes, series.items()):
         y = getattr(s, column)
@@ -151,7 +154,7 @@ def coverage_plot(series: dict, column: str, n_cameras: int, out_png: str | os.P
         ax.set_ylim(0, 1)
         ax.set_ylabel("share")
         mean = f"mean {np.mean(y[defined]):.2f}" if defined.any() else "nothing to measure"
-        ax.set_title(f"{n_cameras} {kind} cameras: {label} ({mean})", fontsize=10)
+        ax.set_title(f"{n_cameras} {KIND_NAMES.get(kind, kind)} cameras: {label} ({mean})", fontsize=10)
     axes[-1].set_xlabel("seconds")
     axes[0].legend(loc="upper right", fontsize=8)
     with atomic_path(out_png) as tmp:
