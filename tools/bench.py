@@ -6,7 +6,7 @@
     python tools/bench.py sim             # crowd simulation steps/s (and JuPedSim)
     python tools/bench.py preview         # OpenGL preview fps, 1,000 and 10,000 characters
     python tools/bench.py render          # Mitsuba s/frame and ground-truth overhead
-    python tools/bench.py cameras         # camera agents + event detection steps/s (30 x 100, 100 x 10,000)
+    python tools/bench.py cameras         # camera agents + event detection steps/s: 1-100 cameras x 100, 10,000 characters (Fig. 16)
     python tools/bench.py moe             # learned camera behaviors: predictions/s in numpy (target 2,000)
     python tools/bench.py dataset         # usdcrowd dataset: 640x360 ground-truth frames/hour, 1 -> 2 Ray workers
     python tools/bench.py memory          # simulate's peak memory, 300 agents x 750 and 6,000 frames
@@ -125,6 +125,12 @@ def figures_of(section: str, found) -> tuple[dict, dict | None, list | None]:
     tables, images written into docs/)."""
     if section == "render":
         return render_figures(found)
+    if section == "cameras":
+        import bench_cameras
+
+        image = bench_cameras.sweep_plot(found, ROOT / "docs" / "images" / "cameras_sweep.png")
+        return (_section_figures(section, found), {"sweep": bench_cameras.sweep_table(found)},
+                [os.path.relpath(image, ROOT)])
     return _section_figures(section, found), None, None
 
 

@@ -6,7 +6,7 @@ stopping face to face. Each frame runs the event detector on that frame
 (streaming, as ``usdcrowd simulate`` does) and steps every camera agent
 (two substeps of Algorithms 1 and 2). A step here is one frame of the shot.
 
-    python tools/bench_cameras.py                    # 30 x 100 and 100 x 10,000
+    python tools/bench_cameras.py                    # seed 000's Figure 16: 1 to 100 cameras, 100 and 10,000 characters
     python tools/bench_cameras.py 50:1000            # cameras:characters
 
 Seed 000 reports 30 cameras with 100 characters at 15 fps in Unity on a
@@ -100,7 +100,41 @@ def run_case(cameras: int, n: int, frames: int = 96) -> dict:
             "tracking_at_end": tracking, "events": len(events)}
 
 
-def run(cases=((30, 100), (100, 10_000))) -> list[dict]:
+# Seed 000's Figure 16 (frame rate against the number of camera agents), with 100 and 10,000 characters.
+SWEEP = tuple((c, n) for n in (100, 10_000) for c in (1, 3, 10, 30, 100))
+
+
+def sweep_table(rows: list[dict]) -> dict:
+    """Steps per second by cameras (rows) and characters (columns), for docs/data."""
+    crowds = sorted({r["characters"] for r in rows})
+    counts = sorted({r["cameras"] for r in rows})
+    at = {(r["cameras"], r["characters"]): r["steps_per_s"] for r in rows}
+    return {"columns": ["cameras"] + [f"steps/s with {n:,} characters" for n in crowds],
+            "rows": [[str(c)] + [f"{at[(c, n)]:.1f}" if (c, n) in at else "" for n in crowds] for c in counts]}
+
+
+def sweep_plot(rows: list[dict], path) -> str:
+    """Figure 16's curve: steps per second against camera agents, one line per crowd size."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 3.5), constrained_layout=True)
+    for n in sorted({r["characters"] for r in rows}):
+        mine = sorted((r["cameras"], r["steps_per_s"]) for r in rows if r["characters"] == n)
+        ax.plot(*zip(*mine), marker="o", label=f"{n:,} characters")
+    ax.axhline(PAPER[2], color="0.6", ls="--", lw=1, label=f"seed 000: {PAPER[0]} cameras, {PAPER[1]} characters")
+    ax.set_xscale("log")
+    ax.set_xlabel("camera agents")
+    ax.set_ylabel("steps per second (events + cameras)")
+    ax.legend(fontsize=8)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return str(path)
+
+
+def run(cases=SWEEP) -> list[dict]:
     """Print and return one row per (cameras, characters) case."""
     rows = []
     print(f"   {'cameras':>7} {'characters':>10} {'steps/s':>8} {'events ms':>9} {'cameras ms':>10} "

@@ -23,10 +23,8 @@ from scipy.spatial import cKDTree
 
 from ..core import model
 from .frustum import half_tangents, points_in_frustum
-
-CHEST_HEIGHT = 1.1
-# A person is about this tall (the legibility test below).
-PERSON_HEIGHT = 1.7
+# The chest (where "seen" is tested) and a person's height (the legibility test below), metres.
+from .sightlines import CHEST_HEIGHT, PERSON_HEIGHT, Prisms, seen_points
 
 
 @dataclass
@@ -150,11 +148,7 @@ def coverage(tracks: list[model.CameraTrack], positions: np.ndarray, active: np.
     n_act = active[:, vis].sum(axis=1)
     n_seen = np.zeros(t, dtype=np.int64)
     rows = np.flatnonzero(vis)
-    prisms = None
-    if obstacles is not None:
-        from .sightlines import Prisms
-
-        prisms = Prisms.of(obstacles)
+    prisms = Prisms.of(obstacles) if obstacles is not None else None
     for k in range(t):
         chest = np.asarray(positions[k, rows], dtype=np.float64) + [0.0, 0.0, CHEST_HEIGHT]
         tree = cKDTree(chest)
@@ -187,8 +181,6 @@ def _unhidden(mats, tan_x, tan_y, near, cam, who, ground, rows, prisms) -> np.nd
     Who may hide a person seen by a camera is someone else that camera sees in
     its frustum (anyone hiding them stands in front of them, in view).
     """
-    from .sightlines import seen_points
-
     order = np.argsort(cam, kind="stable")
     first = np.searchsorted(cam[order], np.arange(len(mats)))
     last = np.searchsorted(cam[order], np.arange(len(mats)), side="right")

@@ -11,7 +11,7 @@ people (upright cylinders). A person is visible when either line is clear.
 
 The test is geometric and conservative where it must choose: a person is a
 body :data:`PERSON_RADIUS` in radius up to the shoulders and a head
-:data:`HEAD_RADIUS` in radius up to :data:`~.metrics.PERSON_HEIGHT`, so an
+:data:`HEAD_RADIUS` in radius up to :data:`PERSON_HEIGHT`, so an
 arm or a gap between legs does not count. The id pass of a
 render (:mod:`usdcrowd.groundtruth`) is the exact answer for one frame; this
 is the one a whole shot's cameras can afford at every frame.
@@ -25,8 +25,10 @@ import numpy as np
 
 from ..core import model
 from .frustum import half_tangents
-from .metrics import CHEST_HEIGHT, PERSON_HEIGHT
 
+# Where sight lines end on a person, and how tall a person stands, metres.
+CHEST_HEIGHT = 1.1
+PERSON_HEIGHT = 1.7
 HEAD_HEIGHT = 1.6
 SHOULDER_HEIGHT = 1.45
 PERSON_RADIUS = 0.25

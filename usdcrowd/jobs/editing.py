@@ -130,7 +130,7 @@ def edit_shot(shot_path: str | os.PathLike, out_dir: str | os.PathLike, cameras:
     video : bool
         Render cut.mp4 and cut_sheet.png with the OpenGL preview.
     """
-    from ..atomic import atomic_path, output_dir
+    from ..atomic import output_dir
     from ..exchange.timeline import _otio, write_timeline
     from ..scenario.shot_scene import ShotScene
     from ..usd.cameras import CAMERAS
