@@ -96,3 +96,15 @@ def test_sight_lines_agree_with_the_id_pass_of_the_preview(harbour_frames):
     assert np.mean(visible > 0.01) > 0.97
     assert np.mean(scenery < 0.01) > 0.95
     assert np.median(people) < 0.3 and np.median(people) < 0.5 * np.median(visible)
+
+
+def test_an_awning_hides_people_from_above_but_not_from_under_it():
+    awning = model.Obstacles(["/Awning"], [np.array([[8.0, -2.0], [12.0, -2.0], [12.0, 2.0], [8.0, 2.0]])],
+                             np.array([2.4]), np.array([2.3]))
+    person = np.array([[10.0, 0.0, 0.0]])
+    prisms = Prisms.of(model.Obstacles.empty(), overhead=awning)
+    above = _camera([2.0, 0.0, 8.0], [10.0, 0.0, 1.1])
+    assert views(*above, person).visible.all()
+    assert views(*above, person, prisms=prisms).hidden_by_scenery.all()
+    level = _camera([2.0, 0.0, 1.6], [10.0, 0.0, 1.1])
+    assert views(*level, person, prisms=prisms).visible.all()

@@ -14,7 +14,7 @@ def film(positions: np.ndarray, times: np.ndarray, fps: float, cameras: model.Ca
          events: model.EventTable, obstacles: model.Obstacles | None = None,
          agent_rows: dict[str, int] | None = None, visible: np.ndarray | None = None,
          params: CameraParams | None = None, seed: int = 0, progress=None,
-         bounds: np.ndarray | None = None) -> list[model.CameraTrack]:
+         bounds: np.ndarray | None = None, overhead: model.Obstacles | None = None) -> list[model.CameraTrack]:
     """Run the camera agents through a shot.
 
     Parameters
@@ -36,6 +36,8 @@ def film(positions: np.ndarray, times: np.ndarray, fps: float, cameras: model.Ca
         Called with the number of frames done.
     bounds : (2, 2) float, optional
         Area the cameras stay inside (the scenario's walkable bounds).
+    overhead : Obstacles, optional
+        Raised scenery that hides people from cameras above it.
 
     Returns
     -------
@@ -47,7 +49,7 @@ def film(positions: np.ndarray, times: np.ndarray, fps: float, cameras: model.Ca
     c = len(cameras)
     vis = np.ones(n, bool) if visible is None or not np.any(visible) else np.asarray(visible, bool)
     agents = CameraAgents(cameras, events, obstacles or model.Obstacles.empty(), agent_rows, params, seed, bounds,
-                          vis, fps)
+                          vis, fps, overhead=overhead)
     mats = np.zeros((t, c, 4, 4))
     state = np.zeros((t, c), np.int8)
     tracked = []

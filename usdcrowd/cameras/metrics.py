@@ -105,7 +105,8 @@ def active_mask(events: model.EventTable, times: np.ndarray, n_agents: int) -> n
 
 def coverage(tracks: list[model.CameraTrack], positions: np.ndarray, active: np.ndarray,
              visible: np.ndarray | None = None, max_distance: float = 100.0, min_pixels: float = 24.0,
-             image_width: int = 640, obstacles: model.Obstacles | None = None) -> CoverageSeries:
+             image_width: int = 640, obstacles: model.Obstacles | None = None,
+             overhead: model.Obstacles | None = None) -> CoverageSeries:
     """Algorithm 7 and the viewed ratio for a group of cameras.
 
     Parameters
@@ -128,6 +129,8 @@ def coverage(tracks: list[model.CameraTrack], positions: np.ndarray, active: np.
     obstacles : Obstacles, optional
         With them, occlusion counts: a person hidden from a camera by
         scenery or by other people (:mod:`.sightlines`) is not seen by it.
+    overhead : Obstacles, optional
+        Raised scenery (awnings), with ``obstacles``.
     """
     t, n = positions.shape[:2]
     vis = np.ones(n, bool) if visible is None else np.asarray(visible, bool)
@@ -148,7 +151,7 @@ def coverage(tracks: list[model.CameraTrack], positions: np.ndarray, active: np.
     n_act = active[:, vis].sum(axis=1)
     n_seen = np.zeros(t, dtype=np.int64)
     rows = np.flatnonzero(vis)
-    prisms = Prisms.of(obstacles) if obstacles is not None else None
+    prisms = Prisms.of(obstacles, overhead=overhead) if obstacles is not None else None
     for k in range(t):
         chest = np.asarray(positions[k, rows], dtype=np.float64) + [0.0, 0.0, CHEST_HEIGHT]
         tree = cKDTree(chest)

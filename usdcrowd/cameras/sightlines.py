@@ -46,26 +46,41 @@ class Prisms:
     a, b : (o, k, 2) float64
         Edge starts and ends, counter-clockwise.
     height : (o,) float64
+        Tops, metres.
+    bottom : (o,) float64
+        Undersides (0 for scenery standing on the ground).
     """
 
     a: np.ndarray
     b: np.ndarray
     height: np.ndarray
+    bottom: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.bottom is None:
+            self.bottom = np.zeros(len(self.height))
 
     @classmethod
-    def of(cls, obstacles: model.Obstacles, min_height: float = 0.3) -> "Prisms":
-        """Footprints at least ``min_height`` tall (a kerb hides nobody)."""
-        keep = [i for i in range(len(obstacles)) if obstacles.height[i] >= min_height]
-        if not keep:
+    def of(cls, obstacles: model.Obstacles, min_height: float = 0.3,
+           overhead: model.Obstacles | None = None) -> "Prisms":
+        """Footprints at least ``min_height`` tall (a kerb hides nobody), and raised scenery (``overhead``,
+        with its undersides: an awning hides people from a camera above it)."""
+        parts = [(obstacles.polygons[i], obstacles.height[i], 0.0) for i in range(len(obstacles))
+                 if obstacles.height[i] >= min_height]
+        if overhead is not None and len(overhead):
+            under = overhead.bottom if overhead.bottom is not None else np.zeros(len(overhead))
+            parts += [(overhead.polygons[i], overhead.height[i], under[i]) for i in range(len(overhead))]
+        if not parts:
             return cls(np.zeros((0, 1, 2)), np.zeros((0, 1, 2)), np.zeros(0))
-        k = max(len(obstacles.polygons[i]) for i in keep)
-        a = np.zeros((len(keep), k, 2))
-        b = np.zeros((len(keep), k, 2))
-        for row, i in enumerate(keep):
-            p = np.asarray(obstacles.polygons[i], dtype=np.float64)
+        k = max(len(p) for p, _, _ in parts)
+        a = np.zeros((len(parts), k, 2))
+        b = np.zeros((len(parts), k, 2))
+        for row, (poly, _, _) in enumerate(parts):
+            p = np.asarray(poly, dtype=np.float64)
             closed = np.concatenate([p, np.repeat(p[:1], k - len(p) + 1, axis=0)])
             a[row], b[row] = closed[:-1], closed[1:]
-        return cls(a, b, np.asarray(obstacles.height, dtype=np.float64)[keep])
+        return cls(a, b, np.array([h for _, h, _ in parts], dtype=np.float64),
+                   np.array([u for _, _, u in parts], dtype=np.float64))
 
     def __len__(self) -> int:
         return len(self.height)
@@ -74,8 +89,8 @@ class Prisms:
         """(m,) bool: the segment from ``start`` to ``end`` ((m, 3) each) passes through a prism.
 
         Cyrus-Beck clipping of each segment's ground projection against each
-        convex footprint, then the segment's lowest height over the clipped
-        part against the prism's top.
+        convex footprint, then the segment's heights over the clipped part
+        against the prism's underside and top.
         """
         m = len(start)
         out = np.zeros(m, bool)
@@ -84,9 +99,9 @@ class Prisms:
         start, end = np.asarray(start, dtype=np.float64), np.asarray(end, dtype=np.float64)
         # Only the (segment, prism) pairs whose boxes meet, below the prism's top, are clipped.
         lo_xy, hi_xy = np.minimum(start[:, :2], end[:, :2]), np.maximum(start[:, :2], end[:, :2])
-        low_z = np.minimum(start[:, 2], end[:, 2])
+        low_z, high_z = np.minimum(start[:, 2], end[:, 2]), np.maximum(start[:, 2], end[:, 2])
         near = ((lo_xy[:, None] <= self.box_hi[None]) & (hi_xy[:, None] >= self.box_lo[None])).all(axis=2)
-        near &= low_z[:, None] < self.height[None]
+        near &= (low_z[:, None] < self.height[None]) & (high_z[:, None] > self.bottom[None])
         seg, obs = np.nonzero(near)
         step = max(1, _CHUNK // self.a.shape[1])
         for lo in range(0, len(seg), step):
@@ -108,9 +123,27 @@ class Prisms:
             crosses = (t_in < t_out) & ~parallel_out.any(axis=1)
             z0, dz = s[:, 2], (e - s)[:, 2]
             low = np.minimum(z0 + t_in * dz, z0 + t_out * dz)
-            hit = crosses & (low < self.height[so])
+            high = np.maximum(z0 + t_in * dz, z0 + t_out * dz)
+            hit = crosses & (low < self.height[so]) & (high > self.bottom[so])
             out[sm[hit]] = True
         return out
+
+    def cover(self, points: np.ndarray) -> np.ndarray:
+        """(m,) the lowest underside of the raised prisms (bottom > 0) over each ground point ((m, 2)),
+        inf where none is: a camera must stay below it to see under it."""
+        points = np.asarray(points, dtype=np.float64)
+        out = np.full(len(points), np.inf)
+        raised = np.flatnonzero(self.bottom > 0)
+        if len(raised) == 0 or len(points) == 0:
+            return out
+        a, b = self.a[raised], self.b[raised]                         # (r, k, 2)
+        e = b - a
+        rel = points[:, None, None] - a[None]                         # (m, r, k, 2)
+        cross = e[None, ..., 0] * rel[..., 1] - e[None, ..., 1] * rel[..., 0]
+        degenerate = (np.abs(e).sum(axis=-1) == 0)[None]
+        inside = ((cross >= 0) | degenerate).all(axis=2)              # (m, r), counter-clockwise
+        under = np.where(inside, self.bottom[raised][None], np.inf)
+        return under.min(axis=1)
 
     @property
     def box_lo(self) -> np.ndarray:

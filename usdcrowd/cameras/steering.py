@@ -84,11 +84,14 @@ class CameraAgents:
         Characters that are rendered; scouts look only at these.
     fps : float
         Frames per second of the shot (time codes to seconds).
+    overhead : Obstacles, optional
+        Raised scenery (awnings): it hides a tracking camera's event from above.
     """
 
     def __init__(self, table: model.CameraAgentTable, events: model.EventTable, obstacles: model.Obstacles,
                  agent_rows: dict[str, int] | None = None, params: CameraParams | None = None, seed: int = 0,
-                 bounds: np.ndarray | None = None, visible: np.ndarray | None = None, fps: float = 24.0):
+                 bounds: np.ndarray | None = None, visible: np.ndarray | None = None, fps: float = 24.0,
+                 overhead: model.Obstacles | None = None):
         self.table = table
         self.fps = float(fps)
         self.params = params or CameraParams()
@@ -127,13 +130,14 @@ class CameraAgents:
         self.tracked = np.full(c, -1)
         self.since = np.zeros(c)
         self.obstacles = _ObstacleSet.of(obstacles, self.params.obstacle_min_height)
-        self._prisms = Prisms.of(obstacles, self.params.obstacle_min_height)
+        self._prisms = Prisms.of(obstacles, self.params.obstacle_min_height, overhead)
         self._tree = None           # this step's kd-tree of camera positions (forces and torques share it)
         self.time = None
         # Share of its event's people each tracking camera sees, measured once per time code.
         self.seen_share = np.ones(c)
         self.crowded = np.zeros(c)
         self.lift = np.zeros(c)           # share of its elevation range a tracking camera holds, for sight
+        self.cover = np.full(c, np.inf)   # the underside of raised scenery over its event (inf: open sky)
         self._seen_time = None
         self._seen_positions = None
 
@@ -304,6 +308,8 @@ class CameraAgents:
             lo, hi = t.elevation[tracking, 0], t.elevation[tracking, 1]
             top = np.maximum(lo, hi - 0.5)          # short of the ceiling: arriving, not stopped by it
             height[tracking] = np.maximum(height[tracking], lo + self.lift[tracking] * (top - lo))
+            # An event under an awning is filmed from under it: below its underside, whatever the lift.
+            height[tracking] = np.maximum(lo, np.minimum(height[tracking], self.cover[tracking] - 0.4))
         if len(scouting):
             self.wander[scouting] += self.rng.normal(0.0, prm.wander_jitter * np.sqrt(dt), len(scouting))
             self._head_back(scouting, crowd_centre, crowd_radius, dt)
@@ -333,6 +339,7 @@ class CameraAgents:
         previous, self._seen_positions = self._seen_positions, np.asarray(positions, dtype=np.float64).copy()
         self.seen_share[:] = 1.0
         self.crowded[:] = 0.0
+        self.cover[:] = np.inf
         tracking = np.flatnonzero(self.tracked >= 0)
         if len(tracking) == 0 or len(positions) == 0:
             return
@@ -354,6 +361,7 @@ class CameraAgents:
             if len(rows) > prm.sight_people:
                 rows = rows[np.linspace(0, len(rows) - 1, prm.sight_people).round().astype(int)]
             centre = pts[:, :2].mean(axis=0)
+            self.cover[cam] = float(self._prisms.cover(pts[:, :2]).min())
             dist, idx = tree.query(centre, k=min(prm.sight_occluders, len(occ_rows)), distance_upper_bound=r + 3.0)
             near = occ_rows[np.atleast_1d(idx)[np.isfinite(np.atleast_1d(dist))]]
             self.crowded[cam] = min(1.0, max(0, len(near) - len(rows)) / 10.0)

@@ -73,7 +73,8 @@ class TrackingQuality:
 
 
 def tracking_quality(tracks: list[model.CameraTrack], positions, events: model.EventTable, visible: np.ndarray,
-                     obstacles: model.Obstacles, fps: float) -> list[TrackingQuality]:
+                     obstacles: model.Obstacles, fps: float,
+                     overhead: model.Obstacles | None = None) -> list[TrackingQuality]:
     """Measure every camera agent of ``tracks`` (those with a per-frame state) over the shot.
 
     Parameters
@@ -86,6 +87,8 @@ def tracking_quality(tracks: list[model.CameraTrack], positions, events: model.E
     visible : (n,) bool
     obstacles : Obstacles
     fps : float
+    overhead : Obstacles, optional
+        Raised scenery that hides people from cameras above it.
     """
     agents = [tr for tr in tracks if tr.tracked is not None]
     if not agents:
@@ -96,7 +99,7 @@ def tracking_quality(tracks: list[model.CameraTrack], positions, events: model.E
     col = np.full(len(visible), -1)
     col[rows] = np.arange(len(rows))
     by_path = {e.path: e for e in events}
-    prisms = Prisms.of(obstacles)
+    prisms = Prisms.of(obstacles, overhead=overhead)
     c, t = len(agents), len(times)
     share = np.full((c, t), np.nan)
     size = np.zeros((c, t))

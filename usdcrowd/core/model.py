@@ -265,11 +265,16 @@ class Obstacles:
         Counter-clockwise convex footprint of each obstacle, metres.
     height : (o,) float64
         Top of each obstacle above the ground, metres.
+    bottom : (o,) float64 or None
+        Underside above the ground, metres, for raised scenery (an awning
+        people walk under but that hides them from above); None: all on the
+        ground.
     """
 
     path: list[str]
     polygons: list[np.ndarray]
     height: np.ndarray
+    bottom: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.path)
@@ -309,6 +314,9 @@ class Scenario:
         The scenario's camera agents (CameraAgentAPI cameras).
     events : EventTable
         The events the user authored (detected ones belong to a shot).
+    overhead : Obstacles
+        Raised scenery people walk under (awnings, canopies), with its
+        undersides: it hides people from cameras above it.
     """
 
     source: str
@@ -323,6 +331,7 @@ class Scenario:
     # Both classes are defined further down this module, hence the lambdas.
     cameras: "CameraAgentTable" = field(default_factory=lambda: CameraAgentTable.empty())
     events: "EventTable" = field(default_factory=lambda: EventTable())
+    overhead: Obstacles = field(default_factory=lambda: Obstacles.empty())
 
     def field(self, meaning: str) -> BehaviorField | None:
         """The first behavior field with this meaning, or None."""

@@ -59,7 +59,8 @@ class Coverage:
 
 
 def coverage(tracks: list[model.CameraTrack], positions, events: model.EventTable, visible: np.ndarray,
-             obstacles: model.Obstacles, params: EditParams, fps: float, progress=None) -> Coverage:
+             obstacles: model.Obstacles, params: EditParams, fps: float, progress=None,
+             overhead: model.Obstacles | None = None) -> Coverage:
     """Measure every camera's view of every event at every frame.
 
     Parameters
@@ -76,6 +77,8 @@ def coverage(tracks: list[model.CameraTrack], positions, events: model.EventTabl
     fps : float
     progress : callable(int), optional
         Called with the number of frames done since the last call.
+    overhead : Obstacles, optional
+        Raised scenery that hides people from cameras above it.
     """
     times = np.asarray(tracks[0].times, dtype=np.float64)
     c, e, t = len(tracks), len(events), len(times)
@@ -83,7 +86,7 @@ def coverage(tracks: list[model.CameraTrack], positions, events: model.EventTabl
     vis_rows = np.flatnonzero(visible)
     col = np.full(len(visible), -1)
     col[vis_rows] = np.arange(len(vis_rows))
-    prisms = Prisms.of(obstacles)
+    prisms = Prisms.of(obstacles, overhead=overhead)
     share = np.zeros((c, e, t), np.float32)
     size = np.zeros((c, e, t), np.float32)
     shown = np.zeros((c, t), np.float32)

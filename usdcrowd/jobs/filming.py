@@ -234,9 +234,10 @@ def evaluate_shot(shot_path: str | os.PathLike, out_dir: str | os.PathLike, coun
             tracks = film_cameras(sc.scenario, sc.positions, sc.events, sc.default_prim, progress, count=n, static=0,
                                   seed=seed, summary=summary)
             agents = [t for t in tracks if t.state is not None]
-            series = {"autonomous": coverage(agents, sc.positions, active, visible, obstacles=sc.scenario.obstacles)}
+            series = {"autonomous": coverage(agents, sc.positions, active, visible, obstacles=sc.scenario.obstacles,
+                                        overhead=sc.scenario.overhead)}
             quality = tracking_quality(agents, sc.positions, sc.events, visible, sc.scenario.obstacles,
-                                       sc.scenario.time.fps)
+                                       sc.scenario.time.fps, overhead=sc.scenario.overhead)
             tracking[n] = pooled(quality)
             _write_tracking_csv(out / f"tracking_{n}.csv", quality)
             if n == counts[0]:
@@ -247,7 +248,8 @@ def evaluate_shot(shot_path: str | os.PathLike, out_dir: str | os.PathLike, coun
                 tracks = film_cameras(sc.scenario, sc.positions, sc.events, sc.default_prim, False, count=0,
                                       static=n, seed=seed, summary=summary, static_from=where)
                 series[kind] = coverage([t for t in tracks if t.state is None and "/Static" in t.path],
-                                        sc.positions, active, visible, obstacles=sc.scenario.obstacles)
+                                        sc.positions, active, visible, obstacles=sc.scenario.obstacles,
+                                        overhead=sc.scenario.overhead)
             steps.update(1)
             steps.set_description(f"metrics {n} plots")
             results[n] = {k: s.summary() for k, s in series.items()}

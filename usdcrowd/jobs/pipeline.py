@@ -294,7 +294,7 @@ def film_cameras(scenario: model.Scenario, positions, events: model.EventTable, 
         with frame_progress(len(times), "cameras", progress) as bar:
             tracks += film(positions, times, scenario.time.fps, agents, events, scenario.obstacles, rows,
                            scenario.agents.visible, seed=scenario.seed if seed is None else seed,
-                           progress=bar.update, bounds=scenario.bounds)
+                           progress=bar.update, bounds=scenario.bounds, overhead=scenario.overhead)
     if static:
         tracks += static_cameras(sample if static_from == "shot" else positions[:1], static, times, root,
                                  bounds=scenario.bounds, seed=scenario.seed if seed is None else seed)

@@ -275,7 +275,7 @@ def _read(r: _Reader, seed: int | None) -> model.Scenario | None:
             if waypoints[gi] is None and g.parent >= 0 and "goal" not in g.authored:
                 waypoints[gi] = waypoints[g.parent]
         group_table.waypoints = waypoints
-    obstacles, ground = _obstacles(r, scenery)
+    obstacles, ground, overhead = _obstacles(r, scenery)
     fields = r.each(layers, lambda p: _behavior_field(r, p))
     interest = _interest(r, points)
     cameras = events = None
@@ -288,7 +288,7 @@ def _read(r: _Reader, seed: int | None) -> model.Scenario | None:
         return None
     bounds = _bounds(ground, obstacles, table, interest, fields)
     return model.Scenario(source, time, int(seed), group_table, table, fields, interest, obstacles, bounds,
-                          cameras=cameras, events=events)
+                          cameras=cameras, events=events, overhead=overhead)
 
 
 def _read_time_and_seed(r: _Reader, seed: int | None):
@@ -591,7 +591,7 @@ def _scenery_role(prim) -> str:
 
 
 def _obstacles(r: _Reader, prims):
-    """Footprints of the scenery that blocks walking; flat scenery is ground.
+    """Footprints of the scenery that blocks walking, flat scenery (ground), raised scenery (overhead).
 
     A footprint is the convex hull of the prim's tessellated vertices seen
     from above (a round fountain stays round); what a prim is follows its
@@ -602,6 +602,7 @@ def _obstacles(r: _Reader, prims):
     from ..core.geometry import mesh_of
 
     paths, polys, heights, ground = [], [], [], []
+    raised = ([], [], [], [])               # paths, footprints, tops, undersides
 
     def read(prim):
         role = _scenery_role(prim)
@@ -617,19 +618,24 @@ def _obstacles(r: _Reader, prims):
         if role == "ground" or (role == "auto" and top - bottom < OBSTACLE_MIN_HEIGHT):
             ground.append(pts[:, :2])
             return
-        if role == "auto" and bottom > OBSTACLE_MAX_BOTTOM:
-            return
         xy = pts[:, :2]
         try:
             poly = xy[ConvexHull(xy).vertices]
         except Exception:      # degenerate footprint (a vertical plane): keep its segment
             poly = xy[[np.argmin(xy[:, 0]), np.argmax(xy[:, 0])]]
+        if role == "auto" and bottom > OBSTACLE_MAX_BOTTOM:
+            # People walk under it; cameras above it cannot see them through it.
+            for out, value in zip(raised, (str(prim.GetPath()), np.ascontiguousarray(poly), top, bottom)):
+                out.append(value)
+            return
         paths.append(str(prim.GetPath()))
         polys.append(np.ascontiguousarray(poly))
         heights.append(top)
 
     r.each(prims, read)
-    return _canonical_obstacles(paths, polys, heights), ground
+    overhead = model.Obstacles(raised[0], raised[1], np.array(raised[2], dtype=np.float64),
+                               np.array(raised[3], dtype=np.float64))
+    return _canonical_obstacles(paths, polys, heights), ground, overhead
 
 
 # Footprint coordinates are compared at this many decimals (metres): a micrometre, far below
