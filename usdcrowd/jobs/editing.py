@@ -176,11 +176,12 @@ def edit_shot(shot_path: str | os.PathLike, out_dir: str | os.PathLike, cameras:
     result.paths["csv"] = _write_onair(out / "onair.csv", result, shot_of, ev_path, reasons)
     shots = [{"camera": paths[s.camera], "start": float(times[s.start]), "frames": s.frames, "event": ev_path[k],
               "reason": reasons[k]} for k, s in enumerate(cut.shots)]
-    media = os.path.relpath(os.path.abspath(shot_path), os.path.abspath(out))
+    # The shot itself (not a stage placing it in a set): the camera paths in the timeline are its own.
+    media = os.path.relpath(os.path.abspath(sc.shot), os.path.abspath(out))
     result.paths["otio"] = write_timeline(out / "cut.otio", Path(sc.shot).parent.name or "shot", media, fps,
                                           float(times[0]), float(times[-1]), shots)
     if video:
-        result.paths.update(_preview(shot_path, out, cut_path, times, cut, paths, ev_path, resolution, progress))
+        result.paths.update(_preview(sc.shot, out, cut_path, times, cut, paths, ev_path, resolution, progress))
     return result
 
 
