@@ -216,3 +216,28 @@ def test_careless_edit_options_get_one_line_and_nothing_written(edited_harbour, 
         assert w in err, (w, err)
     assert (shot / "cameras.usda").read_bytes() == before
     assert not (tmp_path / "cut" / "cut.otio").exists()
+
+
+def test_edit_through_a_stage_placing_the_shot_in_a_set(simulated_harbour, tmp_path):
+    """A layout artist's stage (Y up, centimetres, the shot moved and turned): the cut is the shot's own,
+    its timeline names the shot and its cameras, and the set's stage plays CutCam where it places it."""
+    from pxr import Usd, UsdGeom
+
+    shutil.copytree(simulated_harbour.parent, tmp_path / "harbour")
+    shot = tmp_path / "harbour" / "shot" / "shot.usda"
+    (tmp_path / "set.usda").write_text('#usda 1.0\n(\n    defaultPrim = "Set"\n    upAxis = "Y"\n'
+                                       '    metersPerUnit = 0.01\n)\ndef Xform "Set"\n{\n}\n')
+    placed = tmp_path / "placed.usda"
+    assert _run("place", shot, "--into", tmp_path / "set.usda", "-o", placed, "--at", "100", "0", "200",
+                "--rotate", "30") == 0
+    assert _run("edit", placed, "-o", tmp_path / "cut", "--no-video", "--no-progress") == 0
+    rows = _onair(tmp_path / "cut")
+    otio = pytest.importorskip("opentimelineio")
+    clip = next(iter(otio.adapters.read_from_file(str(tmp_path / "cut" / "cut.otio")).find_clips()))
+    assert (tmp_path / "cut" / clip.media_reference.target_url).resolve() == shot.resolve()
+    stage = Usd.Stage.Open(str(placed))
+    cut = next(p for p in stage.Traverse() if p.GetName() == "CutCam")
+    on_air = stage.GetPrimAtPath(str(cut.GetPath()).replace("CutCam", rows[10]["camera"].rsplit("/", 1)[-1]))
+    t = float(rows[10]["time_code"])
+    np.testing.assert_allclose(np.array(UsdGeom.XformCache(t).GetLocalToWorldTransform(cut)),
+                               np.array(UsdGeom.XformCache(t).GetLocalToWorldTransform(on_air)), atol=1e-4)
