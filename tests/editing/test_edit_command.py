@@ -241,3 +241,13 @@ def test_edit_through_a_stage_placing_the_shot_in_a_set(simulated_harbour, tmp_p
     t = float(rows[10]["time_code"])
     np.testing.assert_allclose(np.array(UsdGeom.XformCache(t).GetLocalToWorldTransform(cut)),
                                np.array(UsdGeom.XformCache(t).GetLocalToWorldTransform(on_air)), atol=1e-4)
+
+
+def test_one_camera_makes_one_shot_held_the_whole_shot_and_says_how_long(edited_harbour, tmp_path, capsys):
+    shot, _ = edited_harbour
+    assert _run("edit", shot / "shot.usda", "-o", tmp_path / "one", "--cameras", "Pier", "--no-video",
+                "--no-progress") == 0
+    out = capsys.readouterr().out
+    rows = _onair(tmp_path / "one")
+    assert out.startswith("wrote ") and "1 shot from 1 of 1 camera over 360 frames" in out
+    assert {r["shot"] for r in rows} == {"1"} and f"held {len(rows) / FPS:.1f} s" in rows[0]["reason"]

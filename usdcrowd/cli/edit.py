@@ -74,8 +74,10 @@ def run(args) -> int:
     unknown = sorted(set(events) - {p for p in r.events} - {p.rsplit("/", 1)[-1] for p in r.events})
     cut = r.cut
     lengths = [s.frames for s in cut.shots]
-    print(f"wrote {args.output}: {len(cut.shots)} shots from {len(set(cut.camera.tolist()))} of "
-          f"{len(r.cameras)} cameras over {len(r.times)} frames (shots of {min(lengths)} to {max(lengths)} frames)")
+    shots = f"{len(cut.shots)} shot" + ("s" if len(cut.shots) != 1 else "")
+    used = len(set(cut.camera.tolist()))
+    print(f"wrote {args.output}: {shots} from {used} of {len(r.cameras)} camera{'s' if len(r.cameras) != 1 else ''} "
+          f"over {len(r.times)} frames (shots of {min(lengths)} to {max(lengths)} frames)")
     for k, (s, why) in enumerate(zip(cut.shots, r.reasons), 1):
         print(f"  {k:>3} {r.times[s.start]:>6g}-{r.times[s.end - 1]:<6g} {r.cameras[s.camera].rsplit('/', 1)[-1]:<16} "
               f"{why}")

@@ -89,7 +89,7 @@ def candidate_cameras(scene, asked: list[str] | None) -> list[str]:
     return out
 
 
-def shot_reason(cut: Cut, cov: Coverage, k: int, events: model.EventTable, params: EditParams) -> str:
+def shot_reason(cut: Cut, cov: Coverage, k: int, events: model.EventTable, params: EditParams, fps: float) -> str:
     """Why shot ``k`` of ``cut`` is on air, in words (its means over the shot)."""
     shot = cut.shots[k]
     span = slice(shot.start, shot.end)
@@ -105,12 +105,8 @@ def shot_reason(cut: Cut, cov: Coverage, k: int, events: model.EventTable, param
         text = (f"{e.path.rsplit('/', 1)[-1]} ({kind}, importance {imp:.2f}): {share:.0%} of its people visible, "
                 f"{size:.0%} of the frame's height")
     if shot.held_long:
-        text += f"; held {shot.frames / cov_fps(cov):.1f} s, no allowed cut to another camera"
+        text += f"; held {shot.frames / fps:.1f} s, no allowed cut to another camera"
     return text
-
-
-def cov_fps(cov: Coverage) -> float:
-    return 1.0 / float(np.median(np.diff(cov.times))) if len(cov.times) > 1 else 24.0
 
 
 def edit_shot(shot_path: str | os.PathLike, out_dir: str | os.PathLike, cameras: list[str] | None = None,
@@ -154,7 +150,7 @@ def edit_shot(shot_path: str | os.PathLike, out_dir: str | os.PathLike, cameras:
         cov = coverage(tracks, sc.positions, sc.events, visible, sc.scenario.obstacles, params, fps,
                        progress=bar.update, overhead=sc.scenario.overhead)
     cut = plan_cut(cov, sc.events, fps, params, visible)
-    reasons = [shot_reason(cut, cov, k, sc.events, params) for k in range(len(cut.shots))]
+    reasons = [shot_reason(cut, cov, k, sc.events, params, fps) for k in range(len(cut.shots))]
     result = EditResult(cut, cov, paths, [e.path for e in sc.events], times, fps, reasons)
 
     # The record per frame: the shot's camera, event and reason (what CutCam carries), and the numbers.
