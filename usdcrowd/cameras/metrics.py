@@ -93,13 +93,8 @@ def active_mask(events: model.EventTable, times: np.ndarray, n_agents: int) -> n
     times = np.asarray(times, dtype=np.float64)
     out = np.zeros((len(times), n_agents), dtype=bool)
     for e in events:
-        if len(e.times) == 0:
-            continue
-        k = np.searchsorted(times, e.times - 1e-6)
-        ok = (k < len(times))
-        ok[ok] &= np.abs(times[k[ok]] - e.times[ok]) < 1e-6
-        for i in np.flatnonzero(ok):
-            out[k[i], e.members[e.active[i]]] = True
+        for frame, sample in zip(*e.on_frames(times)):
+            out[frame, e.members[e.active[sample]]] = True
     return out
 
 

@@ -438,6 +438,24 @@ class Event:
         i = int(np.searchsorted(self.times, time - 1e-6))
         return min(i, len(self.times) - 1)
 
+    def on_frames(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Where the event's samples fall among a shot's time codes ``times`` ((t,), ascending).
+
+        Returns
+        -------
+        frames : (m,) int64
+            Indices into ``times`` of the samples that match one.
+        samples : (m,) int64
+            Indices into ``self.times`` of those samples.
+        """
+        times = np.asarray(times, dtype=np.float64)
+        if len(self.times) == 0 or len(times) == 0:
+            return np.zeros(0, np.int64), np.zeros(0, np.int64)
+        i = np.searchsorted(times, self.times - 1e-6)
+        ok = i < len(times)
+        ok[ok] &= np.abs(times[i[ok]] - self.times[ok]) < 1e-6
+        return i[ok], np.flatnonzero(ok)
+
     def members_at(self, time: float) -> np.ndarray:
         """(j,) int32 agent rows taking part at ``time`` (empty outside)."""
         i = self.sample(time)

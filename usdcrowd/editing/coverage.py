@@ -126,12 +126,9 @@ def _event_geometry(events: model.EventTable, times: np.ndarray, positions, fps:
     line = np.zeros((e, t, 2))
     half = max(1, int(round(0.5 * fps)))
     for k, ev in enumerate(events):
-        if len(ev.times) == 0:
+        frames, samples = ev.on_frames(times)
+        if len(frames) == 0:
             continue
-        i = np.searchsorted(times, ev.times - 1e-6)
-        ok = (i < len(times))
-        ok[ok] &= np.abs(times[i[ok]] - ev.times[ok]) < 1e-6
-        frames, samples = i[ok], np.flatnonzero(ok)
         centre[k, frames] = ev.center[samples]
         pairs = ev.active[samples].sum(axis=1) == 2
         # A pair: the line through the two (who is first does not matter for a side).

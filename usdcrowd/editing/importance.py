@@ -43,17 +43,13 @@ def importance(events: model.EventTable, times: np.ndarray, fps: float, params: 
     out = np.zeros((len(events), len(times)))
     per_kind = Counter(e.kind for e in events)
     for k, e in enumerate(events):
-        if len(e.times) == 0:
-            continue
-        i = np.searchsorted(times, e.times - 1e-6)
-        ok = (i < len(times))
-        ok[ok] &= np.abs(times[i[ok]] - e.times[ok]) < 1e-6
+        frames, samples = e.on_frames(times)
         active = e.active if visible is None else e.active & np.asarray(visible, bool)[e.members][None]
-        n = active.sum(axis=1)[ok]
-        age = (e.times[ok] - e.start) / fps
+        n = active.sum(axis=1)[samples]
+        age = (e.times[samples] - e.start) / fps
         novelty = 0.5 + 0.5 * np.exp(-age / params.novelty_seconds)
         size = np.where(n > 0, 1.0 + 0.25 * np.log2(np.maximum(n, 1)), 0.0)
-        out[k, i[ok]] = weight_of(e, params) / np.sqrt(per_kind[e.kind]) * novelty * size
+        out[k, frames] = weight_of(e, params) / np.sqrt(per_kind[e.kind]) * novelty * size
     return out
 
 
