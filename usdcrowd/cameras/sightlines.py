@@ -257,16 +257,33 @@ def views(cam_to_world: np.ndarray, tan_x: np.ndarray, tan_y: np.ndarray, near: 
     return Views(in_frame, visible, by_scenery, by_people, height, depth)
 
 
-def _people_block(eye, right, up, back, cam_i, target, owner, ground, occ_rows) -> np.ndarray:
-    """(m,) bool: another person stands between camera ``cam_i`` and ``target`` ((m, 3)).
+def _in_the_way(eye, forward, right, target, feet) -> np.ndarray:
+    """Whether a person standing at ``feet`` is in the sight line from ``eye`` to ``target``.
 
     A person is a body up to the shoulders (:data:`PERSON_RADIUS` wide) and a
     narrower head above them: a sight line over a shoulder, between two
     heads, is clear (a packed group seen from a little above shows its
-    heads). Tested where the line passes each nearer person's axis: the
-    line's offset across the view (the camera's right, level for these
-    cameras) and its height above that person's feet.
+    heads). Tested where the line passes the person's axis: the line's offset
+    across the view (the camera's ``right``, level for these cameras) and its
+    height above their feet. Arguments are (..., 3) arrays broadcast against
+    each other; the result has their broadcast shape.
     """
+    def dot(a, b):
+        return (a * b).sum(axis=-1)
+
+    to_target, to_feet = target - eye, feet - eye
+    tz, tx = dot(to_target, forward), dot(to_target, right)
+    oz, ox = dot(to_feet, forward), dot(to_feet, right)
+    along = oz / np.maximum(tz, 1e-9)
+    across = np.abs(tx * along - ox)
+    above = eye[..., 2] + (target[..., 2] - eye[..., 2]) * along - feet[..., 2]
+    body = (above >= 0.0) & (above <= SHOULDER_HEIGHT) & (across < PERSON_RADIUS)
+    head = (above > SHOULDER_HEIGHT) & (above <= PERSON_HEIGHT) & (across < HEAD_RADIUS)
+    return (oz > 0.2) & (oz < tz - PERSON_RADIUS) & (body | head)
+
+
+def _people_block(eye, right, up, back, cam_i, target, owner, ground, occ_rows) -> np.ndarray:
+    """(m,) bool: another person (:func:`_in_the_way`) stands between camera ``cam_i`` and ``target`` ((m, 3))."""
     m = len(cam_i)
     out = np.zeros(m, bool)
     if len(occ_rows) == 0:
@@ -275,20 +292,7 @@ def _people_block(eye, right, up, back, cam_i, target, owner, ground, occ_rows) 
     step = max(1, _CHUNK // len(occ_rows))
     for lo in range(0, m, step):
         ci = cam_i[lo:lo + step]
-        e, r, f = eye[ci], right[ci], -back[ci]
-        tgt = target[lo:lo + step]
-        d_t = tgt - e
-        tz = np.einsum("mi,mi->m", d_t, f)
-        tx = np.einsum("mi,mi->m", d_t, r)
-        d_o = occ[None] - e[:, None]                                   # (m, q, 3) to the others' feet
-        oz = np.einsum("mqi,mi->mq", d_o, f)
-        ox = np.einsum("mqi,mi->mq", d_o, r)
-        along = oz / np.maximum(tz[:, None], 1e-9)                      # where the line passes them
-        across = np.abs(tx[:, None] * along - ox)
-        above = e[:, 2:3] + (tgt[:, 2:3] - e[:, 2:3]) * along - occ[None, :, 2]
-        body = (above >= 0.0) & (above <= SHOULDER_HEIGHT) & (across < PERSON_RADIUS)
-        head = (above > SHOULDER_HEIGHT) & (above <= PERSON_HEIGHT) & (across < HEAD_RADIUS)
-        hit = (oz > 0.2) & (oz < tz[:, None] - PERSON_RADIUS) & (body | head)
+        hit = _in_the_way(eye[ci, None], -back[ci, None], right[ci, None], target[lo:lo + step, None], occ[None])
         hit &= occ_rows[None] != owner[lo:lo + step, None]
         out[lo:lo + step] = hit.any(axis=1)
     return out
@@ -328,16 +332,7 @@ def seen_points(eye: np.ndarray, axes3: tuple, tan_x: np.ndarray, tan_y: np.ndar
         use = test[cand_pair] & (cand_row != owner[cand_pair])
         pair, who = cand_pair[use], cand_row[use]
         if len(pair):
-            e, f_, r_ = eye[pair], fwd[pair], right[pair]
-            tz, tx = np.einsum("mi,mi->m", d[pair], f_), np.einsum("mi,mi->m", d[pair], r_)
-            o = ground[who] - e
-            oz, ox = np.einsum("mi,mi->m", o, f_), np.einsum("mi,mi->m", o, r_)
-            along = oz / np.maximum(tz, 1e-9)
-            across = np.abs(tx * along - ox)
-            above = e[:, 2] + (pts[pair, 2] - e[:, 2]) * along - ground[who, 2]
-            hit = (oz > 0.2) & (oz < tz - PERSON_RADIUS) & (
-                ((above >= 0.0) & (above <= SHOULDER_HEIGHT) & (across < PERSON_RADIUS))
-                | ((above > SHOULDER_HEIGHT) & (above <= PERSON_HEIGHT) & (across < HEAD_RADIUS)))
+            hit = _in_the_way(eye[pair], fwd[pair], right[pair], pts[pair], ground[who])
             clear[pair[hit]] = False
         out |= clear
     return out
