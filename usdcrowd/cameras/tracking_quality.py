@@ -62,14 +62,22 @@ class TrackingQuality:
         """Frames tracking, settled frames, the share of those framed and blank, median size, times to frame."""
         s = self.settled & ~np.isnan(self.share)
         share = self.share[s]
-        ttf = np.array([t for _, _, t in self.takes], dtype=np.float64)
-        return {"tracking_frames": int((~np.isnan(self.since)).sum()), "settled_frames": int(s.sum()),
-                "framed": float(np.mean(share >= FRAMED_SHARE)) if s.any() else float("nan"),
-                "blank": float(np.mean(share == 0)) if s.any() else float("nan"),
-                "mean_share": float(np.mean(share)) if s.any() else float("nan"),
-                "median_size": float(np.median(self.size[s][share > 0])) if (share > 0).any() else float("nan"),
-                "takes": len(self.takes), "never_framed": int(np.isnan(ttf).sum()),
-                "median_seconds_to_frame": float(np.nanmedian(ttf)) if np.isfinite(ttf).any() else float("nan")}
+        return {"tracking_frames": int((~np.isnan(self.since)).sum()),
+                **_shares(share, [t for _, _, t in self.takes]),
+                "median_size": float(np.median(self.size[s][share > 0])) if (share > 0).any() else float("nan")}
+
+
+def _shares(share: np.ndarray, seconds_to_frame: list) -> dict:
+    """Settled frames, the shares framed and blank, the mean share visible ((f,) shares of settled frames),
+    and the takes, those never framed and the median seconds to frame one (NaN where there is nothing)."""
+    ttf = np.array(seconds_to_frame, dtype=np.float64)
+    some = len(share) > 0
+    return {"settled_frames": int(len(share)),
+            "framed": float(np.mean(share >= FRAMED_SHARE)) if some else float("nan"),
+            "blank": float(np.mean(share == 0)) if some else float("nan"),
+            "mean_share": float(np.mean(share)) if some else float("nan"),
+            "takes": int(len(ttf)), "never_framed": int(np.isnan(ttf).sum()),
+            "median_seconds_to_frame": float(np.nanmedian(ttf)) if np.isfinite(ttf).any() else float("nan")}
 
 
 def tracking_quality(tracks: list[model.CameraTrack], positions, events: model.EventTable, visible: np.ndarray,
@@ -147,10 +155,4 @@ def pooled(qualities: list[TrackingQuality]) -> dict:
     """Every camera's settled tracking frames and takes together: the shares framed and blank, the mean
     share visible, and the median seconds to frame a take (NaN where nothing was tracked)."""
     share = np.concatenate([q.share[q.settled & ~np.isnan(q.share)] for q in qualities]) if qualities else np.zeros(0)
-    ttf = np.array([t for q in qualities for _, _, t in q.takes], dtype=np.float64)
-    return {"cameras": len(qualities), "settled_frames": int(len(share)),
-            "framed": float(np.mean(share >= FRAMED_SHARE)) if len(share) else float("nan"),
-            "blank": float(np.mean(share == 0)) if len(share) else float("nan"),
-            "mean_share": float(np.mean(share)) if len(share) else float("nan"),
-            "takes": int(len(ttf)), "never_framed": int(np.isnan(ttf).sum()),
-            "median_seconds_to_frame": float(np.nanmedian(ttf)) if np.isfinite(ttf).any() else float("nan")}
+    return {"cameras": len(qualities), **_shares(share, [t for q in qualities for _, _, t in q.takes])}
