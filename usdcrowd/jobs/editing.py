@@ -201,13 +201,14 @@ def _write_onair(path: Path, r: EditResult, shot_of: np.ndarray, ev_path: list[s
 
 
 def _preview_available() -> None:
+    """The preview's own check (:func:`~usdcrowd.render.preview.context.require_moderngl`), naming --no-video."""
     from ..core.errors import UsdcrowdError
+    from ..render.preview.context import require_moderngl
 
     try:
-        import moderngl  # noqa: F401
-    except ImportError:
-        raise UsdcrowdError("the cut's preview (cut.mp4) needs the OpenGL preview: pip install "
-                            "'usdcrowd[preview]', or leave it out with --no-video") from None
+        require_moderngl()
+    except UsdcrowdError as exc:
+        raise UsdcrowdError(f"the cut's preview (cut.mp4): {exc}, or leave it out with --no-video") from None
 
 
 def _preview(shot_path, out: Path, cut_path: str, times, cut: Cut, paths, ev_path, resolution, progress) -> dict:
