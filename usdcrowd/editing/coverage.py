@@ -95,7 +95,7 @@ def coverage(tracks: list[model.CameraTrack], positions, events: model.EventTabl
     eye = np.stack([tr.cam_to_world[:, 3, :3] for tr in tracks]) if c else np.zeros((0, t, 3))
     centre, line = _event_geometry(events, times, positions, fps, params)
     for i in range(t):
-        running = [k for k in events.active_at(times[i])]
+        running = events.active_at(times[i])
         ground = np.asarray(positions[i], dtype=np.float64)
         mats = np.stack([tr.cam_to_world[i] for tr in tracks])
         tx, ty = lens_tangents(tracks, i)

@@ -134,7 +134,7 @@ def plan_cut(cov: Coverage, events, fps: float, params: EditParams | None = None
     block = np.add.reduceat(value, starts[:-1], axis=1) if t else np.zeros((c, 0))
     cum = np.concatenate([np.zeros((c, 1)), np.cumsum(block, axis=1)], axis=1)      # (c, K + 1)
     cost = params.cut_cost * fps * max(float(value.max(axis=0).mean()) if t else 0.0, 1e-6)
-    allowed, refused = _allowed_cuts(cov, best, framing, starts, params, fps)
+    allowed, refused = _allowed_cuts(cov, best, starts, params, fps)
     lo, hi = params.min_hold * fps, params.max_hold * fps
     plan = _best_partition(cum, starts, allowed, cost, lo, hi)
     held_long = False
@@ -157,8 +157,7 @@ def plan_cut(cov: Coverage, events, fps: float, params: EditParams | None = None
     return Cut(shots, on_air, event, value, best, imp, framing, refused)
 
 
-def _allowed_cuts(cov: Coverage, best: np.ndarray, framing: np.ndarray, starts: np.ndarray, params: EditParams,
-                  fps: float):
+def _allowed_cuts(cov: Coverage, best: np.ndarray, starts: np.ndarray, params: EditParams, fps: float):
     """(K, c, c) bool: a cut from camera a to b at instant ``starts[k]`` is allowed; and the refusals counted.
 
     The shots on either side are taken to be of the event each camera framed last before the cut (within
