@@ -194,17 +194,45 @@ def test_scouting_prefers_events_no_other_camera_follows():
 def test_a_camera_scouts_again_when_its_event_ends_and_stays_out_of_scenery(platoon_scene):
     pos, times, events = platoon_scene
     short = make_event("/World/Events/Short", GROUP, pos, np.arange(20), 0, 60, times)
-    # A 4 m tall building between the ring and the crowd.
-    box = np.array([[20.0, -5.0], [26.0, -5.0], [26.0, 5.0], [20.0, 5.0]])
+    # A 4 m tall building beside the camera's first view of the crowd, in its way once it moves.
+    box = np.array([[20.0, 2.0], [26.0, 2.0], [26.0, 12.0], [20.0, 12.0]])
     obstacles = model.Obstacles(["/World/Scenery/House"], [box], np.array([4.0]))
-    cams = take_agents(generated_agents(4, np.zeros(3), 25.0), [0])      # starts at (30, 0), behind the house
+    cams = take_agents(generated_agents(4, np.zeros(3), 25.0), [0])      # starts at (30, 0)
     tracks = film(pos, times, FPS, cams, model.EventTable([short]), obstacles, seed=5)
     tr = tracks[0]
     assert tr.tracked[10] == "/World/Events/Short" and tr.tracked[70] == ""
     assert tr.state[70] == model.code(model.CAMERA_MODES, "scouting")
     p = tr.cam_to_world[:, 3, :3]
-    inside = (p[:, 0] > 20) & (p[:, 0] < 26) & (p[:, 1] > -5) & (p[:, 1] < 5) & (p[:, 2] < 4.0)
+    inside = (p[:, 0] > 20) & (p[:, 0] < 26) & (p[:, 1] > 2) & (p[:, 1] < 12) & (p[:, 2] < 4.0)
     assert not inside.any()
+
+
+def _behind_box(eye, target, lo, hi, height, samples=400):
+    """Whether the straight line from ``eye`` to ``target`` (3,) passes through an axis-aligned box
+    footprint [lo, hi] (2,) below ``height``: sampled along the line, independent of the sight-line code."""
+    s = np.linspace(0.0, 1.0, samples)[:, None]
+    pts = eye + s * (target - eye)
+    return bool(((pts[:, :2] > lo).all(axis=1) & (pts[:, :2] < hi).all(axis=1) & (pts[:, 2] < height)).any())
+
+
+def test_a_scout_does_not_see_an_event_through_a_house(platoon_scene):
+    """A camera behind a house (and kept below its roof) does not take the crowd it would see if the
+    house were glass; whenever it takes the event, one of its people is in clear sight."""
+    pos, times, _ = platoon_scene
+    short = make_event("/World/Events/Short", GROUP, pos, np.arange(20), 0, 200, times)
+    lo, hi = np.array([20.0, -5.0]), np.array([26.0, 5.0])
+    box = np.array([[20.0, -5.0], [26.0, -5.0], [26.0, 5.0], [20.0, 5.0]])
+    obstacles = model.Obstacles(["/World/Scenery/House"], [box], np.array([4.0]))
+    cams = take_agents(generated_agents(4, np.zeros(3), 25.0), [0])      # starts at (30, 0), behind the house
+    cams.elevation[:] = [1.5, 3.0]
+    glass = film(pos, times, FPS, cams, model.EventTable([short]), model.Obstacles.empty(), seed=5)[0]
+    tr = film(pos, times, FPS, cams, model.EventTable([short]), obstacles, seed=5)[0]
+    assert glass.tracked[1] == "/World/Events/Short"          # seen at once through glass
+    assert tr.tracked[1] == ""
+    takes = [k for k in range(len(times)) if tr.tracked[k] and (k == 0 or not tr.tracked[k - 1])]
+    for k in takes:
+        eye = tr.cam_to_world[k, 3, :3]
+        assert any(not _behind_box(eye, pos[k, i] + [0.0, 0.0, 1.1], lo, hi, 4.0) for i in range(20)), k
 
 
 def test_obstacle_avoidance_clears_the_line_of_sight():
@@ -219,6 +247,7 @@ def test_obstacle_avoidance_clears_the_line_of_sight():
     cams = take_agents(generated_agents(1, np.zeros(3), 1.0), [0])
     cams.cam_to_world[:] = look_at(np.array([[0.0, -14.0, 1.6]]), np.array([[0.0, 0.0, 1.1]]))
     cams.elevation[:] = [1.5, 2.0]                # cannot crane over the wall
+    cams.target[:] = ["/E/Talk"]                  # tracks the pair it cannot see (a scout would not take it)
     with_avoid = film(pos, times, FPS, cams, model.EventTable([ev]), obstacles)[0]
     without = film(pos, times, FPS, cams, model.EventTable([ev]), obstacles, params=CameraParams(w_obstacle=0.0))[0]
 

@@ -72,15 +72,16 @@ def _rows(path):
 
 def _check_targets(rows):
     """At least half the event's people visible in >= 80 % of settled frames, every camera; frames with
-    nobody visible under 5 % over all cameras (the target of none is not met: a pair trading in the
-    crowded market under the awnings is hidden by shoppers from a camera that must stay below them)."""
+    nobody visible at most 1 % over all cameras and 3 % for any one (0 on this box: the margin is for
+    other machines' rounding, which a steering run amplifies)."""
     measured = [r for r in rows if int(r["settled_frames"]) >= 48]
     assert len(measured) >= 2, rows
     for r in measured:
         assert float(r["framed"]) >= 0.8, r
+        assert float(r["blank"]) <= 0.03, r
     settled = np.array([int(r["settled_frames"]) for r in measured])
     blank = np.array([float(r["blank"]) for r in measured])
-    assert (blank * settled).sum() / settled.sum() <= 0.05, rows
+    assert (blank * settled).sum() / settled.sum() <= 0.01, rows
 
 
 def test_harbour_tracking_cameras_frame_their_event_after_two_seconds(harbour_metrics):

@@ -52,7 +52,8 @@ def crane_height(n_members: np.ndarray, radius: np.ndarray, elevation: np.ndarra
 
 def obstacle_avoidance(position: np.ndarray, velocity: np.ndarray, forward: np.ndarray, right: np.ndarray,
                        target: np.ndarray, max_speed: np.ndarray, tan_x: np.ndarray, obstacle_tree: cKDTree | None,
-                       obstacle_xyz: np.ndarray, obstacle_radius: np.ndarray, search: float) -> np.ndarray:
+                       obstacle_xyz: np.ndarray, obstacle_radius: np.ndarray, search: float,
+                       clearance: float = 0.0) -> np.ndarray:
     """Algorithm 3: sidestep obstacles in the frustum that stand between the camera and its target.
 
     Parameters
@@ -71,6 +72,8 @@ def obstacle_avoidance(position: np.ndarray, velocity: np.ndarray, forward: np.n
         Horizontal radius of each footprint.
     search : float
         Metres around each camera searched.
+    clearance : float
+        A camera higher than an obstacle's top by this flies over it: no sidestep for it.
 
     Returns
     -------
@@ -99,12 +102,15 @@ def obstacle_avoidance(position: np.ndarray, velocity: np.ndarray, forward: np.n
     # front and would never fire; (k - p) . l is what its text describes.
     closer = z < np.einsum("ij,ij->i", target[ci] - position[ci], forward[ci])
     hit = in_view & closer
+    np.maximum.at(clear, ci[hit], 2.0 * obstacle_xyz[oi[hit], 2])
+    # A camera already above an obstacle flies over it (the crane holds it there): sidestepping would
+    # hold it back on the near side, behind it.
+    hit &= position[ci, 2] <= 2.0 * obstacle_xyz[oi, 2] + clearance
     side = np.where(x[hit] > 0, -1.0, 1.0)                 # on the right: go left
     u = side[:, None] * right[ci[hit]] * max_speed[ci[hit], None]
     f = u - velocity[ci[hit]]
     f[:, 2] = 0.0
     np.add.at(out, ci[hit], f)
-    np.maximum.at(clear, ci[hit], 2.0 * obstacle_xyz[oi[hit], 2])
     return out, clear
 
 

@@ -40,6 +40,9 @@ class CameraParams:
         elevation that grows with their radius.
     crane_gain : float
         Metres of camera height per metre of event radius (crane shots).
+    frame_radius : float
+        Metres: an event spread wider than this round its centre is framed by its densest part (the
+        members within this of the one with the most others that near).
     look_height : float
         Metres above the ground the cameras aim at (chest height).
     scout_range : float
@@ -81,9 +84,26 @@ class CameraParams:
         At most this many of an event's people are checked (evenly picked).
     sight_occluders : int
         The people nearest the event (within 3 m of its area) who may hide it, at most this many.
+    steepest_deg : float
+        Degrees: a tracking camera stands no higher than lets it look down at its event at this angle
+        (right over its event it could not pan with people walking under it).
     lift_hold : float
         Seconds a tracking camera takes to come down from the top of its
         elevation range once its event is in clear view again.
+    seek_below : float
+        A tracking camera that sees under this share of its event's people looks for a clearer bearing
+        round the event.
+    seek_bearings : tuple of float
+        Degrees: the bearings round the event, from the camera's own, it checks.
+    seek_turn_cost : float
+        Share of the event's people a half turn round the event is worth (nearer bearings first).
+    seek_gain : float
+        A bearing is sought when it sees at least this share more of the event's people.
+    seek_seconds : float
+        Seconds a camera keeps seeking one bearing before it checks again.
+    give_up_seconds : float
+        A tracking camera that has seen none of its event's people this long leaves it (and does not take
+        it again for as long).
     contain_margin : float
         Metres beyond the crowd's extent where containment starts pulling back.
     min_track_seconds : float
@@ -107,6 +127,7 @@ class CameraParams:
     min_frame_width: float = 0.6
     crane_members: int = 8
     crane_gain: float = 0.6
+    frame_radius: float = 10.0
     look_height: float = 1.1
     scout_range: float = 60.0
     avoid_near: float = 1.0
@@ -119,11 +140,18 @@ class CameraParams:
     wander_jitter: float = 1.5
     wander_speed: float = 0.6
     wander_look_distance: float = 15.0
-    wander_turn: float = 0.8
+    wander_turn: float = 1.5
     occlusion_lookahead: float = 1.5
     sight_interval: float = 0.25
     sight_people: int = 12
     sight_occluders: int = 64
+    steepest_deg: float = 55.0
     lift_hold: float = 8.0
+    seek_below: float = 0.75
+    seek_bearings: tuple = (-30.0, 30.0, -60.0, 60.0, -90.0, 90.0, -135.0, 135.0, 180.0)
+    seek_turn_cost: float = 0.2
+    seek_gain: float = 0.25
+    seek_seconds: float = 6.0
+    give_up_seconds: float = 2.5
     contain_margin: float = 10.0
     min_track_seconds: float = 3.0

@@ -28,7 +28,7 @@ from scipy.spatial import cKDTree
 from ..core import model
 from . import forces, torques
 from .frustum import half_tangents
-from .sightlines import Prisms, seen_points
+from .sightlines import CHEST_HEIGHT, HEAD_HEIGHT, Prisms, seen_points
 from .orientation import axes, integrate, level_from_forward, matrix_to_quat
 from .params import CameraParams
 
@@ -36,6 +36,8 @@ SCOUTING = model.code(model.CAMERA_MODES, "scouting")
 TRACKING = model.code(model.CAMERA_MODES, "tracking")
 # Cameras never look steeper than this (sin of the pitch): a level head.
 _MAX_PITCH_SIN = 0.95
+# Heights through its elevation range a tracking camera checks its sight lines from.
+_HEIGHTS = 8
 
 
 @dataclass
@@ -137,7 +139,19 @@ class CameraAgents:
         self.seen_share = np.ones(c)
         self.crowded = np.zeros(c)
         self.lift = np.zeros(c)           # share of its elevation range a tracking camera holds, for sight
-        self.cover = np.full(c, np.inf)   # the underside of raised scenery over its event (inf: open sky)
+        # Heights a tracking camera might stand at over its ground point (c, HEIGHTS) and those from which
+        # scenery hides the fewest of its event's people.
+        self.heights = np.zeros((c, _HEIGHTS))
+        self.clear_height = np.ones((c, _HEIGHTS), bool)
+        # A tracking camera that cannot see its event from where it stands walks round it to a bearing
+        # (radians, from the event's centre) where it can: NaN while it need not.
+        self.seek = np.full(c, np.nan)
+        self.seek_since = np.zeros(c)
+        # Since when a tracking camera has seen none of its event's people (NaN: it sees some), and the
+        # event it last gave up for that, refused until a time code.
+        self.unseen_since = np.full(c, np.nan)
+        self.refused = np.full(c, -1)
+        self.refused_until = np.full(c, -np.inf)
         self._seen_time = None
         self._seen_positions = None
 
@@ -156,11 +170,14 @@ class CameraAgents:
                 out.append(k)
         return out
 
-    def _event_state(self, k: int, time: float, positions: np.ndarray):
-        """Active members' positions (j, 3) and the event's radius at ``time``.
+    def _event_state(self, k: int, time: float, positions: np.ndarray, core: bool = True):
+        """The rows of the event's people a camera frames, their positions (j, 3) and the event's radius
+        at ``time``.
 
-        Members nobody can see (invisible leaders) are left out while a
-        visible one takes part.
+        Members nobody can see (invisible leaders) are left out while a visible one takes part. With
+        ``core``, an event spread wider than ``frame_radius`` (a crowd fleeing in every direction, whose
+        centre is empty ground) is framed by its densest part: the members within ``frame_radius`` of
+        the one with the most others that near.
         """
         e = self.events[k]
         rows = e.members_at(time)
@@ -169,7 +186,15 @@ class CameraAgents:
             rows = shown if len(shown) else rows
         pts = positions[rows]
         i = e.sample(time)
-        return pts, float(e.radius[i]) if i >= 0 and len(e.radius) else 1.0
+        radius = float(e.radius[i]) if i >= 0 and len(e.radius) else 1.0
+        reach = self.params.frame_radius
+        if core and len(rows) > 2:
+            flat = pts[:, :2]
+            if np.linalg.norm(flat - flat.mean(axis=0), axis=1).max() > reach:
+                counts = cKDTree(flat).query_ball_point(flat, reach, return_length=True)
+                keep = np.linalg.norm(flat - flat[np.argmax(counts)], axis=1) <= reach
+                rows, pts, radius = rows[keep], pts[keep], min(radius, reach)
+        return rows, pts, radius
 
     def update_modes(self, time: float, positions: np.ndarray) -> None:
         """Drop ended events; scouting cameras pick up events they see (section 4.1)."""
@@ -178,9 +203,12 @@ class CameraAgents:
         ended = (self.tracked >= 0) & ~np.isin(self.tracked, list(alive))
         self.mode[ended], self.tracked[ended] = SCOUTING, -1
         self.lift[self.tracked < 0] = 0.0
+        self.seek[self.tracked < 0] = np.nan
+        self.unseen_since[self.tracked < 0] = np.nan
         pinned = self.pinned >= 0
         on = pinned & np.isin(self.pinned, list(alive)) & (self.tracked < 0)
         self.mode[on], self.tracked[on], self.since[on] = TRACKING, self.pinned[on], time
+        self.seek[on] = np.nan
         followers = np.bincount(self.tracked[self.tracked >= 0], minlength=max(len(self.events), 1))
         # Free to pick: scouts, and trackers that have held a shared event long
         # enough (they may leave it for one nobody follows).
@@ -195,7 +223,7 @@ class CameraAgents:
         seen = np.zeros((len(free), len(running)), bool)
         dist = np.full((len(free), len(running)), np.inf)
         for j, k in enumerate(running):
-            pts = self._event_state(k, time, positions)[0] + [0.0, 0.0, self.params.look_height]
+            pts = self._event_state(k, time, positions, core=False)[1] + [0.0, 0.0, self.params.look_height]
             d = pts[None] - self.p[free, None]                        # (f, m, 3)
             z = np.einsum("fmk,fk->fm", d, fwd)
             x = np.einsum("fmk,fk->fm", d, right)
@@ -203,6 +231,11 @@ class CameraAgents:
             r = np.linalg.norm(d, axis=2)
             inside = (z > 0.5) & (r < self.params.scout_range) & (np.abs(x) <= self.tan_x[free, None] * z) & (
                 np.abs(y) <= self.tan_y[free, None] * z)
+            # ... and not behind scenery: a camera does not see through a building.
+            f_i, m_i = np.nonzero(inside)
+            if len(f_i) and len(self._prisms):
+                inside[f_i, m_i] = ~self._prisms.blocks(self.p[free[f_i]], pts[m_i])
+            inside &= ~((self.refused[free] == k) & (time < self.refused_until[free]))[:, None]
             seen[:, j] = inside.any(axis=1)
             dist[:, j] = np.where(inside, r, np.inf).min(axis=1)
         run = np.asarray(running)
@@ -218,6 +251,7 @@ class CameraAgents:
             if self.tracked[cam] >= 0:
                 followers[self.tracked[cam]] -= 1
             self.mode[cam], self.tracked[cam], self.since[cam] = TRACKING, k, time
+            self.seek[cam], self.unseen_since[cam] = np.nan, np.nan
             followers[k] += 1
 
     # ------------------------------------------------------------------- step
@@ -274,6 +308,7 @@ class CameraAgents:
         prm, t = self.params, self.table
         c = len(self)
         force = np.zeros((c, 3))
+        self._measure_sight(time, positions)       # may send a camera that lost its event back to scouting
         tracking = np.flatnonzero(self.tracked >= 0)
         scouting = np.flatnonzero(self.tracked < 0)
         look = self.p + fwd * prm.wander_look_distance
@@ -283,15 +318,28 @@ class CameraAgents:
             b = np.zeros((len(tracking), 2))
             n_members = np.zeros(len(tracking))
             radius = np.zeros(len(tracking))
+            # Where each camera frames its event from: near where it stands, or, while it walks round
+            # the event to see it, near the bearing it seeks.
+            near = self.p[tracking, :2].copy()
             for j, cam in enumerate(tracking):
-                pts, r = self._event_state(self.tracked[cam], time, positions)
-                a[j], b[j] = _extremes(self.p[cam, :2], pts[:, :2])
+                _, pts, r = self._event_state(self.tracked[cam], time, positions)
+                if np.isfinite(self.seek[cam]):
+                    near[j] = self._seek_point(cam, pts[:, :2].mean(axis=0))
+                a[j], b[j] = _extremes(near[j], pts[:, :2])
                 look[cam] = pts.mean(axis=0) + np.array([0.0, 0.0, prm.look_height])
                 n_members[j], radius[j] = len(pts), r
             # An event's area is framed too: one visible member of a wide authored event is not a close-up.
             width = np.maximum(prm.min_frame_width, radius)
-            goal = forces.framing_target(self.p[tracking, :2], a, b, self.alpha[tracking], self.beta[tracking],
-                                         width)
+            goal = forces.framing_target(near, a, b, self.alpha[tracking], self.beta[tracking], width)
+            # A craned camera stands back far enough to look at its event less steeply than
+            # ``steepest_deg`` (the framing range is drawn for a level view).
+            centre = look[tracking, :2]
+            out = goal - centre
+            reach = np.linalg.norm(out, axis=1)
+            least = (self.p[tracking, 2] - prm.look_height) / np.tan(np.radians(prm.steepest_deg))
+            away = np.where(reach[:, None] > 1e-6, out / np.maximum(reach, 1e-9)[:, None],
+                            _unit(self.p[tracking, :2] - centre))
+            goal = np.where((reach < least)[:, None], centre + away * least[:, None], goal)
             goal3 = np.column_stack([goal, self.p[tracking, 2]])
             f = forces.arrival(self.p[tracking], goal3, self.v[tracking] * [1, 1, 0], t.max_speed[tracking],
                                t.arrival_distance[tracking])
@@ -300,16 +348,25 @@ class CameraAgents:
                                                    prm.crane_gain)
             # Beyond the paper: a camera that sees under half its event's people (hidden by others or by
             # scenery) cranes up, toward the top of its elevation range, to look over them.
-            self._measure_sight(time, positions)
             hidden = np.maximum(np.clip(1.5 * (1.0 - self.seen_share[tracking]), 0.0, 1.0),
-                                0.5 * self.crowded[tracking])
+                                0.75 * self.crowded[tracking])
             # Up at once, down slowly: coming down the moment the view clears would lose it again.
             self.lift[tracking] = np.maximum(hidden, self.lift[tracking] - dt / prm.lift_hold)
             lo, hi = t.elevation[tracking, 0], t.elevation[tracking, 1]
             top = np.maximum(lo, hi - 0.5)          # short of the ceiling: arriving, not stopped by it
             height[tracking] = np.maximum(height[tracking], lo + self.lift[tracking] * (top - lo))
-            # An event under an awning is filmed from under it: below its underside, whatever the lift.
-            height[tracking] = np.maximum(lo, np.minimum(height[tracking], self.cover[tracking] - 0.4))
+            # No higher than lets it look at its event less steeply than ``steepest_deg`` (a camera right
+            # over its event cannot pan with people walking under it).
+            flat = np.linalg.norm(look[tracking, :2] - self.p[tracking, :2], axis=1)
+            steep = prm.look_height + np.maximum(flat, 1.0) * np.tan(np.radians(prm.steepest_deg))
+            height[tracking] = np.maximum(lo, np.minimum(height[tracking], steep))
+            # Where scenery hides the event from some heights (an awning over it, tree crowns or a roof in
+            # the way), the camera stands at the clear height nearest the one it wants, whatever the lift.
+            blocked = tracking[~self.clear_height[tracking].all(axis=1)]
+            if len(blocked):
+                gap = np.where(self.clear_height[blocked], np.abs(self.heights[blocked] - height[blocked, None]),
+                               np.inf)
+                height[blocked] = self.heights[blocked, np.argmin(gap, axis=1)]
         if len(scouting):
             self.wander[scouting] += self.rng.normal(0.0, prm.wander_jitter * np.sqrt(dt), len(scouting))
             self._head_back(scouting, crowd_centre, crowd_radius, dt)
@@ -339,32 +396,38 @@ class CameraAgents:
         previous, self._seen_positions = self._seen_positions, np.asarray(positions, dtype=np.float64).copy()
         self.seen_share[:] = 1.0
         self.crowded[:] = 0.0
-        self.cover[:] = np.inf
+        self.clear_height[:] = True
         tracking = np.flatnonzero(self.tracked >= 0)
         if len(tracking) == 0 or len(positions) == 0:
             return
-        ahead = positions
+        # Where everyone, the camera too, will be over the next moments if they move on (seconds ahead,
+        # then the positions): a passer-by crossing a sight line between two checks is caught too.
+        moments = [(0.0, positions)]
         if previous is not None and previous.shape == positions.shape and time > last:
-            ahead = positions + (positions - previous) * (prm.occlusion_lookahead * self.fps / (time - last))
+            velocity = (positions - previous) / (time - last) * self.fps          # per second
+            for s in (prm.sight_interval / 2, prm.sight_interval, *(np.array([1 / 3, 2 / 3, 1.0]) *
+                                                                    prm.occlusion_lookahead)):
+                moments.append((float(s), positions + velocity * s))
         occluders = np.zeros(len(positions), bool)
         occluders[self.visible_rows if self.visible_rows is not None else slice(None)] = True
         occ_rows = np.flatnonzero(occluders)
         tree = cKDTree(positions[occ_rows, :2]) if len(occ_rows) else None
         cams, owners, cand_pair, cand_row = [], [], [], []
+        groups = []                         # (camera, its people checked, who may hide them, event centre)
         n_pairs = 0
         for cam in tracking:
-            pts, r = self._event_state(self.tracked[cam], time, positions)
-            rows = self.events[self.tracked[cam]].members_at(time)
+            rows, pts, r = self._event_state(self.tracked[cam], time, positions)
             rows = rows[occluders[rows]]
             if len(rows) == 0 or tree is None:
                 continue
             if len(rows) > prm.sight_people:
                 rows = rows[np.linspace(0, len(rows) - 1, prm.sight_people).round().astype(int)]
             centre = pts[:, :2].mean(axis=0)
-            self.cover[cam] = float(self._prisms.cover(pts[:, :2]).min())
+            self.heights[cam], self.clear_height[cam] = self._clear_heights(cam, positions[rows])
             dist, idx = tree.query(centre, k=min(prm.sight_occluders, len(occ_rows)), distance_upper_bound=r + 3.0)
             near = occ_rows[np.atleast_1d(idx)[np.isfinite(np.atleast_1d(dist))]]
             self.crowded[cam] = min(1.0, max(0, len(near) - len(rows)) / 10.0)
+            groups.append((cam, rows, near, centre))
             cams.append(np.full(len(rows), cam))
             owners.append(rows)
             pair = n_pairs + np.arange(len(rows))
@@ -378,13 +441,137 @@ class CameraAgents:
         fwd, right, up = axes(self.q)
         t = self.table
         seen = np.ones(len(owner), bool)
-        for where in (positions, ahead):
-            seen &= seen_points(self.p[cam_of], (right[cam_of], up[cam_of], fwd[cam_of]), self.tan_x[cam_of],
-                                self.tan_y[cam_of], t.near[cam_of], t.far[cam_of], where, owner, candidates,
-                                self._prisms)
+        for ahead, where in moments:
+            seen_then = seen_points(self.p[cam_of] + ahead * self.v[cam_of], (right[cam_of], up[cam_of], fwd[cam_of]),
+                                    self.tan_x[cam_of], self.tan_y[cam_of], t.near[cam_of], t.far[cam_of], where, owner,
+                                    candidates, self._prisms)
+            if ahead == 0.0:
+                seen_now = np.bincount(cam_of, weights=seen_then, minlength=len(self))
+            seen &= seen_then
         counted = np.unique(cam_of)
         self.seen_share[counted] = (np.bincount(cam_of, weights=seen, minlength=len(self))[counted]
                                     / np.bincount(cam_of, minlength=len(self))[counted])
+        self._give_up(time, counted, seen_now[counted] > 0)
+        self._seek_sight(time, groups, moments)
+
+    def _give_up(self, time: float, cams: np.ndarray, seeing: np.ndarray) -> None:
+        """Tracking cameras ``cams`` that have seen none of their event's people for ``give_up_seconds``
+        (behind a building they cannot fly round) leave it and scout again; they do not take it again
+        for ``give_up_seconds`` more."""
+        prm = self.params
+        self.unseen_since[cams[seeing]] = np.nan
+        fresh = cams[~seeing & np.isnan(self.unseen_since[cams])]
+        self.unseen_since[fresh] = time
+        done = cams[~seeing & (time - self.unseen_since[cams] >= prm.give_up_seconds * self.fps - 1e-6)]
+        done = done[self.pinned[done] < 0]
+        if len(done) == 0:
+            return
+        self.refused[done], self.refused_until[done] = self.tracked[done], time + prm.give_up_seconds * self.fps
+        self.mode[done], self.tracked[done] = SCOUTING, -1
+        self.lift[done], self.seek[done], self.unseen_since[done] = 0.0, np.nan, np.nan
+
+    def _clear_heights(self, cam: int, people: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(HEIGHTS,) heights over camera ``cam``'s ground point, through its elevation range, and whether
+        from each scenery hides as few of ``people`` ((k, 3) ground positions; chest and head) as from
+        any. Under an awning a camera must stand below its underside; far from it, it may stand high and
+        look under its edge; behind tree crowns it looks under or over them."""
+        lo, hi = self.table.elevation[cam]
+        heights = np.linspace(max(lo, 0.3), max(lo, hi - 0.5), _HEIGHTS)
+        if len(self._prisms) == 0:
+            return heights, np.ones(_HEIGHTS, bool)
+        k = len(people)
+        eye = np.repeat(np.column_stack([np.tile(self.p[cam, :2], (_HEIGHTS, 1)), heights]), 2 * k, 0)
+        body = np.concatenate([people + [0.0, 0.0, CHEST_HEIGHT], people + [0.0, 0.0, HEAD_HEIGHT]])
+        hidden = self._prisms.blocks(eye, np.tile(body, (_HEIGHTS, 1))).reshape(_HEIGHTS, 2, k).all(axis=1)
+        clear = (~hidden).sum(axis=1)
+        return heights, clear == clear.max()
+
+    def _seek_point(self, cam: int, centre: np.ndarray) -> np.ndarray:
+        """(2,) the point at camera ``cam``'s present distance from its event's ``centre`` on the bearing it
+        seeks."""
+        r = max(float(np.linalg.norm(self.p[cam, :2] - centre)), 1.0)
+        return centre + r * np.array([np.cos(self.seek[cam]), np.sin(self.seek[cam])])
+
+    def _seek_sight(self, time: float, groups: list, moments: list) -> None:
+        """Beyond the paper: a tracking camera that sees under ``seek_below`` of its event's people, and
+        cannot crane over those in the way (an awning above, or its elevation range spent), walks round
+        the event to where it would see more.
+
+        Viewpoints at the camera's distance and height, on bearings ``seek_bearings`` away from its own,
+        aimed at the event, are checked as the camera checks itself (now and a moment ahead); the best
+        one, a turn of the bearing costing ``seek_turn_cost`` of the people seen per half turn, is sought
+        when it sees ``seek_gain`` more than where the camera stands. A camera stops seeking at the
+        bearing, when its view clears, or after ``seek_seconds``.
+        """
+        prm, t = self.params, self.table
+        for cam, _, _, centre in groups:
+            if not np.isfinite(self.seek[cam]):
+                continue
+            d = self.p[cam, :2] - centre
+            off = np.angle(np.exp(1j * (np.arctan2(d[1], d[0]) - self.seek[cam])))
+            if (abs(off) < np.radians(10.0) or self.seen_share[cam] >= 1.0 - 1e-9
+                    or time - self.seek_since[cam] > prm.seek_seconds * self.fps):
+                self.seek[cam] = np.nan
+        wanting = [g for g in groups if self.seen_share[g[0]] < prm.seek_below and not np.isfinite(self.seek[g[0]])]
+        if not wanting:
+            return
+        turns = np.radians(np.concatenate([[0.0], np.asarray(prm.seek_bearings, dtype=np.float64)]))
+        k_n = len(turns)
+        eyes, looks, owners, cand_pair, cand_row, view_of = [], [], [], [], [], []
+        n_pairs = 0
+        for g, (cam, rows, near, centre) in enumerate(wanting):
+            d = self.p[cam, :2] - centre
+            r = max(float(np.linalg.norm(d)), 1.0)
+            bearing = np.arctan2(d[1], d[0]) + turns
+            eye = np.column_stack([centre + r * np.column_stack([np.cos(bearing), np.sin(bearing)]),
+                                   np.full(k_n, self.p[cam, 2])])
+            look = np.append(centre, self.params.look_height)
+            for k in range(k_n):
+                eyes.append(np.repeat(eye[k:k + 1], len(rows), axis=0))
+                looks.append(np.repeat(look[None], len(rows), axis=0))
+                owners.append(rows)
+                pair = n_pairs + np.arange(len(rows))
+                cand_pair.append(np.repeat(pair, len(near)))
+                cand_row.append(np.tile(near, len(rows)))
+                view_of.append(np.full(len(rows), g * k_n + k))
+                n_pairs += len(rows)
+        eye, owner = np.concatenate(eyes), np.concatenate(owners)
+        fwd, right, up = axes(_level_towards(np.concatenate(looks) - eye))
+        cam_of = np.repeat([g[0] for g in wanting], [k_n * len(g[1]) for g in wanting])
+        candidates = (np.concatenate(cand_pair), np.concatenate(cand_row))
+        seen = np.ones(len(owner), bool)
+        for _, where in moments:
+            seen &= seen_points(eye, (right, up, fwd), self.tan_x[cam_of], self.tan_y[cam_of], t.near[cam_of],
+                                t.far[cam_of], where, owner, candidates, self._prisms)
+        view = np.concatenate(view_of)
+        share = (np.bincount(view, weights=seen, minlength=len(wanting) * k_n)
+                 / np.maximum(np.bincount(view, minlength=len(wanting) * k_n), 1)).reshape(len(wanting), k_n)
+        viewpoints = np.concatenate(eyes)[np.unique(view, return_index=True)[1]].reshape(len(wanting), k_n, 3)
+        usable = self._usable(viewpoints.reshape(-1, 3)).reshape(len(wanting), k_n)
+        score = np.where(usable, share - prm.seek_turn_cost * np.abs(turns) / np.pi, -np.inf)
+        best = np.argmax(score, axis=1)
+        for g, (cam, _, _, centre) in enumerate(wanting):
+            k = best[g]
+            if k == 0 or share[g, k] < share[g, 0] + prm.seek_gain:
+                continue
+            d = self.p[cam, :2] - centre
+            self.seek[cam] = np.arctan2(d[1], d[0]) + turns[k]
+            self.seek_since[cam] = time
+
+    def _usable(self, points: np.ndarray) -> np.ndarray:
+        """(k,) bool: camera positions (k, 3) inside the scene's bounds and not inside scenery."""
+        ok = np.ones(len(points), bool)
+        if self.bounds is not None:
+            margin = self.params.bounds_margin
+            ok &= ((points[:, :2] >= self.bounds[0] + margin) & (points[:, :2] <= self.bounds[1] - margin)).all(axis=1)
+        obs = self.obstacles
+        if obs.tree is not None:
+            for k, near in enumerate(obs.tree.query_ball_point(points[:, :2], r=float(obs.radius.max()))):
+                for o in near:
+                    if points[k, 2] <= obs.height[o] + self.params.obstacle_clearance and _push_out(
+                            obs.polygons[o], points[k, :2], self.params.obstacle_clearance) is not None:
+                        ok[k] = False
+        return ok
 
     def _forces(self, look, height, fwd, right, crowd_centre, crowd_radius) -> np.ndarray:
         """(c, 3) obstacle avoidance, crane, separation and containment (section 4.3), weighted."""
@@ -392,11 +579,13 @@ class CameraAgents:
         vmax = t.max_speed
         f_obs, blocking = forces.obstacle_avoidance(
             self.p, self.v, fwd, right, look, vmax, self.tan_x, self.obstacles.tree, self.obstacles.xyz,
-            self.obstacles.radius, prm.obstacle_range)
+            self.obstacles.radius, prm.obstacle_range, prm.obstacle_clearance)
         force = prm.w_obstacle * f_obs
         # Beyond Algorithm 3's sidestep: where the elevation range allows, crane up over what is in the way.
         over = blocking + prm.obstacle_clearance + 1.0
-        height = np.where((blocking > 0) & (over <= t.elevation[:, 1]), np.maximum(height, over), height)
+        # (Not for a tracking camera whose sight lines chose its height: they know what over is worth.)
+        chosen = (self.tracked >= 0) & ~self.clear_height.all(axis=1)
+        height = np.where((blocking > 0) & (over <= t.elevation[:, 1]) & ~chosen, np.maximum(height, over), height)
         force += prm.w_elevation * forces.elevation(self.p, self.v, height, vmax)
         self._tree = cKDTree(self.p)
         pairs = self._tree.query_pairs(float(t.separation_distance.max()), output_type="ndarray")
@@ -416,8 +605,15 @@ class CameraAgents:
         # (0.1 to 1000 m) would make every pair collide, so a shared view counts
         # from avoid_near to avoid_range. Pairs come from this step's camera kd-tree.
         pairs = self._tree.query_pairs(2.0 * prm.avoid_range, output_type="ndarray")
-        tau += prm.w_avoid * torques.avoidance(self.p, fwd, right, self.half_x, self.w, t.max_angular_speed,
-                                               pairs, prm.avoid_near, prm.avoid_range)
+        avoid = torques.avoidance(self.p, fwd, right, self.half_x, self.w, t.max_angular_speed, pairs,
+                                  prm.avoid_near, prm.avoid_range)
+        # Beyond the paper: a tracking camera pans away from another's view only while its event stays
+        # well inside its frame (its centre within half the half-angle of the axis); further, it would
+        # pan its event out of the picture.
+        to_look = look - self.p
+        off = np.arccos(np.clip(np.einsum("ij,ij->i", fwd, to_look)
+                                / np.maximum(np.linalg.norm(to_look, axis=1), 1e-9), -1.0, 1.0))
+        tau += prm.w_avoid * avoid * np.where(scouting | (off < 0.5 * self.half_x), 1.0, 0.0)[:, None]
         return tau
 
     def _head_back(self, cams: np.ndarray, centre: np.ndarray, radius: float, dt: float) -> None:
@@ -522,6 +718,14 @@ def _clamp_vertical_first(v: np.ndarray, limit: np.ndarray) -> np.ndarray:
     room = np.sqrt(np.maximum(limit ** 2 - out[:, 2] ** 2, 0.0))
     out[:, :2] = _clamp(v[:, :2], room)
     return out
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    """(c, k) ``v`` normalised; zero rows become the first axis."""
+    n = np.linalg.norm(v, axis=1, keepdims=True)
+    first = np.zeros_like(v)
+    first[:, 0] = 1.0
+    return np.where(n > 1e-9, v / np.maximum(n, 1e-12), first)
 
 
 def _clamp(v: np.ndarray, limit: np.ndarray) -> np.ndarray:

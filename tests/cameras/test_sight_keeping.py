@@ -1,0 +1,101 @@
+"""Tracking cameras keep their event in sight: they leave one they cannot see, frame the densest part of
+one spread too wide, and stand at a height from which scenery does not hide it."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from tests.cameras.test_cameras import FPS, GROUP, INTERACTION, make_event
+from usdcrowd.cameras.film import film
+from usdcrowd.cameras.params import CameraParams
+from usdcrowd.cameras.placement import generated_agents, take_agents
+from usdcrowd.cameras.tracking_quality import tracking_quality
+from usdcrowd.core import model
+from usdcrowd.core.view import look_at
+
+
+def _one_camera(eye, target, elevation):
+    cams = take_agents(generated_agents(1, np.zeros(3), 1.0), [0])
+    cams.cam_to_world[:] = look_at(np.array([eye], float), np.array([target], float))
+    cams.elevation[:] = elevation
+    return cams
+
+
+def _pair_walking_into_a_house():
+    """A pair walks +X at 1.5 m/s from x = 0 into a closed house (x 15-25) and stays in it; the house is
+    30 m tall, so no camera sees them once inside (from frame ~240)."""
+    t = 24 * 20
+    times = np.arange(1, t + 1, dtype=np.float64)
+    pos = np.zeros((t, 2, 3))
+    x = np.minimum(np.arange(t) * 1.5 / FPS, 20.0)
+    pos[:, 0, 0], pos[:, 1, 0] = x, x
+    pos[:, 0, 1], pos[:, 1, 1] = -0.5, 0.5
+    ev = make_event("/E/Pair", INTERACTION, pos, [0, 1], 0, t - 1, times)
+    house = model.Obstacles(["/House"], [np.array([[15.0, -5.0], [25.0, -5.0], [25.0, 5.0], [15.0, 5.0]])],
+                            np.array([30.0]))
+    return pos, times, model.EventTable([ev]), house
+
+
+def test_a_camera_leaves_an_event_it_has_not_seen_for_give_up_seconds():
+    pos, times, events, house = _pair_walking_into_a_house()
+    cams = _one_camera([0.0, -12.0, 2.0], [0.0, 0.0, 1.1], [1.5, 4.0])
+    prm = CameraParams()
+    tr = film(pos, times, FPS, cams, events, house, params=prm, seed=1)[0]
+    inside = int(np.argmax(pos[:, 0, 0] > 15.6))          # both hidden from here on (half a body in)
+    assert tr.tracked[inside - 1] == "/E/Pair"
+    gone = inside + int(np.argmax([not e for e in tr.tracked[inside:]]))
+    assert tr.tracked[gone] == "" and gone - inside <= (prm.give_up_seconds + 0.5) * FPS, (inside, gone)
+    # It does not take the hidden pair again (it would have to see them).
+    assert not any(tr.tracked[gone:]), [k for k in range(gone, len(times)) if tr.tracked[k]][:3]
+    # A camera that never gives up stays on the hidden pair to the end.
+    stubborn = film(pos, times, FPS, cams, events, house, params=CameraParams(give_up_seconds=1e9), seed=1)[0]
+    assert all(e == "/E/Pair" for e in stubborn.tracked[inside:])
+
+
+def _crowd_fleeing_in_every_direction():
+    """16 people walk straight out from a 2 m ring at 1.4 m/s for 20 s: the group's centre is empty ground."""
+    t = 24 * 20
+    times = np.arange(1, t + 1, dtype=np.float64)
+    # Eleven flee east and north-east, five west: the densest part is the eastern arc.
+    a = np.concatenate([np.linspace(-0.5, 0.8, 11), np.linspace(2.6, 3.6, 5)])
+    r = 2.0 + np.arange(t)[:, None] * 1.4 / FPS
+    pos = np.zeros((t, len(a), 3))
+    pos[..., 0], pos[..., 1] = r * np.cos(a), r * np.sin(a)
+    ev = make_event("/E/Flight", GROUP, pos, np.arange(len(a)), 0, t - 1, times)
+    return pos, times, model.EventTable([ev])
+
+
+def test_an_event_spread_wider_than_a_frame_is_framed_by_its_densest_part():
+    pos, times, events = _crowd_fleeing_in_every_direction()
+    cams = _one_camera([-20.0, -20.0, 4.0], [0.0, 0.0, 1.1], [1.5, 8.0])
+    tr = film(pos, times, FPS, cams, events, model.Obstacles.empty(), seed=2)[0]
+    q = tracking_quality([tr], pos, events, np.ones(pos.shape[1], bool), model.Obstacles.empty(), FPS)[0]
+    late = q.settled & (np.arange(len(times)) > 12 * FPS)        # the ring is then ~36 m across
+    assert late.sum() > 100
+    # Someone of the event is in the picture in every late frame, and the eastern arc mostly.
+    assert (q.share[late] > 0).all(), np.flatnonzero(late & (q.share == 0))[:5]
+    east = np.array([np.mean(pos[k, :11, 0]) for k in range(len(times))])
+    ahead = -tr.cam_to_world[late, 2, :2]
+    to_east = np.column_stack([east[late], np.mean(pos[late][:, :11, 1], axis=1)]) - tr.cam_to_world[late, 3, :2]
+    cos = np.einsum("ij,ij->i", ahead, to_east) / (np.linalg.norm(ahead, axis=1) * np.linalg.norm(to_east, axis=1))
+    assert np.median(cos) > np.cos(np.radians(20.0))
+
+
+def test_a_camera_looks_under_tree_crowns_between_it_and_its_event():
+    """Three tree crowns (2.4 m to 6 m up) stand in a row between a camera and a pair; the camera, free to
+    rise to 8 m, would look into them from above: it comes down to see under them (in at least 90 % of
+    the frames from 2 s on; while it flies under them and out, its height is still changing)."""
+    t = 24 * 12
+    times = np.arange(1, t + 1, dtype=np.float64)
+    pos = np.zeros((t, 2, 3))
+    pos[:, 0, :2], pos[:, 1, :2] = [-0.5, 0.0], [0.5, 0.0]
+    events = model.EventTable([make_event("/E/Talk", INTERACTION, pos, [0, 1], 0, t - 1, times)])
+    crowns = [np.array([[x - 2.0, -11.0], [x + 2.0, -11.0], [x + 2.0, -7.0], [x - 2.0, -7.0]]) for x in (-4, 0, 4)]
+    trees = model.Obstacles(["/T0", "/T1", "/T2"], crowns, np.full(3, 6.0), bottom=np.full(3, 2.4))
+    cams = _one_camera([0.0, -24.0, 7.0], [0.0, 0.0, 1.1], [1.5, 8.0])
+    cams.target[:] = ["/E/Talk"]
+    prm = CameraParams(crane_members=1, crane_gain=10.0)      # it would crane high above the pair
+    tr = film(pos, times, FPS, cams, events, model.Obstacles.empty(), params=prm, seed=3, overhead=trees)[0]
+    q = tracking_quality([tr], pos, events, np.ones(2, bool), model.Obstacles.empty(), FPS, overhead=trees)[0]
+    late = q.settled & (np.arange(t) > 2 * FPS)
+    assert np.mean(q.share[late] == 1.0) >= 0.9, np.flatnonzero(late & (q.share < 1))
