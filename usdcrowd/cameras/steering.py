@@ -346,27 +346,7 @@ class CameraAgents:
             force[tracking] += prm.w_framing * f
             height[tracking] = forces.crane_height(n_members, radius, t.elevation[tracking], prm.crane_members,
                                                    prm.crane_gain)
-            # Beyond the paper: a camera that sees under half its event's people (hidden by others or by
-            # scenery) cranes up, toward the top of its elevation range, to look over them.
-            hidden = np.maximum(np.clip(1.5 * (1.0 - self.seen_share[tracking]), 0.0, 1.0),
-                                0.75 * self.crowded[tracking])
-            # Up at once, down slowly: coming down the moment the view clears would lose it again.
-            self.lift[tracking] = np.maximum(hidden, self.lift[tracking] - dt / prm.lift_hold)
-            lo, hi = t.elevation[tracking, 0], t.elevation[tracking, 1]
-            top = np.maximum(lo, hi - 0.5)          # short of the ceiling: arriving, not stopped by it
-            height[tracking] = np.maximum(height[tracking], lo + self.lift[tracking] * (top - lo))
-            # No higher than lets it look at its event less steeply than ``steepest_deg`` (a camera right
-            # over its event cannot pan with people walking under it).
-            flat = np.linalg.norm(look[tracking, :2] - self.p[tracking, :2], axis=1)
-            steep = prm.look_height + np.maximum(flat, 1.0) * np.tan(np.radians(prm.steepest_deg))
-            height[tracking] = np.maximum(lo, np.minimum(height[tracking], steep))
-            # Where scenery hides the event from some heights (an awning over it, tree crowns or a roof in
-            # the way), the camera stands at the clear height nearest the one it wants, whatever the lift.
-            blocked = tracking[~self.clear_height[tracking].all(axis=1)]
-            if len(blocked):
-                gap = np.where(self.clear_height[blocked], np.abs(self.heights[blocked] - height[blocked, None]),
-                               np.inf)
-                height[blocked] = self.heights[blocked, np.argmin(gap, axis=1)]
+            height[tracking] = self._sight_height(tracking, look, height[tracking], dt)
         if len(scouting):
             self.wander[scouting] += self.rng.normal(0.0, prm.wander_jitter * np.sqrt(dt), len(scouting))
             self._head_back(scouting, crowd_centre, crowd_radius, dt)
@@ -379,6 +359,34 @@ class CameraAgents:
             look[scouting] = self.p[scouting] * [1.0, 1.0, 0.0] + prm.wander_look_distance * ahead + [
                 0.0, 0.0, prm.look_height]
         return look, height, force
+
+    def _sight_height(self, tracking: np.ndarray, look: np.ndarray, height: np.ndarray, dt: float) -> np.ndarray:
+        """(k,) the heights tracking cameras ``tracking`` stand at for sight, from the ``height`` (k,) their
+        framing wants: over people, under or past scenery, never too steep above their event."""
+        prm, t = self.params, self.table
+        # Beyond the paper: a camera that sees under half its event's people (hidden by others or by
+        # scenery) cranes up, toward the top of its elevation range, to look over them.
+        hidden = np.maximum(np.clip(1.5 * (1.0 - self.seen_share[tracking]), 0.0, 1.0),
+                            0.75 * self.crowded[tracking])
+        # Up at once, down slowly: coming down the moment the view clears would lose it again.
+        self.lift[tracking] = np.maximum(hidden, self.lift[tracking] - dt / prm.lift_hold)
+        lo, hi = t.elevation[tracking, 0], t.elevation[tracking, 1]
+        top = np.maximum(lo, hi - 0.5)          # short of the ceiling: arriving, not stopped by it
+        height = np.maximum(height, lo + self.lift[tracking] * (top - lo))
+        # No higher than lets it look at its event less steeply than ``steepest_deg`` (a camera right
+        # over its event cannot pan with people walking under it).
+        flat = np.linalg.norm(look[tracking, :2] - self.p[tracking, :2], axis=1)
+        steep = prm.look_height + np.maximum(flat, 1.0) * np.tan(np.radians(prm.steepest_deg))
+        height = np.maximum(lo, np.minimum(height, steep))
+        # Where scenery hides the event from some heights (an awning over it, tree crowns or a roof in
+        # the way), the camera stands at the clear height nearest the one it wants, whatever the lift.
+        rows = np.flatnonzero(~self.clear_height[tracking].all(axis=1))
+        blocked = tracking[rows]
+        if len(blocked):
+            gap = np.where(self.clear_height[blocked], np.abs(self.heights[blocked] - height[rows, None]),
+                           np.inf)
+            height[rows] = self.heights[blocked, np.argmin(gap, axis=1)]
+        return height
 
     def _measure_sight(self, time: float, positions: np.ndarray) -> None:
         """``seen_share``: for each tracking camera, the share of its event's (rendered) people it sees
