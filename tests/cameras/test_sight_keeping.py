@@ -99,3 +99,31 @@ def test_a_camera_looks_under_tree_crowns_between_it_and_its_event():
     q = tracking_quality([tr], pos, events, np.ones(2, bool), model.Obstacles.empty(), FPS, overhead=trees)[0]
     late = q.settled & (np.arange(t) > 2 * FPS)
     assert np.mean(q.share[late] == 1.0) >= 0.9, np.flatnonzero(late & (q.share < 1))
+
+
+def test_a_camera_told_to_film_an_event_faces_it_when_it_begins():
+    """A camera pinned to an event that begins at 5 s, 20 m behind it, has turned to where it begins by
+    then (without ``ready_seconds`` they are not yet in its picture)."""
+    t = 24 * 8
+    times = np.arange(1, t + 1, dtype=np.float64)
+    pos = np.zeros((t, 2, 3))
+    pos[:, 0, :2], pos[:, 1, :2] = [20.0, -0.5], [20.0, 0.5]
+    start = 5 * 24
+    events = model.EventTable([make_event("/E/Later", INTERACTION, pos, [0, 1], start, t - 1, times)])
+    cams = _one_camera([0.0, 0.0, 2.0], [-10.0, 0.0, 1.5], [1.5, 4.0])
+    cams.target[:] = ["/E/Later"]
+
+    def in_picture(track, k):
+        m = track.cam_to_world[k]
+        rel = (pos[k, :, :] + [0.0, 0.0, 1.1] - m[3, :3]) @ m[:3, :3].T      # along right, up, back
+        z = -rel[:, 2]
+        tx = 0.5 * track.horizontal_aperture / track.focal_length[k]
+        ty = 0.5 * track.vertical_aperture / track.focal_length[k]
+        return bool(((z > 0) & (np.abs(rel[:, 0]) <= tx * z) & (np.abs(rel[:, 1]) <= ty * z)).all())
+
+    ready = film(pos, times, FPS, cams, events, model.Obstacles.empty(), seed=4)[0]
+    assert ready.tracked[start - 1] == "" and ready.tracked[start] == "/E/Later"
+    assert in_picture(ready, start)
+    late = film(pos, times, FPS, cams, events, model.Obstacles.empty(), seed=4,
+                params=CameraParams(ready_seconds=0.0))[0]
+    assert not in_picture(late, start)

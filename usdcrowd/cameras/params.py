@@ -101,6 +101,8 @@ class CameraParams:
         A bearing is sought when it sees at least this share more of the event's people.
     seek_seconds : float
         Seconds a camera keeps seeking one bearing before it checks again.
+    ready_seconds : float
+        A camera with an authored target turns to where its event will begin this many seconds before.
     give_up_seconds : float
         A tracking camera that has seen none of its event's people this long leaves it (and does not take
         it again for as long).
@@ -153,5 +155,6 @@ class CameraParams:
     seek_gain: float = 0.25
     seek_seconds: float = 6.0
     give_up_seconds: float = 2.5
+    ready_seconds: float = 4.0
     contain_margin: float = 10.0
     min_track_seconds: float = 3.0

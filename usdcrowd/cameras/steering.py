@@ -358,6 +358,12 @@ class CameraAgents:
                                      np.zeros(len(scouting))])
             look[scouting] = self.p[scouting] * [1.0, 1.0, 0.0] + prm.wander_look_distance * ahead + [
                 0.0, 0.0, prm.look_height]
+            # A camera told to film an event (an authored target) turns to where it will begin in the
+            # last ``ready_seconds`` before it does: it is not still turning round when it starts.
+            for cam in scouting[self.pinned[scouting] >= 0]:
+                e = self.events[self.pinned[cam]]
+                if len(e.center) and e.start - prm.ready_seconds * self.fps <= time < e.start:
+                    look[cam] = e.center[0] + [0.0, 0.0, prm.look_height]
         return look, height, force
 
     def _sight_height(self, tracking: np.ndarray, look: np.ndarray, height: np.ndarray, dt: float) -> np.ndarray:
