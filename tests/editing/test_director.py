@@ -171,3 +171,27 @@ def test_the_planned_cut_is_the_best_of_every_allowed_cut():
     plan = _best_partition(cum, starts, allowed, cost, lo, hi)
     value = sum(cum[cm, b] - cum[cm, a] for cm, a, b in plan) - cost * (len(plan) - 1)
     assert value == pytest.approx(best_value) and plan == best_plan
+
+
+def test_screen_time_wears_an_event_out_and_the_cut_turns_to_another():
+    """Cameras 0 and 2 show a unique arrival, camera 1 a group walking past (one of three, so it matters
+    less) for 40 s: without fatigue the cut never leaves the arrival (0 and 2 take turns); with it, the
+    group gets on air once the arrival has had its time, and the arrival keeps most of it."""
+    t = int(40 * FPS)
+    share = np.zeros((3, 4, t))
+    share[0, 0], share[2, 0], share[1, 1] = 1.0, 1.0, 1.0
+    events = model.EventTable([_event("/E/Arrival", "arrival", 1, t, 4), _event("/E/Walk", "groupMotion", 1, t, 4, 4),
+                               _event("/E/Walk2", "groupMotion", 1, 2, 2, 8),
+                               _event("/E/Walk3", "groupMotion", 1, 2, 2, 10)])
+    fresh = EditParams(fatigue_seconds=0.0)
+    never = plan_cut(_coverage(share), events, FPS, fresh)
+    _check_holds(never, t, fresh)
+    assert set(never.camera.tolist()) == {0, 2}
+    worn = EditParams()
+    cut = plan_cut(_coverage(share), events, FPS, worn)
+    _check_holds(cut, t, worn)
+    on_walk = np.mean(cut.event == 1)
+    assert 0.1 <= on_walk < 0.5, on_walk
+    assert all(s.event == (1 if s.camera == 1 else 0) for s in cut.shots), cut.shots
+    # The importance it reports is the worn one: the arrival's falls as it is shown.
+    assert cut.importance[0, -1] < 0.5 * never.importance[0, -1]

@@ -39,6 +39,9 @@ def add_parser(sub):
     p.add_argument("--cut-cost", type=finite_float(0.0, 60.0, "seconds"), default=d.cut_cost, metavar="S",
                    help="a cut must gain at least this many seconds of the shot's mean coverage "
                         f"(default {d.cut_cost:g})")
+    p.add_argument("--fatigue", type=finite_float(0.0, 3600.0, "seconds"), default=d.fatigue_seconds, metavar="S",
+                   help="screen time wears an event out: at S seconds already on air it counts half (0: never; "
+                        f"default {d.fatigue_seconds:g})")
     p.add_argument("--no-video", dest="video", action="store_false",
                    help="no cut.mp4 and cut_sheet.png (they need the preview extra)")
     add_resolution(p)
@@ -66,7 +69,8 @@ def run(args) -> int:
     kinds, events = {}, {}
     for name, w in args.weight:
         (kinds if name in model.EVENT_KINDS else events)[name] = w
-    params = EditParams(min_hold=lo, max_hold=hi, cut_cost=args.cut_cost, kind_weights=kinds, event_weights=events)
+    params = EditParams(min_hold=lo, max_hold=hi, cut_cost=args.cut_cost, fatigue_seconds=args.fatigue,
+                        kind_weights=kinds, event_weights=events)
     shot = find_shot(args.shot)
     guard.edit_in_place(Path(shot).parent / CAMERAS)
     r = edit_shot(args.shot, args.output, cameras=args.cameras, params=params, video=args.video,

@@ -131,19 +131,19 @@ def plan_cut(cov: Coverage, events, fps: float, params: EditParams | None = None
     step = max(1, int(round(params.decision_step * fps)))
     starts = np.append(np.arange(0, t, step), t)
     k_blocks = len(starts) - 1
-    block = np.add.reduceat(value, starts[:-1], axis=1) if t else np.zeros((c, 0))
-    cum = np.concatenate([np.zeros((c, 1)), np.cumsum(block, axis=1)], axis=1)      # (c, K + 1)
     cost = params.cut_cost * fps * max(float(value.max(axis=0).mean()) if t else 0.0, 1e-6)
     allowed, refused = _allowed_cuts(cov, best, starts, params, fps)
     lo, hi = params.min_hold * fps, params.max_hold * fps
-    plan = _best_partition(cum, starts, allowed, cost, lo, hi)
+    plan = _best_partition(_cumulative(value, starts), starts, allowed, cost, lo, hi)
     held_long = False
     if plan is None:                            # no cut the cameras and rules allow: hold longer
-        plan = _best_partition(cum, starts, allowed, cost, min(lo, t), float(t))
+        plan = _best_partition(_cumulative(value, starts), starts, allowed, cost, min(lo, t), float(t))
         held_long = True
     if plan is None:                            # shorter than a shot: the best camera throughout
-        plan = [(int(np.argmax(cum[:, -1])), 0, k_blocks)]
+        plan = [(int(np.argmax(value.sum(axis=1))), 0, k_blocks)]
         held_long = False
+    elif not held_long and params.fatigue_seconds > 0 and len(events) > 1:
+        plan, imp, value, best = _worn_plan(cov, imp, params, fps, starts, plan, cost, lo, hi)
     shots = []
     on_air = np.zeros(t, np.int64)
     for cam, s, k in plan:
@@ -155,6 +155,48 @@ def plan_cut(cov: Coverage, events, fps: float, params: EditParams | None = None
         shots.append(Shot(cam, a, b, event, held_long and (b - a) > hi + 1e-9))
     event = best[on_air, np.arange(t)] if t else np.zeros(0, np.int64)
     return Cut(shots, on_air, event, value, best, imp, framing, refused)
+
+
+def _cumulative(value: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """(c, K + 1) each camera's worth summed over the blocks before each instant."""
+    c, t = value.shape
+    block = np.add.reduceat(value, starts[:-1], axis=1) if t else np.zeros((c, 0))
+    return np.concatenate([np.zeros((c, 1)), np.cumsum(block, axis=1)], axis=1)
+
+
+def _worn_plan(cov: Coverage, imp: np.ndarray, params: EditParams, fps: float, starts: np.ndarray, plan: list,
+               cost: float, lo: float, hi: float):
+    """The cut planned shot by shot with screen time wearing events out (``fatigue_seconds``).
+
+    An event's importance is divided by 1 + (seconds the cut has shown it) / fatigue_seconds. That is
+    not known before the cut is, so the director commits one shot at a time: it plans the rest of the
+    shot from there with the screen time of the shots committed so far (a receding horizon), keeping
+    the first shot of that plan. Returns the plan, the worn importance and the values it was planned on.
+    """
+    e, t = imp.shape
+    screen = np.zeros(e)                         # seconds on air so far, per event
+    worn = imp.copy()
+    out, s0, prev = [], 0, -1
+    k_blocks = len(starts) - 1
+    rest = plan
+    while s0 < k_blocks:
+        a = int(starts[s0])
+        worn[:, a:] = imp[:, a:] / (1.0 + screen[:, None] / params.fatigue_seconds)
+        value, best, _ = camera_values(cov, worn, params)
+        allowed, _ = _allowed_cuts(cov, best, starts, params, fps)
+        first = np.ones(len(value), bool) if prev < 0 else allowed[s0, prev]
+        cum = _cumulative(value, starts)[:, s0:]
+        new = _best_partition(cum - cum[:, :1], starts[s0:] - starts[s0], allowed[s0:], cost, lo, hi, first)
+        if new is not None:
+            rest = [(cam, s + s0, k + s0) for cam, s, k in new]
+        cam, s, k = rest[0]
+        out.append((cam, s, k))
+        b = int(starts[k])
+        ev = best[cam, a:b]
+        screen += np.bincount(ev[ev >= 0], minlength=e)[:e] / fps
+        rest, s0, prev = rest[1:], k, cam
+    value, best, _ = camera_values(cov, worn, params)
+    return out, worn, value, best
 
 
 def _allowed_cuts(cov: Coverage, best: np.ndarray, starts: np.ndarray, params: EditParams, fps: float):
@@ -199,12 +241,14 @@ def _first_event(events: np.ndarray) -> int:
     return int(found[0]) if len(found) else -1
 
 
-def _best_partition(cum: np.ndarray, starts: np.ndarray, allowed: np.ndarray, cost: float, lo: float, hi: float):
+def _best_partition(cum: np.ndarray, starts: np.ndarray, allowed: np.ndarray, cost: float, lo: float, hi: float,
+                    first: np.ndarray | None = None):
     """The best sequence of (camera, first block, end block) with every shot lo..hi frames long, or None.
 
     ``best[k, c]``: the most value of a cut of blocks [0, k) whose last shot
     is on camera c; a shot [s, k) on c adds ``cum[c, k] - cum[c, s]``, and a
-    cut into it from c' at s is allowed by ``allowed[s, c', c]`` and costs ``cost``.
+    cut into it from c' at s is allowed by ``allowed[s, c', c]`` and costs ``cost``; ``first`` (c,) bool,
+    if given, the cameras the first shot may be on (a cut from the shot before the plan).
     """
     c, k1 = cum.shape
     k_blocks = k1 - 1
@@ -217,7 +261,7 @@ def _best_partition(cum: np.ndarray, starts: np.ndarray, allowed: np.ndarray, co
         for s in np.flatnonzero((length >= lo - 1e-9) & (length <= hi + 1e-9)):
             gain = cum[:, k] - cum[:, s]
             if s == 0:
-                cand, prev = gain, np.full(c, -1)
+                cand, prev = (gain if first is None else np.where(first, gain, -np.inf)), np.full(c, -1)
             else:
                 trans = np.where(allowed[s], best[s][:, None], -np.inf)     # (c', c)
                 prev = np.argmax(trans, axis=0)

@@ -40,6 +40,9 @@ class EditParams:
     novelty_seconds : float
         An event's novelty halves toward its floor over about this long: new
         before long-running.
+    fatigue_seconds : float
+        Screen time wears an event out: its importance is divided by 1 + (seconds the cut has already
+        shown it) / this, so at this many seconds shown it counts half (0: never).
     kind_weights : dict[str, float]
         Importance by event kind (``arrival``, ``groupMotion``, ...; default 1).
     event_weights : dict[str, float]
@@ -59,6 +62,7 @@ class EditParams:
     min_line_speed: float = 0.3
     legible_height: float = 0.12
     novelty_seconds: float = 10.0
+    fatigue_seconds: float = 20.0
     kind_weights: dict = field(default_factory=dict)
     event_weights: dict = field(default_factory=dict)
     idle_weight: float = 0.1
