@@ -128,23 +128,6 @@ class Prisms:
             out[sm[hit]] = True
         return out
 
-    def cover(self, points: np.ndarray) -> np.ndarray:
-        """(m,) the lowest underside of the raised prisms (bottom > 0) over each ground point ((m, 2)),
-        inf where none is: a camera must stay below it to see under it."""
-        points = np.asarray(points, dtype=np.float64)
-        out = np.full(len(points), np.inf)
-        raised = np.flatnonzero(self.bottom > 0)
-        if len(raised) == 0 or len(points) == 0:
-            return out
-        a, b = self.a[raised], self.b[raised]                         # (r, k, 2)
-        e = b - a
-        rel = points[:, None, None] - a[None]                         # (m, r, k, 2)
-        cross = e[None, ..., 0] * rel[..., 1] - e[None, ..., 1] * rel[..., 0]
-        degenerate = (np.abs(e).sum(axis=-1) == 0)[None]
-        inside = ((cross >= 0) | degenerate).all(axis=2)              # (m, r), counter-clockwise
-        under = np.where(inside, self.bottom[raised][None], np.inf)
-        return under.min(axis=1)
-
     @property
     def box_lo(self) -> np.ndarray:
         return np.minimum(self.a.min(axis=1), self.b.min(axis=1))

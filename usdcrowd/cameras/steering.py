@@ -531,7 +531,7 @@ class CameraAgents:
             return
         turns = np.radians(np.concatenate([[0.0], np.asarray(prm.seek_bearings, dtype=np.float64)]))
         k_n = len(turns)
-        eyes, looks, owners, cand_pair, cand_row, view_of = [], [], [], [], [], []
+        eyes, looks, owners, cand_pair, cand_row, view_of, viewpoints = [], [], [], [], [], [], []
         n_pairs = 0
         for g, (cam, rows, near, centre) in enumerate(wanting):
             d = self.p[cam, :2] - centre
@@ -540,6 +540,7 @@ class CameraAgents:
             eye = np.column_stack([centre + r * np.column_stack([np.cos(bearing), np.sin(bearing)]),
                                    np.full(k_n, self.p[cam, 2])])
             look = np.append(centre, self.params.look_height)
+            viewpoints.append(eye)
             for k in range(k_n):
                 eyes.append(np.repeat(eye[k:k + 1], len(rows), axis=0))
                 looks.append(np.repeat(look[None], len(rows), axis=0))
@@ -560,8 +561,7 @@ class CameraAgents:
         view = np.concatenate(view_of)
         share = (np.bincount(view, weights=seen, minlength=len(wanting) * k_n)
                  / np.maximum(np.bincount(view, minlength=len(wanting) * k_n), 1)).reshape(len(wanting), k_n)
-        viewpoints = np.concatenate(eyes)[np.unique(view, return_index=True)[1]].reshape(len(wanting), k_n, 3)
-        usable = self._usable(viewpoints.reshape(-1, 3)).reshape(len(wanting), k_n)
+        usable = self._usable(np.concatenate(viewpoints)).reshape(len(wanting), k_n)
         score = np.where(usable, share - prm.seek_turn_cost * np.abs(turns) / np.pi, -np.inf)
         best = np.argmax(score, axis=1)
         for g, (cam, _, _, centre) in enumerate(wanting):

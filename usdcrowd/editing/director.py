@@ -195,7 +195,7 @@ def _worn_plan(cov: Coverage, imp: np.ndarray, params: EditParams, fps: float, s
         ev = best[cam, a:b]
         screen += np.bincount(ev[ev >= 0], minlength=e)[:e] / fps
         rest, s0, prev = rest[1:], k, cam
-    value, best, _ = camera_values(cov, worn, params)
+    # ``worn`` was last changed before the last pass: its values are that pass's.
     return out, worn, value, best
 
 
