@@ -143,7 +143,8 @@ def generality(record: dict) -> str:
                 if len(ha) < 120:
                     continue
                 char = character_features(ha, hb, ya, yb, FPS)
-                poses, _ = retarget_poses(model, model.gate(ref.character, ref.camera), char, ha, hb, FOV_X, ASPECT)
+                poses, _ = retarget_poses(model, model.gate(ref.character, ref.camera), char, ha, hb, FOV_X, ASPECT,
+                                          style=model.style(ref.character, ref.camera))
                 truth = behavior_track(ref.params, np.arange(1, len(ha) + 1.0), FPS, ha, hb, ya, yb, FOV_X,
                                        ASPECT).cam_to_world
                 d = compare(poses, truth, ha, hb, FOV_X, ASPECT)
