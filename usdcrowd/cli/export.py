@@ -1,4 +1,5 @@
-"""usdcrowd export SHOT [--flatten OUT.usdc] [--usdz OUT.usdz] [--gltf OUT.glb] [--frames SPEC]"""
+"""usdcrowd export SHOT [--flatten OUT.usdc] [--usdz OUT.usdz] [--gltf OUT.glb] [--trajectories OUT.txt|OUT.sqlite]
+[--frames SPEC]"""
 
 from __future__ import annotations
 
@@ -9,20 +10,27 @@ from .args import add_force, add_frames, add_progress
 # The outputs, the extensions each accepts, and what it is called in messages.
 OUTPUTS = {"flatten": ((".usdc", ".usda", ".usd"), "one USD layer"),
            "usdz": ((".usdz",), "a usdz package"),
-           "gltf": ((".glb",), "binary glTF")}
+           "gltf": ((".glb",), "binary glTF"),
+           "trajectories": ((".txt", ".sqlite"), "trajectories (PedPy's text or JuPedSim's SQLite)")}
 
 
 def add_parser(sub):
-    p = sub.add_parser("export", help="write a shot as one flattened USD layer, a usdz package or binary glTF",
+    p = sub.add_parser("export", help="write a shot as one flattened USD layer, a usdz package, binary glTF or "
+                                      "pedestrian trajectories",
                        description="Write a shot for other tools: --flatten composes it into one self-contained "
                                    "layer (value clips become time samples), --usdz packages that layer with the "
                                    "images it uses, --gltf writes binary glTF 2.0 (skinned characters, cameras, "
-                                   "scenery; Y up, metres). Give one or several.")
+                                   "scenery; Y up, metres), --trajectories writes where each person stands, frame "
+                                   "by frame, for PedPy (.txt, frame rate and unit in the header) or JuPedSim "
+                                   "(.sqlite, with the walkable area). Give one or several.")
     p.add_argument("shot", help="the shot stage (shot.usda from `usdcrowd simulate`)")
     out = p.add_argument_group("outputs (at least one)")
     out.add_argument("--flatten", metavar="OUT.usdc", help="one USD layer (.usdc, or .usda for text)")
     out.add_argument("--usdz", metavar="OUT.usdz", help="a usdz package of the flattened layer")
     out.add_argument("--gltf", metavar="OUT.glb", help="binary glTF 2.0 with the animation sampled at each frame")
+    out.add_argument("--trajectories", metavar="OUT.txt|OUT.sqlite",
+                     help="ground positions per frame: PedPy's text format (ID FR X Y Z, metres) or JuPedSim's "
+                          "trajectory database")
     add_frames(p)
     add_force(p)
     add_progress(p)
@@ -41,7 +49,8 @@ def check_outputs(args) -> dict[str, str]:
 
     named = {name: getattr(args, name) for name in OUTPUTS if getattr(args, name) is not None}
     if not named:
-        raise UsdcrowdError("name an output: --flatten OUT.usdc, --usdz OUT.usdz or --gltf OUT.glb", file=args.shot)
+        raise UsdcrowdError("name an output: --flatten OUT.usdc, --usdz OUT.usdz, --gltf OUT.glb or --trajectories "
+                            "OUT.txt|OUT.sqlite", file=args.shot)
     for name, path in named.items():
         suffixes, what = OUTPUTS[name]
         if os.path.splitext(path)[1].lower() not in suffixes:
@@ -72,6 +81,13 @@ def run(args) -> int:
         counts = _write_gltf(scene, times, named["gltf"], args.progress)
         print(f"wrote {named['gltf']}: {counts['crowd']} agent(s), {counts['cameras']} camera(s), "
               f"{counts['scenery']} scenery mesh(es), {frames}")
+    if "trajectories" in named:
+        from ..exchange.trajectories import read_trajectories, write_trajectories
+
+        traj = read_trajectories(scene, times, args.progress)
+        rows = write_trajectories(traj, named["trajectories"], os.path.basename(scene.path))
+        print(f"wrote {named['trajectories']}: {rows} position(s) of {len(traj.ids)} person(s), {frames}, "
+              f"{traj.fps:g} frames per second")
     return 0
 
 
