@@ -137,7 +137,7 @@ def run(gallery_png: Path | None = None) -> dict:
         heads, yaws = zip(*(head_and_facing(scene.agents(t, rows).joints_world) for t in range(1, FRAMES + 1)))
         heads, yaws = np.array(heads), np.array(yaws)
         char_cd = character_features(heads[:, 0], heads[:, 1], yaws[:, 0], yaws[:, 1], scene.fps)
-        truths, gates, styles = {}, {}, {}
+        truths, gates = {}, {}
         for case in CASES:
             est = read[str(clips[case])]
             if "refused" in est:
@@ -147,8 +147,6 @@ def run(gallery_png: Path | None = None) -> dict:
             unknown[:, 7:10] = model.w["char_mean"][7:10]
             gates[case] = (model.gate(np.array(est["character"]), np.array(est["camera"])),
                            model.gate(unknown, truths[case].camera_features))
-            styles[case] = (model.style(np.array(est["character"]), np.array(est["camera"])),
-                            model.style(unknown, truths[case].camera_features))
         for behavior, size in CASES:
             est = read[str(clips[behavior, size])]
             if "refused" in est:
@@ -162,8 +160,8 @@ def run(gallery_png: Path | None = None) -> dict:
                                                    for b in BEHAVIORS if b != behavior and (b, size) in gates))
             r["size"] = est["size"]
             poses = {}
-            for k, w, style in (("clip", g_clip, styles[behavior, size][0]), ("stage", g_stage, styles[behavior, size][1])):
-                poses[k], _ = retarget_poses(model, w, char_cd, heads[:, 0], heads[:, 1], FOV_X, ASPECT, style=style)
+            for k, w in (("clip", g_clip), ("stage", g_stage)):
+                poses[k], _ = retarget_poses(model, w, char_cd, heads[:, 0], heads[:, 1], FOV_X, ASPECT)
             d = compare(poses["clip"], poses["stage"], heads[:, 0], heads[:, 1], FOV_X, ASPECT)
             r.update({"camera_distance_ratio": float(np.median(d["distance_ratio"])),
                       "camera_theta_deg": float(np.median(d["theta_deg"])),

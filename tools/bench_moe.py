@@ -42,8 +42,7 @@ def run() -> dict:
     batch = rng.normal(size=(256, c.n_in))
     batched, _ = _rate(lambda: model.predict(layers, batch))
     gate, _ = _rate(lambda: model.gate(clip.character, clip.camera))
-    style = model.style(clip.character, clip.camera)
-    roll, _ = _rate(lambda: model.rollout(w, clip.character, clip.camera[0], style=style))
+    roll, _ = _rate(lambda: model.rollout(w, clip.character, clip.camera[0]))
     print(f"prediction, one at a time: {single:,.0f}/s ({single / TARGET_PER_S:.1f}x the {TARGET_PER_S:,.0f}/s "
           f"target; the paper: above 200 Hz)")
     print(f"prediction, batches of 256: {batched * 256:,.0f}/s")

@@ -20,6 +20,11 @@ recipes
     the shipped recipe against the paper's (its past window and Eq. 6
     loss over the same time spans), trained alike, on the same held-out
     clips.
+main
+    how often appendix B's main character M (the larger on screen over
+    the clip) is the controller's A, the character its behavior is built
+    round, on the held-out clips: why M orders the targets of a clip
+    reference but is no input of the network.
 experts
     the model trained with 4, 6, 9 and 12 experts (fewer epochs than the
     shipped model's, the same seed and data otherwise), each evaluated on
@@ -143,8 +148,7 @@ def generality(record: dict) -> str:
                 if len(ha) < 120:
                     continue
                 char = character_features(ha, hb, ya, yb, FPS)
-                poses, _ = retarget_poses(model, model.gate(ref.character, ref.camera), char, ha, hb, FOV_X, ASPECT,
-                                          style=model.style(ref.character, ref.camera))
+                poses, _ = retarget_poses(model, model.gate(ref.character, ref.camera), char, ha, hb, FOV_X, ASPECT)
                 truth = behavior_track(ref.params, np.arange(1, len(ha) + 1.0), FPS, ha, hb, ya, yb, FOV_X,
                                        ASPECT).cam_to_world
                 d = compare(poses, truth, ha, hb, FOV_X, ASPECT)
@@ -265,6 +269,27 @@ def recipes(record: dict) -> None:
     record["recipes"] = out
 
 
+def main_character(record: dict) -> None:
+    """Share of held-out clips whose larger character on screen (appendix B's M: the mean box, here the
+    inverse square of the camera's distance to each head, as a box scales) is B, per behavior."""
+    from usdcrowd.cameras.behaviors import BEHAVIORS
+    from usdcrowd.cameras.moe_data import refilm_track
+
+    clips = _clips(50)
+    out = {}
+    for b, name in enumerate(BEHAVIORS):
+        is_b = []
+        for clip in (c for c in clips if c.behavior == b):
+            eye = refilm_track(clip, clip.params).cam_to_world[:, 3, :3]
+            near_a, near_b = (np.mean(np.linalg.norm(eye - h, axis=1) ** -2) for h in (clip.heads_a, clip.heads_b))
+            is_b.append(near_b > near_a)
+        out[name.replace("-", "_")] = {"clips": len(is_b), "m_is_b": float(np.mean(is_b))}
+    out["all"] = {"clips": sum(v["clips"] for v in out.values()),
+                  "m_is_b": float(np.mean([v["m_is_b"] for v in out.values()]))}
+    record["main_character"] = out
+    print("main character M is B in " + ", ".join(f"{k} {v['m_is_b']:.0%}" for k, v in out.items()))
+
+
 def tables(figures: dict) -> dict:
     """The guide's tables: the experts swept, and generality per control variable."""
     out = {}
@@ -306,20 +331,20 @@ def tables(figures: dict) -> dict:
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("parts", nargs="*", help="gates, generality, experts, recipes (default: all four)")
+    p.add_argument("parts", nargs="*", help="gates, generality, main, experts, recipes (default: all five)")
     p.add_argument("--epochs", type=int, default=10, help="epochs per model of the experts sweep")
     p.add_argument("--record", action="store_true", help="record to docs/data/camera_moe_figures.json")
     a = p.parse_args(argv)
-    parts = a.parts or ["gates", "generality", "experts", "recipes"]
-    unknown = set(parts) - {"gates", "generality", "experts", "recipes"}
+    parts = a.parts or ["gates", "generality", "main", "experts", "recipes"]
+    unknown = set(parts) - {"gates", "generality", "main", "experts", "recipes"}
     if unknown:
         p.error(f"unknown parts: {', '.join(sorted(unknown))}")
     data_path = ROOT / "docs" / "data" / "camera_moe_figures.json"
     figures = json.loads(data_path.read_text())["figures"] if data_path.exists() else {}
     images = []
     for part in parts:
-        if part == "recipes":
-            recipes(figures)
+        if part in ("recipes", "main"):
+            {"recipes": recipes, "main": main_character}[part](figures)
             continue
         images.append({"gates": lambda: gates(figures), "generality": lambda: generality(figures),
                        "experts": lambda: experts(figures, a.epochs)}[part]())

@@ -36,11 +36,6 @@ def _sizes(n_char: int, n_cam: int) -> None:
     N_CHAR, N_CAM = int(n_char), int(n_cam)
 
 
-def n_inputs(cfg: dict) -> int:
-    """The prediction network's inputs: past camera, character window, and the reference's style summary."""
-    return cfg["past"] * N_CAM + (cfg["char_past"] + cfg["char_future"]) * N_CHAR + cfg.get("style", 0)
-
-
 def absolute(pred: torch.Tensor, base: torch.Tensor, cfg: dict) -> torch.Tensor:
     """(b, out * n_cam) predicted features; a residual model's are changes from ``base`` (b, n_cam)."""
     return pred + base.repeat(1, cfg["out"]) if cfg.get("residual") else pred
@@ -86,7 +81,8 @@ class MoE(nn.Module):
     def __init__(self, cfg: dict):
         super().__init__()
         self.gate = Gate(cfg["gate_hidden"], cfg["experts"])
-        self.experts = Experts(cfg["experts"], n_inputs(cfg), cfg["hidden"], cfg["out"] * N_CAM)
+        n_in = cfg["past"] * N_CAM + (cfg["char_past"] + cfg["char_future"]) * N_CHAR
+        self.experts = Experts(cfg["experts"], n_in, cfg["hidden"], cfg["out"] * N_CAM)
 
     def forward(self, gate_x, x):
         w = self.gate(gate_x)
@@ -104,8 +100,9 @@ class SharedBottom(nn.Module):
 
     def __init__(self, cfg: dict):
         super().__init__()
+        n_in = cfg["past"] * N_CAM + (cfg["char_past"] + cfg["char_future"]) * N_CHAR
         h = cfg["hidden"]
-        self.net = nn.Sequential(nn.Linear(n_inputs(cfg), 2 * h), nn.ELU(), nn.Linear(2 * h, h), nn.ELU(),
+        self.net = nn.Sequential(nn.Linear(n_in, 2 * h), nn.ELU(), nn.Linear(2 * h, h), nn.ELU(),
                                  nn.Linear(h, cfg["out"] * N_CAM))
 
     def forward(self, gate_x, x):
@@ -132,10 +129,6 @@ class Windows:
         paired = "ref_character" in data
         self.ref_char = (data["ref_character"] - stats["char_mean"]) / stats["char_std"] if paired else None
         self.ref_cam = (data["ref_camera"] - stats["cam_mean"]) / stats["cam_std"] if paired else None
-        # The style summary of each clip and of its paired reference (config "style" values, else none).
-        styled = cfg.get("style", 0) > 0
-        self.style = (data["style"] - stats["style_mean"]) / stats["style_std"] if styled else None
-        self.ref_style = (data["ref_style"] - stats["style_mean"]) / stats["style_std"] if styled and paired else None
         self.labels = data["behavior"]
         c, t, _ = self.char.shape
         lo = (cfg["past"] - 1) * cfg["step"]
@@ -147,8 +140,6 @@ class Windows:
         return len(self.index)
 
     def gate_inputs(self, clips, random=True):
-        """(b, gate_len, n_char + n_cam) reference windows and (b, style) their style summaries: the clip's own,
-        or with probability config "pair" its paired reference's."""
         cfg = self.cfg
         t = self.char.shape[1]
         span = (cfg["gate_len"] - 1) * cfg["gate_step"]
@@ -158,13 +149,10 @@ class Windows:
             start = np.full(len(clips), (t - 1 - span) // 2)
         idx = start[:, None] + np.arange(cfg["gate_len"]) * cfg["gate_step"]
         own = np.concatenate([self.char[clips[:, None], idx], self.cam[clips[:, None], idx]], axis=-1)
-        own_style = self.style[clips] if self.style is not None else np.zeros((len(clips), 0))
         if not random or self.ref_char is None or not cfg.get("pair", 0.0):
-            return own, own_style
+            return own
         paired = np.concatenate([self.ref_char[clips[:, None], idx], self.ref_cam[clips[:, None], idx]], axis=-1)
-        use = self.rng.random(len(clips)) < cfg["pair"]
-        style = np.where(use[:, None], self.ref_style[clips], own_style) if self.ref_style is not None else own_style
-        return np.where(use[:, None, None], paired, own), style
+        return np.where((self.rng.random(len(clips)) < cfg["pair"])[:, None, None], paired, own)
 
     def batch(self, rows, random_gate=True):
         """An evaluation batch: the true past camera (training's batches are :meth:`unrolled`)."""
@@ -176,12 +164,10 @@ class Windows:
                            0, t - 1)
         past = self.cam[clips[:, None], past_idx]
         base = past[:, -1].copy()       # the last sample: a residual model predicts the change from it
-        gate_x, style = self.gate_inputs(clips, random_gate)
-        x = np.concatenate([past.reshape(len(rows), -1), self.char[clips[:, None], char_idx].reshape(len(rows), -1),
-                            style], 1)
+        x = np.concatenate([past.reshape(len(rows), -1), self.char[clips[:, None], char_idx].reshape(len(rows), -1)], 1)
         out_idx = np.clip(frames[:, None] + np.arange(1, cfg["out"] + 1) * cfg["step"], 0, t - 1)
         y = self.cam[clips[:, None], out_idx].reshape(len(rows), -1)
-        return (torch.tensor(gate_x, dtype=torch.float32),
+        return (torch.tensor(self.gate_inputs(clips, random_gate), dtype=torch.float32),
                 torch.tensor(x, dtype=torch.float32), torch.tensor(y, dtype=torch.float32),
                 torch.tensor(base, dtype=torch.float32))
 
@@ -204,28 +190,24 @@ class Windows:
         # Some see no past camera at all (config "blind"): the framing must come from the gate and the
         # characters, as in a roll-out that starts blind (`usdcrowd frame --like`).
         past[self.rng.random(len(rows)) < cfg.get("blind", 0.0)] = 0.0
-        gate_x, style = self.gate_inputs(clips)
         chars, ys = [], []
         for r in range(steps):
             at = frames + r * cfg["out"] * cfg["step"]
             char_idx = np.clip(at[:, None] + np.arange(-(cfg["char_past"] - 1), cfg["char_future"] + 1) * cfg["step"],
                                0, t - 1)
-            chars.append(np.concatenate([self.char[clips[:, None], char_idx].reshape(len(rows), -1), style], 1))
+            chars.append(self.char[clips[:, None], char_idx].reshape(len(rows), -1))
             out_idx = np.clip(at[:, None] + np.arange(1, cfg["out"] + 1) * cfg["step"], 0, t - 1)
             ys.append(self.cam[clips[:, None], out_idx].reshape(len(rows), -1))
         f32 = lambda a: torch.tensor(np.asarray(a), dtype=torch.float32)  # noqa: E731
-        return (f32(gate_x), f32(past.reshape(len(rows), -1)), f32(chars), f32(ys),
+        return (f32(self.gate_inputs(clips)), f32(past.reshape(len(rows), -1)), f32(chars), f32(ys),
                 f32(past[:, -1]))
 
 
 def _stats(data) -> dict:
     """Normalisation, and the range of camera features the training spans (a roll-out stays inside it)."""
     char, cam = data["character"].reshape(-1, N_CHAR), data["camera"].reshape(-1, N_CAM)
-    out = {"char_mean": char.mean(0), "char_std": char.std(0) + 1e-6, "cam_mean": cam.mean(0),
-           "cam_std": cam.std(0) + 1e-6, "cam_lo": cam.min(0), "cam_hi": cam.max(0)}
-    if "style" in data:
-        out.update({"style_mean": data["style"].mean(0), "style_std": data["style"].std(0) + 1e-6})
-    return out
+    return {"char_mean": char.mean(0), "char_std": char.std(0) + 1e-6, "cam_mean": cam.mean(0),
+            "cam_std": cam.std(0) + 1e-6, "cam_lo": cam.min(0), "cam_hi": cam.max(0)}
 
 
 def sample_weights(cfg: dict) -> torch.Tensor:
@@ -260,7 +242,7 @@ def _errors(model, windows: Windows, stats, batch=2048):
 def _gate_outputs(model, windows: Windows):
     clips = np.arange(windows.char.shape[0])
     with torch.no_grad():
-        return model.gate(torch.tensor(windows.gate_inputs(clips, random=False)[0], dtype=torch.float32)).numpy()
+        return model.gate(torch.tensor(windows.gate_inputs(clips, random=False), dtype=torch.float32)).numpy()
 
 
 def train(data_path: str, out_dir: str, epochs: int, seed: int, batch: int = 256, lr: float = 2e-3) -> None:
@@ -273,8 +255,7 @@ def train(data_path: str, out_dir: str, epochs: int, seed: int, batch: int = 256
     cfg = json.loads(str(data["config"]))
     _sizes(data["character"].shape[-1], data["camera"].shape[-1])
     split = data["test"]                                # 1 for test clips
-    keys = [k for k in ("character", "camera", "behavior", "ref_character", "ref_camera", "style", "ref_style")
-            if k in data.files]
+    keys = [k for k in ("character", "camera", "behavior", "ref_character", "ref_camera") if k in data.files]
     train_d = {k: data[k][split == 0] for k in keys}
     test_d = {k: data[k][split == 1] for k in keys}
     train_d["config"] = test_d["config"] = data["config"]
@@ -383,7 +364,7 @@ def time_sizes(config: str, samples: int, batches: int = 3, batch: int = 256, se
     torch.manual_seed(seed)
     model = MoE(cfg)
     opt = torch.optim.Adam(model.parameters(), lr=1e-3)
-    n_in = n_inputs(cfg)
+    n_in = cfg["past"] * N_CAM + (cfg["char_past"] + cfg["char_future"]) * N_CHAR
     g = torch.randn(batch, cfg["gate_len"], N_CHAR + N_CAM)
     x, y = torch.randn(batch, n_in), torch.randn(batch, cfg["out"] * N_CAM)
     times = []

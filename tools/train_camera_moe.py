@@ -43,7 +43,7 @@ sys.path.insert(0, str(ROOT))
 TORCH_PACKAGES = ["torch==2.13.0", "numpy", "scikit-learn"]
 CONFIG = {"step": 2, "past": 4, "char_past": 12, "char_future": 12, "out": 6, "gate_step": 4, "gate_len": 60,
           "experts": 9, "hidden": 128, "gate_hidden": 32, "noise": 0.3, "blind": 0.2, "residual": True,
-          "pair": 0.8, "gate_lr": 10.0, "style": 5}
+          "pair": 0.8, "gate_lr": 10.0}
 
 
 # The paper's recipe (section 5.2, appendix A) at its own frame rate (60 fps, every frame): 60 past and 120
@@ -70,7 +70,7 @@ def torch_python() -> str:
 
 
 def make_dataset(path: Path, per_behavior: int, seed: int, frames: int = 480):
-    from usdcrowd.cameras.moe import N_STYLE, U, reference_style
+    from usdcrowd.cameras.moe import U
     from usdcrowd.cameras.moe_data import held_out_clips, make_clips
 
     train = make_clips(seed, per_behavior, frames)
@@ -79,15 +79,9 @@ def make_dataset(path: Path, per_behavior: int, seed: int, frames: int = 480):
     rng = np.random.default_rng(seed + 2000)
     ref_char, ref_cam = (sum(pair, []) for pair in zip(paired_references(train, rng), paired_references(test, rng)))
     f32 = lambda a: np.asarray(a, dtype=np.float32)  # noqa: E731
-    styles = {}
-    if CONFIG.get("style"):
-        assert CONFIG["style"] == N_STYLE, f"the style summary has {N_STYLE} values"
-        styles = {"style": f32([reference_style(c.character, c.camera) for c in clips]),
-                  "ref_style": f32([reference_style(ch, cm) for ch, cm in zip(ref_char, ref_cam)])}
     # The torch side reads where the direction's columns are (its error in degrees) from the data.
     np.savez(path, config=json.dumps({**CONFIG, "u": [U.start, U.stop]}),
-             character=f32([c.character for c in clips]), camera=f32([c.camera for c in clips]),
-             ref_character=f32(ref_char), ref_camera=f32(ref_cam), **styles,
+             character=f32([c.character for c in clips]), camera=f32([c.camera for c in clips]), ref_character=f32(ref_char), ref_camera=f32(ref_cam),
              behavior=np.array([c.behavior for c in clips]), test=np.array([0] * len(train) + [1] * len(test)))
     return train, test
 
@@ -125,8 +119,7 @@ def retarget_errors(weights: Path, test) -> list[dict]:
     for k, ref in enumerate(test):
         w = model.gate(ref.character, ref.camera)
         target = next(c for c in test[k + 1:] + test[:k] if c.motion != ref.motion)
-        poses, _ = retarget_poses(model, w, target.character, target.heads_a, target.heads_b, FOV_X, ASPECT,
-                                  style=model.style(ref.character, ref.camera))
+        poses, _ = retarget_poses(model, w, target.character, target.heads_a, target.heads_b, FOV_X, ASPECT)
         truth = refilm_track(target, ref.params).cam_to_world
         d = compare(poses, truth, target.heads_a, target.heads_b, FOV_X, ASPECT)
         ratio = d["distance_ratio"]

@@ -103,8 +103,7 @@ def test_the_gate_carries_the_behavior_a_clip_shows(moe):
         err = []
         for ref in (clip, orbit):
             poses, _ = retarget_poses(moe, moe.gate(ref.character, ref.camera), clip.character, clip.heads_a,
-                                      clip.heads_b, FOV_X, ASPECT, start_cam=clip.camera[0],
-                                      style=moe.style(ref.character, ref.camera))
+                                      clip.heads_b, FOV_X, ASPECT, start_cam=clip.camera[0])
             err.append(compare(poses, truth, clip.heads_a, clip.heads_b, FOV_X, ASPECT)["theta_deg"].mean())
         assert err[0] < (25 if b == 1 else 10) and err[0] < 0.5 * err[1], (BEHAVIORS[b], err)
 
@@ -120,8 +119,7 @@ def test_a_learned_orbit_keeps_turning_round_the_pair(moe):
     ratios = []
     for kind in ("talking", "side-by-side", "in-line", "circling", "walk-then-talk"):
         clip = make_clip(rng, BEHAVIORS.index("orbit"), frames=480, kind=kind)
-        out = moe.rollout(moe.gate(clip.character, clip.camera), clip.character, None, settle=SETTLE_FRAMES,
-                          style=moe.style(clip.character, clip.camera))
+        out = moe.rollout(moe.gate(clip.character, clip.camera), clip.character, None, settle=SETTLE_FRAMES)
         assert turn(clip.camera) > 200
         ratios.append(turn(out) / turn(clip.camera))
     assert 0.67 < np.median(ratios) < 1.5 and all(0.25 < r < 4 for r in ratios), ratios
@@ -148,8 +146,7 @@ def test_a_tracks_style_carries_onto_a_pair_doing_something_else(moe):
             orbit = make_clip(rng, BEHAVIORS.index("orbit"), frames=480, kind=kind)
             truth = refilm(target, ref.params)
             for clip, out in ((ref, errs), (orbit, errs_orbit)):
-                cam = moe.rollout(moe.gate(clip.character, clip.camera), target.character, None,
-                                  settle=SETTLE_FRAMES, style=moe.style(clip.character, clip.camera))
+                cam = moe.rollout(moe.gate(clip.character, clip.camera), target.character, None, settle=SETTLE_FRAMES)
                 out.append(np.degrees(np.abs(camera_angles(cam)[0] - camera_angles(truth)[0])).mean())
         typical = np.median(errs) if name == "relative-track" else np.mean(errs)
         assert typical < limit and np.mean(errs) < 0.4 * np.mean(errs_orbit), (name, errs, errs_orbit)
@@ -167,8 +164,7 @@ def test_a_roll_out_stays_a_camera_however_it_is_retargeted(moe):
         ref = test[k]
         other = next(c for c in test[k + 1:] + test[:k] if c.motion != ref.motion)
         for start, settle in ((ref.camera[0], 0), (None, SETTLE_FRAMES)):
-            out = moe.rollout(moe.gate(ref.character, ref.camera), other.character, start, settle=settle,
-                              style=moe.style(ref.character, ref.camera))
+            out = moe.rollout(moe.gate(ref.character, ref.camera), other.character, start, settle=settle)
             assert out.shape == (len(other.character), N_CAMERA) and np.isfinite(out).all()
             lo, hi = (moe.w[k] + d for k, d in (("cam_lo", -1e-6), ("cam_hi", 1e-6)))
             keep = np.ones(N_CAMERA, dtype=bool)       # all but the direction, normalised after
@@ -303,7 +299,7 @@ def test_retargeted_cameras_keep_the_controllers_distance_on_held_out_clips(moe)
     for k, ref in enumerate(test):
         target = next(c for c in test[k + 1:] + test[:k] if c.motion != ref.motion)
         poses, _ = retarget_poses(moe, moe.gate(ref.character, ref.camera), target.character, target.heads_a,
-                                  target.heads_b, FOV_X, ASPECT, style=moe.style(ref.character, ref.camera))
+                                  target.heads_b, FOV_X, ASPECT)
         d = compare(poses, refilm_track(target, ref.params).cam_to_world, target.heads_a, target.heads_b, FOV_X,
                     ASPECT)
         by.setdefault(BEHAVIORS[ref.behavior], []).append(d)

@@ -199,8 +199,7 @@ def test_an_orbit_read_from_its_clip_turns_a_new_pair_as_the_stage_does(filmed_d
     truth = _truth(shot, "orbit", est["camera"])
     stage_char = truth.character.copy()
     stage_char[:, 7:10] = model.w["char_mean"][7:10]
-    poses = [retarget_poses(model, model.gate(c, m), char, heads[:, 0], heads[:, 1], FOV_X, ASPECT,
-                            style=model.style(c, m))[0]
+    poses = [retarget_poses(model, model.gate(c, m), char, heads[:, 0], heads[:, 1], FOV_X, ASPECT)[0]
              for c, m in ((est["character"], est["camera"]), (stage_char, truth.camera_features))]
     d = compare(poses[0], poses[1], heads[:, 0], heads[:, 1], FOV_X, ASPECT)
     assert np.sign(d["turn_deg"]) == np.sign(d["truth_turn_deg"]) and abs(d["truth_turn_deg"]) > 45, d["turn_deg"]

@@ -57,8 +57,6 @@ import numpy as np
 
 N_CHARACTER = 10
 N_CAMERA = 8
-N_STYLE = 5         # the reference's style summary (:func:`reference_style`)
-MOVING = 0.3        # m/s: a pair slower than this has no direction of travel a camera could hold to
 U = slice(4, 7)     # the camera features' direction from A
 SPAN = 7            # and their log span
 WEIGHTS = Path(__file__).with_name("camera_moe.npz")
@@ -112,44 +110,6 @@ def camera_features(p_a, p_b, theta, phi, span) -> np.ndarray:
     half, phi = 0.5 * np.asarray(theta, dtype=np.float64), np.asarray(phi, dtype=np.float64)
     return np.column_stack([p_a, p_b, np.cos(half), np.sin(half) * np.cos(phi), np.sin(half) * np.sin(phi),
                             np.log(np.asarray(span, dtype=np.float64))])
-
-
-def reference_style(char: np.ndarray, cam: np.ndarray, fps: float = 24.0) -> np.ndarray:
-    """(5,) float: what a reference clip's camera holds to, summed up over the whole clip.
-
-    The gate reads the style from a window of the clip as a mix of experts,
-    and a mix is coarse where a behavior is one number: an orbit's speed,
-    a relative track's angle from A's shoulders. Read from the same
-    features, and given to the prediction network beside the mix:
-
-    0. the camera's turn about the pair in the world, rad/s (the mean over
-       the clip; a median undercounts the quick passes over the line AB):
-       the camera's azimuth from A in the pair's frame, turned by the
-       pair's own turn (character feature 9);
-    1-2. cos and sin of its azimuth from A's facing (sA), averaged as unit
-       vectors: near one length when the camera keeps that angle;
-    3-4. the same from the pair's direction of travel, over the frames the
-       pair moves faster than MOVING (shorter as it stands still more).
-
-    Parameters
-    ----------
-    char : (t, 10) float
-        The reference's character features (:func:`character_features`).
-    cam : (t, 8) float
-        Its camera features (:func:`camera_features`).
-    fps : float
-        Frames per second of the features.
-    """
-    char, cam = np.asarray(char, dtype=np.float64), np.asarray(cam, dtype=np.float64)
-    u = cam[:, U]
-    azimuth = np.unwrap(np.arctan2(u[:, 1], u[:, 0]))
-    spin = (np.gradient(azimuth) * fps if len(azimuth) > 1 else np.zeros_like(azimuth)) + char[:, 9]
-    from_facing = azimuth - np.arctan2(char[:, 1], char[:, 2])
-    speed = np.hypot(char[:, 7], char[:, 8])
-    from_travel = azimuth - np.arctan2(char[:, 8], char[:, 7])
-    moving = (speed > MOVING).astype(np.float64)
-    return np.array([spin.mean(), np.cos(from_facing).mean(), np.sin(from_facing).mean(),
-                     (moving * np.cos(from_travel)).mean(), (moving * np.sin(from_travel)).mean()])
 
 
 def frame_span(eye, head, fov_x, aspect: float) -> np.ndarray:
@@ -267,11 +227,10 @@ class Config:
     residual: bool = False  # the network predicts the camera's change from its last sample
     u: tuple = (4, 7)     # training: the camera features' direction columns (its error in degrees)
     eta: float = 1.0      # training: weight of the predicted samples after the first (the paper's Eq. 6: 0.1)
-    style: int = 0        # the reference's style summary given to the prediction network (N_STYLE, or none)
 
     @property
     def n_in(self) -> int:
-        return self.past * N_CAMERA + (self.char_past + self.char_future) * N_CHARACTER + self.style
+        return self.past * N_CAMERA + (self.char_past + self.char_future) * N_CHARACTER
 
 
 class CameraMoE:
@@ -283,8 +242,7 @@ class CameraMoE:
     (m, H), ``bias`` (m,); ``experts.w1`` (m, n_in, h), ``b1`` (m, h),
     ``w2`` (m, h, h), ``b2``, ``w3`` (m, h, out * 8), ``b3``; and the
     normalisation ``char_mean``, ``char_std`` (10,), ``cam_mean``, ``cam_std``,
-    ``cam_lo``, ``cam_hi`` (8,), and with a style summary ``style_mean``,
-    ``style_std`` (5,).
+    ``cam_lo``, ``cam_hi`` (8,).
     """
 
     def __init__(self, path: str | Path = WEIGHTS):
@@ -337,13 +295,6 @@ class CameraMoE:
             hi = np.minimum(hi, (self.w["cam_hi"] - self.w["cam_mean"]) / self.w["cam_std"])
         return lo, hi
 
-    def style(self, char: np.ndarray, cam: np.ndarray, fps: float = 24.0) -> np.ndarray:
-        """(style,) normalised style summary of a reference clip (:func:`reference_style`); empty for a model
-        trained without one."""
-        if not self.config.style:
-            return np.zeros(0)
-        return (reference_style(char, cam, fps) - self.w["style_mean"]) / self.w["style_std"]
-
     # -------------------------------------------------------------- prediction
     def blend(self, weights: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
         """The prediction network's three layers for one expert mix: [(W (in, out), b (out,)), ...]."""
@@ -365,19 +316,18 @@ class CameraMoE:
                 out = _elu(out)
         return out
 
-    def inputs(self, char_n: np.ndarray, past_n: np.ndarray, frame: int, style_n: np.ndarray = ()) -> np.ndarray:
-        """(n_in,) prediction input at ``frame``: normalised character features around it, camera before it,
-        and the reference's normalised style summary (:meth:`style`).
+    def inputs(self, char_n: np.ndarray, past_n: np.ndarray, frame: int) -> np.ndarray:
+        """(n_in,) prediction input at ``frame``: normalised character features around it, camera before it.
 
         ``char_n`` is (t, 10) normalised, ``past_n`` (past, 8) normalised camera samples ending at ``frame``.
         """
         c = self.config
         idx = frame + np.arange(-(c.char_past - 1), c.char_future + 1) * c.step
         window = char_n[np.clip(idx, 0, len(char_n) - 1)]
-        return np.concatenate([past_n.ravel(), window.ravel(), np.asarray(style_n, dtype=np.float64)])
+        return np.concatenate([past_n.ravel(), window.ravel()])
 
     def rollout(self, weights: np.ndarray, char: np.ndarray, start_cam: np.ndarray | None,
-                settle: int = 0, style: np.ndarray | None = None) -> np.ndarray:
+                settle: int = 0) -> np.ndarray:
         """(t, 8) camera features filming characters ``char`` (t, 10) in the style of ``weights``.
 
         Parameters
@@ -396,9 +346,6 @@ class CameraMoE:
             Frames rolled out before the first, on the first frame's character
             features repeated, so that the shot begins on a framing the network
             has made and mended (a blind start's first sample is no camera).
-        style : (style,) float or None
-            The reference's style summary (:meth:`style`), for a model trained
-            with one.
 
         The network predicts ``out`` samples (``out * step`` frames) at a
         time, which become the past of the next prediction; frames between
@@ -407,9 +354,6 @@ class CameraMoE:
         the network says how it moves (an orbit's turn).
         """
         c = self.config
-        if c.style and (style is None or len(style) != c.style):
-            raise ValueError(f"this camera model reads the reference's style summary ({c.style} values)")
-        style = np.zeros(0) if style is None else np.asarray(style, dtype=np.float64)
         layers = self.blend(weights)
         char = np.asarray(char, dtype=np.float64)
         char = np.concatenate([np.repeat(char[:1], settle, axis=0), char]) if settle > 0 else char
@@ -423,7 +367,7 @@ class CameraMoE:
         samples = [cam_n] * c.past
         frame, t = 0, len(char_n)
         while frame < t - 1:
-            x = self.inputs(char_n, np.array(samples[-c.past:]), frame, style)
+            x = self.inputs(char_n, np.array(samples[-c.past:]), frame)
             # Fed back, a prediction must stay within what the network has seen, or a roll-out can diverge.
             pred = self.predict(layers, x[None])[0].reshape(c.out, N_CAMERA)
             samples.extend(np.clip(pred + samples[-1] if c.residual else pred, lo, hi))

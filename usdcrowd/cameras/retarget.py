@@ -21,18 +21,16 @@ SETTLE_FRAMES = 48         # a blind start, rolled out before the shot begins (2
 _UP = np.array([0.0, 0.0, 1.0])
 
 
-def retarget_features(model, weights: np.ndarray, char: np.ndarray, start_cam: np.ndarray | None = None,
-                      style: np.ndarray | None = None) -> np.ndarray:
+def retarget_features(model, weights: np.ndarray, char: np.ndarray, start_cam: np.ndarray | None = None) -> np.ndarray:
     """(t, 8) camera features filming a pair (character features ``char``, (t, 10)) in the style of ``weights``
-    ((m,), :meth:`CameraMoE.gate` of the reference) and ``style`` (:meth:`CameraMoE.style` of the reference, for
-    a model that reads one); ``start_cam`` ((8,) or None): features to start from, None (what the command does)
-    starting blind, settled over :data:`SETTLE_FRAMES` frames (a model trained without blind samples needs a
-    start)."""
-    return model.rollout(weights, char, start_cam, settle=SETTLE_FRAMES if start_cam is None else 0, style=style)
+    ((m,), :meth:`CameraMoE.gate` of the reference); ``start_cam`` ((8,) or None): features to start from, None
+    (what the command does) starting blind, settled over :data:`SETTLE_FRAMES` frames (a model trained without
+    blind samples needs a start)."""
+    return model.rollout(weights, char, start_cam, settle=SETTLE_FRAMES if start_cam is None else 0)
 
 
 def retarget_poses(model, weights: np.ndarray, char: np.ndarray, heads_a, heads_b, fov_x: float, aspect: float,
-                   start_cam: np.ndarray | None = None, style: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                   start_cam: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Cameras filming A and B in the style of ``weights``: :func:`retarget_features` built into cameras.
 
     Parameters
@@ -46,8 +44,6 @@ def retarget_poses(model, weights: np.ndarray, char: np.ndarray, heads_a, heads_
     fov_x, aspect : float
         The new camera's lens (radians) and frame (width / height).
     start_cam : (8,) float or None
-    style : (style,) float or None
-        The reference's style summary (:meth:`CameraMoE.style`).
 
     Returns
     -------
@@ -58,7 +54,7 @@ def retarget_poses(model, weights: np.ndarray, char: np.ndarray, heads_a, heads_
     """
     from .moe import poses_of_features
 
-    cam = retarget_features(model, weights, char, start_cam, style)
+    cam = retarget_features(model, weights, char, start_cam)
     return poses_of_features(cam, heads_a, heads_b, fov_x, aspect), cam
 
 

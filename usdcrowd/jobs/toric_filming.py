@@ -466,7 +466,6 @@ class Reference:
     character: np.ndarray      # (t, 10)
     camera_features: np.ndarray  # (t, 8)
     shot_size: str
-    fps: float = 24.0          # of the features (a clip's are resampled to the model's)
 
 
 def read_reference(shot_path, camera: str | None = None, targets: tuple[str, str] | None = None,
@@ -529,8 +528,7 @@ def read_reference(shot_path, camera: str | None = None, targets: tuple[str, str
     size = first.toric["shot_size"] if first.toric and first.toric["shot_size"] else _shot_size_of(
         heads[:, 0], np.array([scene.camera(first.path, t).cam_to_world for t in times[:: max(1, len(times) // 24)]]),
         times, fov_x, aspect)
-    return Reference(scene.path, first.path, scene.agent_paths[rows[0]], scene.agent_paths[rows[1]], char, cam, size,
-                     float(scene.fps))
+    return Reference(scene.path, first.path, scene.agent_paths[rows[0]], scene.agent_paths[rows[1]], char, cam, size)
 
 
 def read_clip_reference(path, focal_length: float = FOCAL_LENGTH, fps: float | None = None, progress: bool = False,
@@ -656,13 +654,12 @@ def frame_like(shot_path, reference: Reference | list[tuple[Reference, float]], 
     timeline = reference if isinstance(reference, list) else [(reference, times[0])]
     reference = timeline[0][0]
     gates = [model.gate(r.character, r.camera_features) for r, _ in timeline]
-    styles = [model.style(r.character, r.camera_features, r.fps) for r, _ in timeline]
     char = character_features(signals.heads_a, signals.heads_b, signals.yaw_a, signals.yaw_b, scene.fps)
     fov_x = 2.0 * np.arctan(0.5 * APERTURE / focal_length)
     # A model trained with blind samples frames the new pair itself; the reference's first framing is
     # another pair's (an older model starts from it).
-    cams = [retarget_features(model, g, char, None if model.config.blind > 0 else r.camera_features[0], style)
-            for g, style, (r, _) in zip(gates, styles, timeline)]
+    cams = [retarget_features(model, g, char, None if model.config.blind > 0 else r.camera_features[0])
+            for g, (r, _) in zip(gates, timeline)]
     cam = cams[0] if len(cams) == 1 else blend_features(
         cams, switch_weights([f for _, f in timeline], times, scene.fps, STYLE_TRANSITION))
     eye = eyes_of_features(cam, signals.heads_a, signals.heads_b, fov_x, aspect)
