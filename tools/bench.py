@@ -11,6 +11,7 @@
     python tools/bench.py dataset         # usdcrowd dataset: 640x360 ground-truth frames/hour, 1 -> 2 Ray workers
     python tools/bench.py memory          # simulate's peak memory, 300 agents x 750 and 6,000 frames
     python tools/bench.py memory --long   # and 10,000 agents x 10,000 frames (about 30 min)
+    python tools/bench.py realism         # corridors and bottlenecks against Weidmann and the Jülich flows, and JuPedSim
 
 Each measured run happens in a child process so that its peak memory is its own.
 Targets (2-core machine): author 10,000 x 300 in <= 20 s and <= 4 GiB; 100
@@ -131,6 +132,10 @@ def figures_of(section: str, found) -> tuple[dict, dict | None, list | None]:
         image = bench_cameras.sweep_plot(found, ROOT / "docs" / "images" / "cameras_sweep.png")
         return (_section_figures(section, found), {"sweep": bench_cameras.sweep_table(found)},
                 [os.path.relpath(image, ROOT)])
+    if section == "realism":
+        import bench_realism
+
+        return found, None, [os.path.relpath(bench_realism.IMAGE, ROOT)]
     return _section_figures(section, found), None, None
 
 
@@ -228,7 +233,7 @@ def render_figures(found: dict) -> tuple[dict, dict, list]:
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("section", nargs="?", default="all", choices=["all", "author", "sim", "cameras", "moe", "preview", "render",
-                                                                 "dataset", "memory"])
+                                                                 "dataset", "memory", "realism"])
     p.add_argument("--agents", type=int, default=10_000)
     p.add_argument("--frames", type=int, default=300)
     p.add_argument("--sizes", default="1000,10000,100000", help="agent counts of the sim section")
@@ -242,7 +247,7 @@ def main(argv=None) -> int:
         found["author"] = bench_author(args.agents, args.frames)
     if args.section in ("all", "sim"):
         found["sim"] = bench_section("sim", sizes=tuple(int(s) for s in args.sizes.split(",")))
-    for name in ("cameras", "moe", "preview", "render", "dataset"):
+    for name in ("cameras", "moe", "preview", "render", "dataset", "realism"):
         if args.section in ("all", name):
             found[name] = bench_section(name)
     if args.section in ("all", "memory"):
