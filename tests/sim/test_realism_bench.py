@@ -1,0 +1,50 @@
+"""The yardsticks of `tools/bench.py realism`: the reference curve, the flow, the scenes' starts, the overspeed."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tests.helpers.tools import load_tool
+
+
+@pytest.fixture(scope="module")
+def realism():
+    return load_tool("bench_realism")
+
+
+def test_weidmanns_curve_has_its_published_free_speed_and_jam_density(realism):
+    """1.34 m/s nearly free, about 1.06 at one person per square metre, none at the jam density 5.4."""
+    assert realism.weidmann(0.05) == pytest.approx(1.34, abs=1e-3)
+    assert realism.weidmann(1.0) == pytest.approx(1.06, abs=0.01)
+    assert realism.weidmann(5.4) == pytest.approx(0.0, abs=1e-9)
+    v = realism.weidmann(np.linspace(0.2, 5.4, 50))
+    assert (np.diff(v) < 0).all()
+
+
+def test_specific_flow_counts_the_steady_passages_per_metre(realism):
+    """Two people a second through a 1.25 m line, after a slow start and before a slow end: 1.6 per m per s."""
+    fps = realism.FPS
+    steady = np.arange(0, 40 * fps, fps / 2)                   # every half second
+    crossings = np.concatenate([[0.0, 30.0], steady + 60.0, steady[-1] + 60.0 + [200.0, 400.0]])
+    assert realism.specific_flow(crossings, 1.25) == pytest.approx(2.0 / 1.25, rel=0.05)
+
+
+def test_starts_never_overlap_and_too_many_are_refused(realism):
+    rng = np.random.default_rng(0)
+    xy = realism._fill(rng, 320, 1.0, 30.0, 0.3, 3.7)
+    d = np.linalg.norm(xy[:, None] - xy[None], axis=-1) + np.eye(len(xy)) * 9
+    assert d.min() >= 2.1 * 0.25 - 1e-9 and len(xy) == 320
+    assert (xy[:, 0] > 1.0).all() and (xy[:, 0] < 30.0).all() and (xy[:, 1] > 0.3).all() and (xy[:, 1] < 3.7).all()
+    with pytest.raises(ValueError, match="do not fit"):
+        realism._fill(rng, 1000, 0.0, 10.0, 0.0, 4.0)
+
+
+def test_overspeed_is_one_at_the_free_speed_and_sees_a_jump(realism):
+    fps = realism.FPS
+    t = np.arange(64) / fps
+    speed = np.array([1.0, 1.5])
+    xy = np.stack([np.column_stack([t * s, np.zeros_like(t)]) for s in speed], axis=1)
+    assert realism.overspeed(xy, speed) == pytest.approx(1.0)
+    xy[40:, 0, 0] += 3.0                                        # a 3 m jump in one frame
+    assert realism.overspeed(xy, speed) > 3.0
