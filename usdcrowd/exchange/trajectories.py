@@ -117,7 +117,7 @@ def walkable_area(scene) -> str | None:
     without a scenario)."""
     import shapely
 
-    from ..jobs.toric_filming import shot_scenario
+    from ..scenario import shot_scenario
 
     scenario = shot_scenario(scene)
     if scenario is None:

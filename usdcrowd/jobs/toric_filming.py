@@ -327,18 +327,10 @@ def _blend_angle(a: np.ndarray, b: np.ndarray, w: np.ndarray) -> np.ndarray:
     return np.arctan2((1 - w) * np.sin(a) + w * np.sin(b), (1 - w) * np.cos(a) + w * np.cos(b))
 
 
-def shot_scenario(scene):
-    """The scenario a shot refers to (None if it names none)."""
-    from ..scenario import load_scenario
-
-    ref = dict(scene.stage.GetRootLayer().customLayerData.get("usdcrowd", {})).get("scenario")
-    if not ref:
-        return None
-    return load_scenario(os.path.join(os.path.dirname(os.path.abspath(scene.path)), ref))
-
-
 def shot_obstacles(scene):
     """The scenery footprints of the scenario a shot refers to (none if it names no scenario)."""
+    from ..scenario import shot_scenario
+
     scenario = shot_scenario(scene)
     return None if scenario is None else scenario.obstacles
 

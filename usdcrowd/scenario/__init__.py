@@ -7,8 +7,8 @@ turns a shot's crowd layer back into frames.
 
 from .crowd import CrowdInfo, read_crowd
 from .events import read_camera_agents, read_events
-from .read import load_scenario, stored_seed
+from .read import load_scenario, shot_scenario, stored_seed
 from .stageio import StageFrame, open_stage, stage_frame, time_range
 
 __all__ = ["CrowdInfo", "StageFrame", "load_scenario", "open_stage", "read_camera_agents", "read_crowd",
-           "read_events", "stage_frame", "stored_seed", "time_range"]
+           "read_events", "shot_scenario", "stage_frame", "stored_seed", "time_range"]

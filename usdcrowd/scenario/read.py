@@ -246,6 +246,15 @@ def load_scenario(path: str | os.PathLike, seed: int | None = None, stage=None,
     return _read(_Reader(stage or open_stage(source), source, limits), seed)
 
 
+def shot_scenario(scene) -> model.Scenario | None:
+    """The scenario a shot (a :class:`usdcrowd.scenario.shot_scene.ShotScene`: its stage and path) refers to,
+    None if it names none."""
+    ref = dict(scene.stage.GetRootLayer().customLayerData.get("usdcrowd", {})).get("scenario")
+    if not ref:
+        return None
+    return load_scenario(os.path.join(os.path.dirname(os.path.abspath(scene.path)), ref))
+
+
 def scenario_errors(path: str | os.PathLike, stage=None, limits: Limits = DEFAULT_LIMITS) -> list[UsdcrowdError]:
     """Every problem :func:`load_scenario` would raise the first of (the first of each prim), in stage order."""
     source = os.fspath(path)
