@@ -85,7 +85,9 @@ def _check_targets(rows):
 
 def test_harbour_tracking_cameras_are_rarely_blank_whatever_the_seed(simulated_harbour):
     """Five runs of 4 camera agents on the harbour (seeds 0-4 of their wandering): in the median run no
-    settled tracking frame shows none of the event's people, and in none more than 2 %."""
+    settled tracking frame shows none of the event's people, and in none more than 4 %. (Measured on two
+    crowds: the worst run 2 % before walkers' overlap pushes were held to their speed limit, 3.1 % after,
+    one second of ScoutWest behind shoppers hiding an interaction; the other four runs 0.)"""
     from usdcrowd.cameras.overview import crowd_summary
     from usdcrowd.jobs.filming import load_shot
     from usdcrowd.jobs.pipeline import film_cameras
@@ -100,7 +102,7 @@ def test_harbour_tracking_cameras_are_rarely_blank_whatever_the_seed(simulated_h
         quality = tracking_quality([t for t in tracks if t.state is not None], sc.positions, sc.events, visible,
                                    sc.scenario.obstacles, FPS, overhead=sc.scenario.overhead)
         blank.append(pooled(quality)["blank"])
-    assert np.median(blank) == 0.0 and max(blank) <= 0.02, blank
+    assert np.median(blank) == 0.0 and max(blank) <= 0.04, blank
 
 
 def test_harbour_tracking_cameras_frame_their_event_after_two_seconds(harbour_metrics):

@@ -201,6 +201,11 @@ class Simulation:
         self.movable = (~invisible).astype(np.float32)
         # Bodies that start on top of each other are set apart now, not flung apart by the first steps.
         separate_spawns(self.nl, self.grid, self.pos, self.radius, self.movable)
+        # Inside the bounds from the first frame (the steps clip to them; a start pushed out would jump back).
+        r = self.radius[:n]
+        np.clip(self.pos[0, :n], self.lo[0] + r, self.hi[0] - r, out=self.pos[0, :n])
+        np.clip(self.pos[1, :n], self.lo[1] + r, self.hi[1] - r, out=self.pos[1, :n])
+        project_out_of_walls(self.grid, self.pos, self.radius)
         self.groups = Groups(a, scenario.groups, self.pos)
         self.isolated = self.groups.isolated
         self.mates = None
@@ -463,8 +468,12 @@ class Simulation:
         clip_norm(v_i, vmax)
         integrated = pos[:, :n].copy()
 
-        # Hard constraints.
+        # Hard constraints. Overlap corrections move no one faster than it may move: a pile of bodies
+        # (clones spawned where they do not fit) spreads over frames instead of flinging them apart.
         resolve_overlaps(pos, idx, self.radius, self.movable * alive)
+        moved = pos[:, :n] - old[:, :n]
+        clip_norm(moved, vmax * dt)
+        pos[:, :n] = old[:, :n] + moved
         project_out_of_walls(self.grid, pos, self.radius)
         r = self.radius[:n]
         np.clip(pos[0, :n], self.lo[0] + r, self.hi[0] - r, out=pos[0, :n])
