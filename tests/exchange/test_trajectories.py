@@ -2,7 +2,7 @@
 
 PedPy (the JuPedSim team's analysis library, in its own venv) reads the
 text file with no extra arguments and JuPedSim's SQLite file; JuPedSim's own
-``Recording`` reads the database. Positions are checked against the hips'
+``Recording`` (in its own venv too) reads the database. Positions are checked against the hips'
 joint as plain usd-core composes it (UsdSkel, no usdcrowd imported).
 """
 
@@ -21,6 +21,7 @@ from usdcrowd.cli import main
 from tests.helpers.venvs import tool_python
 
 PEDPY = ["pedpy==1.5.1"]
+JUPEDSIM = ["jupedsim==1.4.2"]
 SAMPLES = (1, 2, 40, 119)          # time codes the positions are checked at
 
 
@@ -118,27 +119,30 @@ def test_pedpy_reads_the_exported_paths_where_the_skeletons_stand(simulated_harb
 
 
 def test_the_database_carries_the_walkable_area_jupedsim_reads(simulated_harbour, exported_harbour):
-    """JuPedSim's own Recording opens the database: its frame rate, frame count, people per frame and the
-    walkable area (the scenario's bounds less the scenery's footprints) are those of the shot."""
-    jupedsim = pytest.importorskip("jupedsim")
+    """JuPedSim's own Recording (in its own venv) opens the database: its frame rate, frame count, people per
+    frame and the walkable area (the scenario's bounds less the scenery's footprints) are those of the shot."""
     import shapely
 
     from usdcrowd.jobs.toric_filming import shot_obstacles
     from usdcrowd.scenario.shot_scene import ShotScene
 
-    rec = jupedsim.Recording(str(exported_harbour / "harbour.sqlite"))
-    assert rec.fps == 12.0 and rec.num_frames == 60
+    python = tool_python("jupedsim", JUPEDSIM, "USDCROWD_JUPEDSIM_VENV")
+    rec = _run(python, f"""
+        import json
+        import jupedsim
+        rec = jupedsim.Recording({str(exported_harbour / "harbour.sqlite")!r})
+        print(json.dumps({{"fps": rec.fps, "frames": rec.num_frames, "wkt": rec.geometry().wkt,
+                          "positions": [list(a.position) for a in rec.frame(20).agents]}}))
+    """)
+    assert rec["fps"] == 12.0 and rec["frames"] == 60
     scene = ShotScene(simulated_harbour / "shot.usda")
-    visible = scene.agents(41).visible.sum()
-    assert len(rec.frame(20).agents) == visible
-    area = rec.geometry()
+    assert len(rec["positions"]) == scene.agents(41).visible.sum()
+    area = shapely.from_wkt(rec["wkt"])
     obstacles = shot_obstacles(scene)
     assert len(obstacles) > 0
     for poly in obstacles.polygons:            # every footprint's centre is outside the walkable area
-        centre = poly.mean(axis=0)
-        assert not area.contains(shapely.Point(*centre)), centre
-    positions = np.array([a.position for a in rec.frame(20).agents])
-    inside = [area.buffer(0.5).contains(shapely.Point(*p)) for p in positions]
+        assert not area.contains(shapely.Point(*poly.mean(axis=0))), poly.mean(axis=0)
+    inside = [area.buffer(0.5).contains(shapely.Point(*p)) for p in rec["positions"]]
     assert np.mean(inside) > 0.99
 
 
