@@ -134,10 +134,11 @@ def plan_cut(cov: Coverage, events, fps: float, params: EditParams | None = None
     cost = params.cut_cost * fps * max(float(value.max(axis=0).mean()) if t else 0.0, 1e-6)
     allowed, refused = _allowed_cuts(cov, best, starts, params, fps)
     lo, hi = params.min_hold * fps, params.max_hold * fps
-    plan = _best_partition(_cumulative(value, starts), starts, allowed, cost, lo, hi)
+    cum = _cumulative(value, starts)
+    plan = _best_partition(cum, starts, allowed, cost, lo, hi)
     held_long = False
     if plan is None:                            # no cut the cameras and rules allow: hold longer
-        plan = _best_partition(_cumulative(value, starts), starts, allowed, cost, min(lo, t), float(t))
+        plan = _best_partition(cum, starts, allowed, cost, min(lo, t), float(t))
         held_long = True
     if plan is None:                            # shorter than a shot: the best camera throughout
         plan = [(int(np.argmax(value.sum(axis=1))), 0, k_blocks)]

@@ -202,9 +202,7 @@ class Simulation:
         # Bodies that start on top of each other are set apart now, not flung apart by the first steps.
         separate_spawns(self.nl, self.grid, self.pos, self.radius, self.movable)
         # Inside the bounds from the first frame (the steps clip to them; a start pushed out would jump back).
-        r = self.radius[:n]
-        np.clip(self.pos[0, :n], self.lo[0] + r, self.hi[0] - r, out=self.pos[0, :n])
-        np.clip(self.pos[1, :n], self.lo[1] + r, self.hi[1] - r, out=self.pos[1, :n])
+        self._clip_to_bounds(self.pos)
         project_out_of_walls(self.grid, self.pos, self.radius)
         self.groups = Groups(a, scenario.groups, self.pos)
         self.isolated = self.groups.isolated
@@ -475,9 +473,7 @@ class Simulation:
         clip_norm(moved, vmax * dt)
         pos[:, :n] = old[:, :n] + moved
         project_out_of_walls(self.grid, pos, self.radius)
-        r = self.radius[:n]
-        np.clip(pos[0, :n], self.lo[0] + r, self.hi[0] - r, out=pos[0, :n])
-        np.clip(pos[1, :n], self.lo[1] + r, self.hi[1] - r, out=pos[1, :n])
+        self._clip_to_bounds(pos)
         enforce_slope(self.terrain, old, pos, vel, self.walkers, self.max_slope)
         # Constraint displacements count as velocity (position-based dynamics),
         # so agents stop pushing into what stopped them.
@@ -491,6 +487,12 @@ class Simulation:
         self.look = it.look
         self.time += self.dt
         self.steps += 1
+
+    def _clip_to_bounds(self, pos: np.ndarray) -> None:
+        """Keep every body ((2, n + 1) positions, in place) inside the walkable bounds."""
+        n, r = self.n, self.radius[:self.n]
+        np.clip(pos[0, :n], self.lo[0] + r, self.hi[0] - r, out=pos[0, :n])
+        np.clip(pos[1, :n], self.lo[1] + r, self.hi[1] - r, out=pos[1, :n])
 
     def _occlude_mates(self):
         """Drop group-mates hidden behind walls (agents near obstacles only)."""
