@@ -17,7 +17,8 @@ from usdcrowd.core.resources import data_dir
 
 # Strong, distinct colours an agent is dressed in by the stage that wraps the shot.
 MARKED = {"top": (0.8, 0.05, 0.05), "trousers": (0.05, 0.05, 0.8), "skin": (0.5, 0.35, 0.25),
-          "hair": (0.05, 0.6, 0.05), "shoes": (0.8, 0.8, 0.05)}
+          "hair": (0.05, 0.6, 0.05), "shoes": (0.8, 0.8, 0.05), "eye_whites": (0.05, 0.6, 0.6),
+          "face": (0.6, 0.05, 0.6)}
 MARKED_AGENT = "/World/Crowd/Pair/A"
 FRAME = 5.0
 
@@ -138,7 +139,11 @@ def test_plain_usd_sees_each_vertex_in_its_regions_colour_and_material(dialogue_
         knee = np.argmin(np.abs(points[:, 2] - 0.5) + 10 * (np.abs(points[:, 1]) > 0.2) + 10 * (points[:, 2] > 0.8))
         chest = np.argmax(np.where(np.abs(points[:, 2] - 1.3) < 0.05, points[:, 0], -np.inf))   # torso front: top
         nose = np.argmax(np.where(points[:, 2] > 1.5, points[:, 0], -np.inf))   # the nose: skin
-        for vertex, region in ((crown, "hair"), (toe, "shoes"), (knee, "trousers"), (chest, "top"), (nose, "skin")):
+        # Front-most at a left eye's place (3 cm above the nose's tip, 3.3 cm aside): the face's dark row.
+        at_eye = (np.abs(points[:, 2] - (points[nose, 2] + 0.03)) < 0.01) & (np.abs(points[:, 1] - 0.033) < 0.01)
+        eye = np.argmax(np.where(at_eye, points[:, 0], -np.inf))
+        for vertex, region in ((crown, "hair"), (toe, "shoes"), (knee, "trousers"), (chest, "top"), (nose, "skin"),
+                               (eye, "face")):
             k = REGIONS.index(region)
             assert np.allclose(colors[vertex], palettes[row, k], atol=1e-6), (path, region)
             face = next(i for i, f in enumerate(body["faces"]) if vertex in f and
@@ -195,7 +200,7 @@ def test_final_frames_wear_the_palette_and_keep_the_ground_truth(dialogue_shot, 
     table = np.array([MARKED[k] for k in REGIONS])
     dist = np.linalg.norm(albedo[:, None] - table[None], axis=-1)
     nearest, how_far = np.argmin(dist, 1), dist.min(1)
-    # Most pixels are exactly one of the five colours (the rest straddle a hairline or a seam).
+    # Most pixels are exactly one of the marked colours (the rest straddle a hairline or a seam).
     assert (how_far < 0.02).mean() > 0.8
     share = np.bincount(nearest[how_far < 0.02], minlength=len(REGIONS)) / mine.sum()
     for region in ("top", "trousers", "skin", "hair"):
@@ -231,6 +236,40 @@ def test_the_preview_wears_the_palette_too(dialogue_shot, tmp_path):
     assert red.mean() > 0.15 and blue.mean() > 0.1 and green.mean() > 0.01, (red.mean(), blue.mean(), green.mean())
     rows = np.nonzero(mine)[0]
     assert rows[green].mean() < rows[red].mean() < rows[blue].mean()
+
+
+def test_the_preview_draws_the_eyes_and_mouth_in_their_rows(dialogue_shot, tmp_path):
+    """A close-up of agent A's face from in front of its head: the eyes' whites and the irises and mouth
+    wear their own palette rows (the last two: the shader's second weight pair and its remainder)."""
+    pytest.importorskip("moderngl")
+    from dataclasses import replace
+
+    from usdcrowd.core.errors import UsdcrowdError
+    from usdcrowd.core.view import look_at
+    from usdcrowd.render.preview import LodSettings, PreviewRenderer
+    from usdcrowd.scenario.shot_scene import ShotScene
+
+    scene = ShotScene(_marked_stage(dialogue_shot, tmp_path))
+    row = scene.agent_row(MARKED_AGENT)
+    joints = scene.agents(FRAME).joints_world[row]
+    head = joints[2, 3, :3] + 0.125 * joints[2, 2, :3]            # up the head joint's +Z to the face
+    eye = head + 0.45 * joints[2, 0, :3] / np.linalg.norm(joints[2, 0, :3])   # in front, along its +X
+    try:
+        r = PreviewRenderer(scene, 320, 180, lod_settings=LodSettings(enabled=False))
+    except UsdcrowdError as exc:
+        pytest.skip(f"no OpenGL context: {exc}")
+    try:
+        cam = replace(scene.camera(scene.camera_paths[0], FRAME), cam_to_world=look_at(eye, head)[0])
+        frame = r.render_poses(r.poses(FRAME), cam, FRAME)
+    finally:
+        r.release()
+    mine = frame.ids == int(scene.agents(FRAME).agent_ids[row])
+    assert mine.mean() > 0.2, "the face must fill the frame"
+    rgb = frame.color[mine].astype(float)
+    r_, g, b = rgb[:, 0], rgb[:, 1], rgb[:, 2]
+    cyan = (g > 2 * r_) & (b > 2 * r_)                              # MARKED eye whites
+    magenta = (r_ > 2 * g) & (b > 2 * g)                            # MARKED irises and mouth
+    assert cyan.sum() > 20 and magenta.sum() > 20, (cyan.sum(), magenta.sum())
 
 
 def test_an_agent_given_one_colour_wears_it_all_over(dialogue_shot, tmp_path):
@@ -297,4 +336,4 @@ def test_validate_names_a_palette_that_does_not_fit_the_body(dialogue_shot, tmp_
                                '(interpolation = "vertex")'))
     errors = [p for p in validate(path) if p.severity == "error"]
     assert [(p.prim, p.attribute) for p in errors] == [("/World/Crowd/Pair/B/Body", "primvars:displayColor")]
-    assert "2 colours" in errors[0].message and "5" in errors[0].message
+    assert "2 colours" in errors[0].message and "7" in errors[0].message

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from tests.helpers.shots import cli_museum_shot
+from usdcrowd.character.body import REGIONS
 
 # A layer over the shot: /World translated by 5 m, turned 30 degrees about Z and scaled by 2.
 MOVE = np.array([[math.cos(math.radians(30)) * 2, math.sin(math.radians(30)) * 2, 0, 0],
@@ -410,7 +411,7 @@ print("RESULT " + json.dumps(out))
 def test_blender_agrees_with_usdcrowd_on_moved_and_placed_shots(museum_shot, moved_shot, tmp_path):
     """Blender (its own importer, no usdcrowd schemas) puts every character's root and every camera where
     usdcrowd's readers do on a moved shot and on one placed in a Y-up centimetre set, and the placed
-    bodies come in with their five materials."""
+    bodies come in with their six materials (character.body.REGIONS)."""
     from tests.helpers.venvs import BPY, tool_python
 
     from usdcrowd.scenario.shot_scene import ShotScene
@@ -444,7 +445,7 @@ def test_blender_agrees_with_usdcrowd_on_moved_and_placed_shots(museum_shot, mov
             np.testing.assert_allclose(rec["cameras"][name], ours, atol=1e-4, err_msg=f"{stage} {name}")
             view = scene.camera(path, 1.0)
             assert rec["lens"][name] == pytest.approx([view.focal_length, view.far], rel=1e-5), (stage, name)
-    assert got[str(placed)]["materials"] and set(got[str(placed)]["materials"]) == {5}
+    assert got[str(placed)]["materials"] and set(got[str(placed)]["materials"]) == {len(REGIONS)}
 
 
 def test_the_final_renderer_and_its_ground_truth_agree_on_a_moved_shot(museum_shot, moved_shot, tmp_path):

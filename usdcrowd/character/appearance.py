@@ -1,7 +1,8 @@
 """What people wear: seeded per-agent colours for the body's regions.
 
 An agent's *palette* is one linear-RGB colour per row of
-:data:`usdcrowd.character.body.REGIONS` (top, trousers, skin, hair, shoes).
+:data:`usdcrowd.character.body.REGIONS` (top, trousers, skin, hair, shoes,
+eye whites, face).
 The stage holds it as the body's indexed ``primvars:displayColor`` (the
 shared body maps each vertex to a row, each agent authors its rows), so the
 GL preview, Mitsuba and DCC tools all read the same colours.
@@ -18,8 +19,9 @@ import numpy as np
 from .body import REGIONS
 
 # Roughness of each region's material (UsdPreviewSurface roughness):
-# matte cotton tops, denim, skin, glossier hair, polished shoes.
-ROUGHNESS = {"top": 0.8, "trousers": 0.7, "skin": 0.45, "hair": 0.3, "shoes": 0.35}
+# matte cotton tops, denim, skin, glossier hair, polished shoes, moist eyes and lips.
+ROUGHNESS = {"top": 0.8, "trousers": 0.7, "skin": 0.45, "hair": 0.3, "shoes": 0.35, "eye_whites": 0.2,
+             "face": 0.25}
 
 # How far an authored group colour pulls the drawn top towards itself (0: not
 # at all, 1: a uniform); the drawn shade keeps members of a group apart.
@@ -44,8 +46,10 @@ PALETTES = {
                "trousers": ["465f82", "aa966e", "c8b9a0", "e6e1d3", "3c3c3e", "6f8fae"],
                "shoes": {"e1e1dc": 0.4, "966e46": 0.3, "141414": 0.2, "6e6e6e": 0.1}},
 }
+# Rows everyone has alike, drawn from no table: the eyes' whites, and irises and mouth in a dark brown.
+_FIXED = {"eye_whites": "e6e1d8", "face": "2b201c"}
 # Fallback for rows a stage does not author (old stages, hand-written agents).
-_PLAIN = {"trousers": "3c3c3e", "skin": "a07e56", "hair": "3b281e", "shoes": "141414"}
+_PLAIN = {"trousers": "3c3c3e", "skin": "a07e56", "hair": "3b281e", "shoes": "141414", **_FIXED}
 
 
 def srgb_to_linear(hexes) -> np.ndarray:
@@ -95,11 +99,13 @@ def draw_palettes(rng: np.random.Generator, top: np.ndarray, palette: str = "eve
     n = len(top)
     drawn = {"skin": SKIN_ALBEDO * _pick(rng, _SKIN, n), "hair": _pick(rng, _HAIR, n),
              "trousers": _pick(rng, table["trousers"], n), "shoes": _pick(rng, table["shoes"], n)}
-    gain = np.exp(JITTER * rng.standard_normal((n, len(REGIONS))))
+    jittered = [k for k, name in enumerate(REGIONS) if name not in _FIXED]
+    gain = np.exp(JITTER * rng.standard_normal((n, len(jittered))))
     if table["tops"] is not None:
         top = _pick(rng, table["tops"], n)
+    drawn.update({name: np.broadcast_to(srgb_to_linear([h])[0], (n, 3)) for name, h in _FIXED.items()})
     out = np.stack([top if name == "top" else drawn[name] for name in REGIONS], axis=1)
-    out[:, 1:] *= gain[:, 1:, None]   # the top is the caller's, untouched
+    out[:, jittered[1:]] *= gain[:, 1:, None]   # the top is the caller's, untouched; fixed rows are alike
     return np.clip(out, 0.0, 1.0)
 
 

@@ -1,7 +1,7 @@
 """The skinned low-poly body bound to the three-joint skeleton.
 
 A concatenation of closed trimesh primitives (legs, feet, torso, arms, neck,
-head, nose), so the whole is watertight without any boolean union. Points are
+head, nose, eyes, mouth), so the whole is watertight without any boolean union. Points are
 in the canonical character space, which is also skeleton space: 1.75 m tall,
 feet at z = 0, facing +X (feet and nose point that way).
 """
@@ -23,7 +23,10 @@ NECK_BLEND = (NECK_HEIGHT - 0.04, NECK_HEIGHT + 0.06)
 
 # What each vertex is dressed in; rows of an agent's palette (character.appearance).
 # "top" comes first: it is the colour a character is known by where only one is drawn.
-REGIONS = ("top", "trousers", "skin", "hair", "shoes")
+# The eyes' whites, and the "face": irises and mouth. Without them a pose
+# detector (BlazePose) takes a character facing the camera for one seen from
+# behind; whites show on dark skin, the dark marks on light skin.
+REGIONS = ("top", "trousers", "skin", "hair", "shoes", "eye_whites", "face")
 HAIRLINE = HEAD_TOP - 0.075     # the crown is hair all round
 NAPE = HEAD_TOP - 0.16          # hair reaches down to here at the back of the head
 
@@ -105,7 +108,30 @@ def _parts():
     head.apply_translation([0.0, 0.0, HEAD_TOP - head.bounds[1, 2]])  # top exactly at 1.75
     parts.append((head, "head", "head"))
     parts.append((_ellipsoid([0.1, 0.0, HEAD_TOP - 0.13], [0.025, 0.02, 0.025], 0), "head", "skin"))
+    parts.extend((m, "head", dress) for m, dress in _face(head))
     return parts
+
+
+def _face(head: trimesh.Trimesh) -> list:
+    """(mesh, dress) of the eyes (whites, irises in front) and the mouth: flat ellipsoids half sunk into the
+    front of the head, an adult's proportions (eyes 6.6 cm apart, 3 cm above the nose's tip; the mouth 3.5 cm
+    below it, 5 cm wide)."""
+    c = head.bounds.mean(axis=0)
+    r = 0.5 * (head.bounds[1] - head.bounds[0])
+
+    def on_front(y, z):
+        """The head's front surface at (y, z): x on the ellipsoid."""
+        return c[0] + r[0] * np.sqrt(max(1.0 - ((y - c[1]) / r[1]) ** 2 - ((z - c[2]) / r[2]) ** 2, 0.0))
+
+    nose_z = HEAD_TOP - 0.13
+    out = []
+    for y in (0.033, -0.033):
+        x = on_front(y, nose_z + 0.03)
+        out.append((_ellipsoid([x - 0.004, y, nose_z + 0.03], [0.01, 0.016, 0.01], 1), "eye_whites"))
+        out.append((_ellipsoid([x + 0.004, y, nose_z + 0.03], [0.004, 0.007, 0.007], 1), "face"))
+    out.append((_ellipsoid([on_front(0.0, nose_z - 0.035) - 0.003, 0.0, nose_z - 0.035], [0.008, 0.025, 0.006], 1),
+                "face"))
+    return out
 
 
 def _regions(p: np.ndarray, dress: str) -> np.ndarray:

@@ -126,8 +126,8 @@ class ImpostorAtlas:
         ``(N_AZIMUTH * CELL, 3 * N_ELEVATION * CELL)`` RGBA8; row block
         ``part * N_ELEVATION + elevation``, column ``azimuth``.
     regions : moderngl.Texture
-        The same layout: weights of palette rows 0-3 (row 4 has the rest),
-        so an impostor wears what the mesh it replaces wears.
+        The same layout: weights of palette rows 0-3 (row 4 has the rest; the
+        face is drawn as skin), so an impostor wears what the mesh it replaces wears.
     boxes : moderngl.Texture
         ``(N_AZIMUTH, 3 * N_ELEVATION)`` RGBA32F: each view's covered
         rectangle ``(x0, y0, x1, y1)`` in the quad's [-1, 1] corner space,
@@ -162,13 +162,20 @@ def build_atlas(ctx, points: np.ndarray, faces: np.ndarray, weights: np.ndarray,
     faces : (f, 3) int
     weights : (v, 3) float
         Dense joint weights.
-    regions : (v, 4) float, optional
-        Weights of palette rows 0-3 (BodyGeometry's last columns); row 0 if omitted.
+    regions : (v, 6) float, optional
+        Weights of palette rows 0-5 (BodyGeometry's last columns, row 6 has
+        the rest); row 0 if omitted. The atlas keeps rows 0-3 (row 4 has the
+        rest): rows 5 and 6, the eyes and mouth, a pixel or two where
+        impostors stand in, take the skin's row 2.
     """
     import moderngl
 
     if regions is None:
-        regions = np.tile(np.array([1.0, 0.0, 0.0, 0.0]), (len(points), 1))
+        regions = np.tile(np.eye(6)[0], (len(points), 1))
+    regions = np.array(regions, dtype=np.float64)
+    face = regions[:, 5] + np.clip(1.0 - regions.sum(axis=1), 0.0, 1.0)
+    regions = regions[:, :4]
+    regions[:, 2] += face
 
     parts = body_parts(points, faces, weights)
     width, height = N_AZIMUTH * CELL, len(parts) * N_ELEVATION * CELL

@@ -2,7 +2,7 @@
 
 Every character draws the same body; what differs per instance is three
 skinning matrices, a palette (one colour per body region) and a track id,
-packed by :func:`pack_instances` into one shader storage buffer (14 vec4 per
+packed by :func:`pack_instances` into one shader storage buffer (16 vec4 per
 agent, see ``shaders.INSTANCE_STRIDE``) and applied in the vertex shader.
 Each vertex carries its weights over the palette's rows, one-hot on the full
 mesh and averaged where clustering merges vertices of different regions.
@@ -26,8 +26,10 @@ import numpy as np
 from ...core.geometry import face_normals, vertex_normals
 
 N_JOINTS = 3
-# Palette rows a preview body can show (character.body.REGIONS has five).
-MAX_REGIONS = 5
+# Palette rows a preview body can show (character.body.REGIONS has seven).
+MAX_REGIONS = 7
+# A vertex carries its weights of rows 0 to REGION_COLUMNS - 1; the last row has the rest.
+REGION_COLUMNS = MAX_REGIONS - 1
 
 
 @dataclass
@@ -36,9 +38,9 @@ class BodyGeometry:
 
     Attributes
     ----------
-    vertices : (v, 13) float32
+    vertices : (v, 15) float32
         Bind-pose position, normal, dense joint weights (legs, torso, head)
-        and the weights of palette rows 0-3 (row 4 has the rest).
+        and the weights of palette rows 0-5 (row 6 has the rest).
     indices : (3f,) int32 or None
         Triangle corners; None for a point list.
     """
@@ -213,14 +215,14 @@ def body_lods(points: np.ndarray, faces: np.ndarray, joint_indices: np.ndarray, 
     w = dense_weights(np.asarray(joint_indices), np.asarray(joint_weights))
     r = region_weights(regions, len(points))
     n = vertex_normals(points, faces)
-    full = BodyGeometry(np.concatenate([points, n, w, r[:, :4]], 1).astype(np.float32), faces.reshape(-1).copy())
+    full = BodyGeometry(np.concatenate([points, n, w, r[:, :REGION_COLUMNS]], 1).astype(np.float32), faces.reshape(-1).copy())
     meshes = [full]
     for cell in cells:
         # Joint and region weights are averaged together, then each set renormalised.
         cp, cf, cwr = cluster_mesh(points, faces, np.concatenate([w, r], 1), cell)
         cw, cr = cwr[:, :N_JOINTS], cwr[:, N_JOINTS:]
         cw, cr = cw / cw.sum(1, keepdims=True), cr / cr.sum(1, keepdims=True)
-        meshes.append(BodyGeometry(np.concatenate([cp, vertex_normals(cp, cf), cw, cr[:, :4]], 1).astype(np.float32),
+        meshes.append(BodyGeometry(np.concatenate([cp, vertex_normals(cp, cf), cw, cr[:, :REGION_COLUMNS]], 1).astype(np.float32),
                                    cf.reshape(-1).copy()))
     order = octree_order(points)
     return BodyLods(meshes, BodyGeometry(full.vertices[order].copy(), None))
@@ -240,7 +242,7 @@ def pack_instances(skinning: np.ndarray, palettes: np.ndarray, ids: np.ndarray) 
 
     Returns
     -------
-    (n, 14, 4) float32
+    (n, 16, 4) float32
         Rows 3j + c: column c of joint j's matrix; rows 9 + k: palette row k,
         row 9's last lane the id bits.
     """

@@ -317,7 +317,7 @@ class PreviewRenderer:
         if self.lod.impostor_min_px is not None:
             full = self.body.meshes[0].vertices
             self.atlas = impostors.build_atlas(ctx, full[:, :3], self.body.meshes[0].indices.reshape(-1, 3),
-                                               full[:, 6:9], full[:, 3:6], full[:, 9:13])
+                                               full[:, 6:9], full[:, 3:6], full[:, 9:])
             self.prog_imp = ctx.program(vertex_shader=shaders.IMPOSTOR_VS, fragment_shader=shaders.IMPOSTOR_FS)
             self.prog_shadow_imp = ctx.program(vertex_shader=shaders.SHADOW_IMPOSTOR_VS,
                                                fragment_shader=shaders.SHADOW_IMPOSTOR_FS)
@@ -377,7 +377,7 @@ class PreviewRenderer:
         ctx = self.ctx
         vbo = ctx.buffer(geom.vertices.tobytes())
         ibo = ctx.buffer(geom.indices.astype(np.int32).tobytes()) if geom.indices is not None else None
-        content = [(vbo, "3f 3f 3f 4f", "in_pos", "in_nrm", "in_w", "in_region")]
+        content = [(vbo, "3f 3f 3f 4f 2f", "in_pos", "in_nrm", "in_w", "in_region", "in_region45")]
         return tuple(ctx.vertex_array(prog, content, ibo, 4, skip_errors=True) for prog in programs)
 
     def _lit_programs(self) -> tuple:

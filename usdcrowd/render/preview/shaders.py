@@ -17,10 +17,10 @@ VERSION = "#version 430\n"
 # Per-agent record: 14 vec4. Rows 0-8: for joint j, the three columns
 # (c = 0, 1, 2) of its 4x4 row-vector skinning matrix, so a point's world
 # coordinate c is dot(vec4(p, 1), column c). Rows 9-13: linear RGB of the
-# palette's rows (top, trousers, skin, hair, shoes); row 9's .w holds the
+# palette's rows (top, trousers, skin, hair, shoes, eye whites, face); row 9's .w holds the
 # agent's track id (uint bits). See instancing.pack_instances.
 # Draws reach the records through a list of agent indices (``slot``).
-INSTANCE_STRIDE = 14
+INSTANCE_STRIDE = 16
 
 INSTANCES = """
 layout(std430, binding = 0) readonly buffer Instances { vec4 inst[]; };
@@ -37,8 +37,8 @@ int record(int k) { return int(slot[u_base + k]) * %d; }
 """ % INSTANCE_STRIDE
 
 SKINNING = INSTANCES + """
-// r: the vertex's weights of palette rows 0-3 (row 4 has the rest).
-void skin(vec3 p, vec3 n, vec3 w, vec4 r, out vec3 wp, out vec3 wn, out vec3 color, out uint id) {
+// r, r45: the vertex's weights of palette rows 0-3 and 4-5 (row 6 has the rest).
+void skin(vec3 p, vec3 n, vec3 w, vec4 r, vec2 r45, out vec3 wp, out vec3 wn, out vec3 color, out uint id) {
     int b = record(gl_InstanceID);
     // Linear blend skinning with dense weights over the three joints.
     vec4 c0 = w.x * inst[b + 0] + w.y * inst[b + 3] + w.z * inst[b + 6];
@@ -49,7 +49,8 @@ void skin(vec3 p, vec3 n, vec3 w, vec4 r, out vec3 wp, out vec3 wn, out vec3 col
     // Joints are rotation times uniform scale, so the linear part maps normals.
     wn = vec3(dot(n, c0.xyz), dot(n, c1.xyz), dot(n, c2.xyz));
     color = r.x * inst[b + 9].rgb + r.y * inst[b + 10].rgb + r.z * inst[b + 11].rgb + r.w * inst[b + 12].rgb
-          + (1.0 - r.x - r.y - r.z - r.w) * inst[b + 13].rgb;
+          + r45.x * inst[b + 13].rgb + r45.y * inst[b + 14].rgb
+          + max(1.0 - r.x - r.y - r.z - r.w - r45.x - r45.y, 0.0) * inst[b + 15].rgb;
     id = inst_u[b + 9].w;
 }
 """
@@ -120,6 +121,7 @@ in vec3 in_pos;
 in vec3 in_nrm;
 in vec3 in_w;
 in vec4 in_region;
+in vec2 in_region45;
 out vec3 v_world;
 out vec3 v_nrm;
 out vec3 v_color;
@@ -128,7 +130,7 @@ flat out uint v_id;
 
 void main() {
     vec3 wp, wn, color; uint id;
-    skin(in_pos, in_nrm, in_w, in_region, wp, wn, color, id);
+    skin(in_pos, in_nrm, in_w, in_region, in_region45, wp, wn, color, id);
     vec4 vp = u_view * vec4(wp, 1.0);
     gl_Position = u_proj * vp;
     // Used only when drawing GL_POINTS (seed 004's point-based LOD).
@@ -408,7 +410,7 @@ in vec3 in_w;
 
 void main() {
     vec3 wp, wn, color; uint id;
-    skin(in_pos, in_nrm, in_w, vec4(1.0, 0.0, 0.0, 0.0), wp, wn, color, id);
+    skin(in_pos, in_nrm, in_w, vec4(1.0, 0.0, 0.0, 0.0), vec2(0.0), wp, wn, color, id);
     gl_Position = u_light_vp * vec4(wp, 1.0);
     gl_PointSize = max(1.0, u_point_size_px);
 }
