@@ -20,7 +20,8 @@ tool measures the detector's joints on rendered usdcrowd characters:
    squares (each detection: two linear equations in the point, as in DLT).
 
 It prints the body, in metres, beside the estimator's BODY and the
-residual on screen; BODY takes its values from here (the cameras that
+residual on screen, and how often the detector swaps a person's left and
+right; BODY takes its values from here (the cameras that
 test the estimator film A and B, not C and D).
 """
 
@@ -114,6 +115,21 @@ def observations(shot: Path, name: str, found: dict):
     return out
 
 
+def swapped_share(obs) -> float:
+    """Share of the detections (facing the camera) whose shoulders are nearer the other side's: the
+    detector's left and right swapped (BODY's shoulders projected as the truth)."""
+    from usdcrowd.cameras.estimator import HEAD, body_points, project
+    from usdcrowd.cameras.moe_data import ASPECT, FOV_X
+
+    swaps = 0
+    for cam, ground, yaw, scale, ndc in obs:
+        truth = project(cam[None], body_points(np.array([[*ground[:2], scale * HEAD]]), np.array([yaw])),
+                        FOV_X, ASPECT)[0]                  # (8, 2)
+        kept = np.linalg.norm(ndc[2] - truth[2]) + np.linalg.norm(ndc[3] - truth[3])
+        swaps += np.linalg.norm(ndc[2] - truth[3]) + np.linalg.norm(ndc[3] - truth[2]) < kept
+    return swaps / max(len(obs), 1)
+
+
 def solve(obs) -> tuple[np.ndarray, np.ndarray]:
     """(8, 3) body-frame joints (canonical scale) by linear least squares, and (8,) RMS residual (NDC)."""
     from usdcrowd.cameras.estimator import JOINTS
@@ -159,12 +175,15 @@ def main(argv=None) -> int:
             obs += observations(shot, name, np.load(tmp / f"{name}.npz"))
             print(f"{name}: {len(obs)} detections so far", flush=True)
         body, resid = solve(obs)
+        swapped = swapped_share(obs)
     print(f"{'joint':<11} {'measured x, y, z (m)':>24}   {'BODY':>22}   rms (NDC, the unit's share of the scale)")
     for j, name in enumerate(JOINTS):
         print(f"{name:<11} {body[j, 0]:7.3f} {body[j, 1]:7.3f} {body[j, 2]:7.3f}   "
               f"{BODY[j, 0]:6.3f} {BODY[j, 1]:6.3f} {BODY[j, 2]:6.3f}   {resid[j]:.4f}")
+    print(f"left and right swapped in {100 * swapped:.0f} % of the {len(obs)} detections facing the camera")
     (a.out / "body.json").write_text(json.dumps({"joints": JOINTS, "body": body.round(4).tolist(),
-                                                 "rms": resid.round(5).tolist(), "detections": len(obs)}, indent=1))
+                                                 "rms": resid.round(5).tolist(), "detections": len(obs),
+                                                 "swapped": round(swapped, 4)}, indent=1))
     return 0
 
 

@@ -106,6 +106,47 @@ def test_frame_like_a_video_films_the_pair_and_records_the_clip(video_python, fi
     assert np.isfinite(eyes).all() and np.linalg.norm(np.diff(eyes, axis=0), axis=1).max() < 0.5
 
 
+SMALL = """
+import json, sys
+import numpy as np
+from usdcrowd.cameras import clip_poses
+frames, _ = clip_poses.read_frames(sys.argv[1])
+det = clip_poses._Detector()
+out = []
+for image in frames[::12]:
+    h, w = image.shape[:2]
+    native = det.people(image)
+    # The same picture in the middle of a frame three times as wide and high: a long shot's small people.
+    wide = np.full((3 * h, 3 * w, 3), image.reshape(-1, 3).mean(axis=0), np.uint8)
+    wide[h:2 * h, w:2 * w] = image
+    alone = det.people(wide)
+    helped = det.people(wide, last=[p + [w, h] for p in native])
+    out.append({"native": [(p + [w, h]).tolist() for p in native], "alone": len(alone),
+                "helped": [p.tolist() for p in helped]})
+print(json.dumps(out))
+"""
+
+
+def test_people_too_small_for_the_whole_frame_are_found_again_where_they_were(video_python, filmed_dialogue):
+    """A long shot's people are small for the detector's view of the whole frame: it is shown the medium
+    orbit's frames in the middle of a frame three times as large, and looks again in a crop around where
+    each person was (as ``detect`` does with the people of the frame before). Measured: of 13 sampled frames
+    showing both, both found in none of the large frames, in 10 with the crops (profile views are harder:
+    the direct track's far character is not found in a crop at any size tried)."""
+    _, clips = filmed_dialogue
+    r = subprocess.run([video_python, "-c", SMALL, str(clips["orbit"])], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-2000:]
+    frames = json.loads(r.stdout.strip().splitlines()[-1])
+    both = [f for f in frames if len(f["native"]) == 2]
+    assert len(both) >= 10
+    alone, helped = sum(f["alone"] == 2 for f in both), sum(len(f["helped"]) == 2 for f in both)
+    assert alone <= 0.2 * len(both) and helped >= 0.5 * len(both), (alone, helped, len(both))
+    for f in both:
+        for person in f["helped"]:                 # each found where one was: the head within a tenth of its size
+            assert min(np.linalg.norm(np.subtract(person[0], p[0])) / np.ptp(np.array(p), axis=0).max()
+                       for p in f["native"]) < 0.1
+
+
 def test_the_clips_features_match_the_stage_it_was_drawn_from(filmed_dialogue, clip_features):
     """Per component, the medians over the clip's frames against the stage's truth."""
     shot, _ = filmed_dialogue
@@ -120,12 +161,13 @@ def test_the_clips_features_match_the_stage_it_was_drawn_from(filmed_dialogue, c
         span = np.exp(np.median(np.abs(cam[:, 7] - t_cam[:, 7])))
         d_ab = np.exp(np.median(np.abs(np.log(char[:, 0] / t_char[:, 0]))))
         wrap = lambda a: np.degrees(np.abs((a + np.pi) % (2 * np.pi) - np.pi))  # noqa: E731
-        # Measured (tools/bench_clip_reference.py): heads 0.03-0.06 NDC, span and dAB within 1.25x, phi within
-        # 3 degrees; theta 15-30 degrees off (BlazePose mirrors usdcrowd's faceless characters seen from the front).
+        # Measured (tools/bench_clip_reference.py): heads 0.03-0.05 NDC, span and dAB within 1.15x, phi within
+        # 4 degrees; theta 12-19 degrees off (25 before the characters had eyes and a mouth: BlazePose took
+        # those facing the camera for seen from behind, and swapped their left and right).
         assert screen < 0.08, (name, screen)
         assert span < 1.15 and d_ab < 1.35, (name, span, d_ab)
         assert np.median(wrap(phi - t_phi)) < 5.0, name
-        assert np.median(wrap(theta - t_theta)) < 35.0, name
+        assert np.median(wrap(theta - t_theta)) < 23.0, name
         assert est["size"] == "medium", name
 
 

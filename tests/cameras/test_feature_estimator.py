@@ -133,6 +133,32 @@ def test_association_keeps_each_character_when_the_detector_swaps_or_misses_them
     np.testing.assert_allclose(filled[0], filled[1])          # the start, held
 
 
+def test_what_each_wears_keeps_them_apart_where_one_comes_to_where_the_other_was():
+    """A camera craning over a pair: B is lost while A walks across the screen to where B was last seen; B
+    comes back on the other side, alone first, then both are found. The joints alone give the returning B
+    to A and swap them; the torso colours (read off the frames) keep each its own."""
+    frames = [[_person(300), _person(600)]]
+    frames += [[_person(300 + 15 * k)] for k in range(1, 21)]       # A alone, from 300 to 600
+    frames += [[_person(440)], [_person(430), _person(605)], [_person(420), _person(610)]]
+    red, blue = np.array([200, 30, 30], np.uint8), np.array([30, 30, 200], np.uint8)
+    wear = [[red, blue]] + [[red]] * 20 + [[blue], [blue, red], [blue, red]]      # A in red, B in blue
+    images = []
+    for people, worn in zip(frames, wear):
+        image = np.full((500, 800, 3), 128, np.uint8)
+        for p, c in zip(people, worn):
+            x = int(p[1, 0])
+            image[300:450, x - 25:x + 26] = c                        # the torso, from the neck to the hips
+        images.append(image)
+    colours = clip_poses.torso_colours(images, frames)
+    assert np.allclose(colours[0][0], red / 255) and np.allclose(colours[0][1], blue / 255)
+    joints, found = clip_poses.associate(frames, colours)
+    assert found[21].tolist() == [False, True]                     # the returning one is B
+    np.testing.assert_allclose(joints[22:, 0, 0, 0], [605, 610])
+    np.testing.assert_allclose(joints[21:, 1, 0, 0], [440, 430, 420])
+    joints, found = clip_poses.associate(frames)                   # by the joints alone: B taken for A
+    assert found[21].tolist() == [True, False]
+
+
 def test_the_main_character_is_the_larger_on_screen_where_both_are_found():
     """Appendix B's M: the larger box around the joints, on average over the frames showing both."""
     small, large = _person(100.0), _person(600.0)
@@ -153,6 +179,21 @@ def test_a_person_found_off_the_frame_is_neither_kept_nor_painted_out():
     assert clip_poses.paint_box(np.array([[100.0, 900.0], [200.0, 1200.0]]), 640, 360) is None
     x0, y0, x1, y1 = clip_poses.paint_box(np.array([[100.0, 100.0], [200.0, 300.0], [-400.0, 100.0]]), 640, 360)
     assert (x0, y0, x1, y1) == (85, 70, 215, 330)
+
+
+def test_a_crop_round_a_person_last_found_holds_them_whole_and_stays_in_the_frame():
+    """The second look for a small person (a long shot): a square twice the larger side of their joints' box,
+    centred on it, shifted into the frame at its edges, never under the smallest crop."""
+    person = np.array([[100, 50], [100, 70], [90, 70], [110, 70], [100, 120], [95, 120], [105, 120], [102, 50.0]])
+    x0, y0, x1, y1 = clip_poses.crop_box(person, 960, 540)
+    assert x1 - x0 == y1 - y0 == 2 * 70                       # the box is 20 x 70 pixels
+    assert x0 <= person[:, 0].min() and x1 >= person[:, 0].max() and y0 <= person[:, 1].min() and y1 >= 120
+    assert (x0 + x1) / 2 == pytest.approx(100, abs=1) and (y0 + y1) / 2 == pytest.approx(85, abs=1)
+    x0, y0, x1, y1 = clip_poses.crop_box(person + [900, 0], 960, 540)      # at the right edge: shifted in
+    assert x1 == 960 and x1 - x0 == 140 and y1 - y0 == 140
+    tiny = person * 0.1 + 300                                   # 2 x 7 pixels, far off
+    x0, y0, x1, y1 = clip_poses.crop_box(tiny, 960, 540)
+    assert x1 - x0 == y1 - y0 == clip_poses._CROP_MIN
 
 
 def test_pixels_become_the_ndc_of_usdcrowds_camera(held_out_clips):

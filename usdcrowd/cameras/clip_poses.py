@@ -9,13 +9,19 @@ The detector is MediaPipe's BlazePose (the ``video`` extra: ``mediapipe``
 0.10.14, whose wheel bundles the person detector and the landmark model,
 so nothing downloads at run time). It finds one person per call: a second
 is found by painting the first out and looking again (the paper's LCR-Net
-finds several at once). Association follows appendix B: each frame's
-people go to the two characters by the L2 distance between their joints
-and the characters' last known ones; A is the character on the left of the
-first frame where both are seen (the reader then makes the main character A,
-the larger on screen, as appendix B picks it). Frames where a character is not found are
-filled by linear interpolation, over any gap (the paper fills gaps under 3
-frames and rejects a clip with longer ones; here a clip is refused when
+finds several at once). People too small for the detector's view of the
+whole frame (long shots) are looked for again in a crop around where they
+were last found, as BlazePose's own tracking does for one person.
+Association follows appendix B: each frame's people go to the two
+characters by the L2 distance between their joints and the characters'
+last known ones (in body sizes), and, beyond the paper, by what they wear
+(the colour of the torso: a camera craning over a pair brings one where
+the other was last seen, and the joints alone then swap them); A is the
+character on the left of the first frame where both are seen (the reader
+then makes the main character A, the larger on screen, as appendix B
+picks it). Frames where a character is not found are filled by linear
+interpolation, over any gap (the paper fills gaps under 3 frames and
+rejects a clip with longer ones; here a clip is refused when
 fewer than :data:`MIN_FOUND` of its frames show both).
 """
 
@@ -37,6 +43,12 @@ MEDIAPIPE = "mediapipe==0.10.14"
 # shoulders', the hip centre the hips'.
 _NOSE, _EARS, _SHOULDERS, _HIPS = 0, (7, 8), (11, 12), (23, 24)
 _PAINT_MARGIN = 0.15    # of the person's landmark box, around it, painted out before looking again
+_CROP = 2.0             # a crop around a person last found is this many times the larger side of their box
+_CROP_MIN = 96          # pixels: the smallest crop side (the detector's input is 224 pixels)
+_COLOUR_WEIGHT = 5.0    # association: torso colours 0.2 apart (RGB in [0, 1]) cost as much as a body size apart
+_COLOUR_MEMORY = 0.1    # how much each new sighting moves a character's remembered colour
+_CROP_KEEP = 0.5        # a person found in a crop is kept if their head is within this share of the box's
+                        # larger side from where the box's own head was
 
 
 def is_clip(path) -> bool:
@@ -104,9 +116,8 @@ def to_ndc(xy_pixels: np.ndarray, width: int, height: int, focal_length: float, 
                     -1)
 
 
-def _joints_of(landmarks, width: int, height: int) -> np.ndarray:
-    """(8, 2) pixel positions of the estimator's joints from 33 BlazePose landmarks."""
-    lm = np.array([[p.x * width, p.y * height] for p in landmarks])
+def _joints_of_pixels(lm: np.ndarray) -> np.ndarray:
+    """(8, 2) pixel positions of the estimator's joints from BlazePose's 33 landmarks ((33, 2) pixels)."""
     mid = lambda ij: 0.5 * (lm[ij[0]] + lm[ij[1]])  # noqa: E731
     # BlazePose's left and right are the person's own, as the estimator's joints are.
     return np.array([mid(_EARS), mid(_SHOULDERS), lm[11], lm[12], mid(_HIPS), lm[23], lm[24], lm[_NOSE]])
@@ -141,6 +152,28 @@ def paint_box(landmarks: np.ndarray, width: int, height: int) -> tuple[int, int,
     return (x0, y0, x1, y1) if x1 > x0 and y1 > y0 else None
 
 
+def _side(joints: np.ndarray) -> float:
+    """Pixels: the larger side of the box round a person's (8, 2) joints."""
+    return float(np.ptp(joints, axis=0).max())
+
+
+def crop_box(joints: np.ndarray, width: int, height: int) -> tuple[int, int, int, int]:
+    """(x0, y0, x1, y1) pixels: a square :data:`_CROP` times the larger side of the box round a person's
+    joints ((8, 2) pixels, ears to hips: the crop holds the whole body), centred on them, at least
+    :data:`_CROP_MIN` pixels, shifted into the frame (clipped where the frame is smaller)."""
+    centre = 0.5 * (joints.min(axis=0) + joints.max(axis=0))
+    side = min(max(_CROP * _side(joints), _CROP_MIN), width, height)
+    x0 = int(np.clip(centre[0] - 0.5 * side, 0, width - side))
+    y0 = int(np.clip(centre[1] - 0.5 * side, 0, height - side))
+    return x0, y0, x0 + int(side), y0 + int(side)
+
+
+def _paint(image: np.ndarray, box) -> None:
+    """Paint ``box`` (x0, y0, x1, y1) of ``image`` in place with the frame's mean colour."""
+    x0, y0, x1, y1 = box
+    image[y0:y1, x0:x1] = image.reshape(-1, 3).mean(axis=0).astype(np.uint8)
+
+
 class _Detector:
     """MediaPipe's BlazePose on single images, up to two people per frame."""
 
@@ -157,33 +190,78 @@ class _Detector:
         with _quiet_stderr():
             self._pose = pose.Pose(static_image_mode=True, model_complexity=1, min_detection_confidence=0.3)
 
-    def people(self, image: np.ndarray, most: int = 2) -> list[np.ndarray]:
-        """Up to ``most`` people, each (8, 2) pixels: one found, painted out, and looked for again."""
+    def _landmarks(self, image: np.ndarray):
+        """BlazePose's 33 landmarks ((33, 2) pixels of ``image``) of one person, or None."""
         h, w = image.shape[:2]
-        image = np.ascontiguousarray(image)
-        found = []
+        with warnings.catch_warnings(), _quiet_stderr():   # protobuf's deprecation notice, MediaPipe's logs
+            warnings.simplefilter("ignore")
+            res = self._pose.process(np.ascontiguousarray(image))
+        if not res.pose_landmarks:
+            return None
+        return np.array([[p.x * w, p.y * h] for p in res.pose_landmarks.landmark])
+
+    def people(self, image: np.ndarray, most: int = 2, last: list[np.ndarray] = ()) -> list[np.ndarray]:
+        """Up to ``most`` people, each (8, 2) pixels: one found, painted out, and looked for again; then,
+        while fewer than ``most``, in a crop around each of ``last`` (people found before, (8, 2) each)
+        whose head is not near anyone's found here (:func:`crop_box`)."""
+        h, w = image.shape[:2]
+        image, found = image.copy(), []
         for _ in range(most):
-            with warnings.catch_warnings(), _quiet_stderr():   # protobuf's deprecation notice, MediaPipe's logs
-                warnings.simplefilter("ignore")
-                res = self._pose.process(image)
-            if not res.pose_landmarks:
+            lm = self._landmarks(image)
+            box = None if lm is None else paint_box(lm, w, h)
+            if box is None:                 # nobody, or a person wholly off the frame: nothing to keep or paint
                 break
-            lm = res.pose_landmarks.landmark
-            box = paint_box(np.array([[p.x * w, p.y * h] for p in lm]), w, h)
-            if box is None:                 # a person wholly off the frame: nothing to keep or paint out
+            found.append(_joints_of_pixels(lm))
+            _paint(image, box)
+        for before in last:
+            if len(found) >= most:
                 break
-            found.append(_joints_of(lm, w, h))
-            x0, y0, x1, y1 = box
-            image = image.copy()
-            image[y0:y1, x0:x1] = image.reshape(-1, 3).mean(axis=0).astype(np.uint8)
+            if any(np.linalg.norm(p[0] - before[0]) < _CROP_KEEP * _side(before) for p in found):
+                continue                    # already found here
+            x0, y0, x1, y1 = crop_box(before, w, h)
+            lm = self._landmarks(image[y0:y1, x0:x1])
+            if lm is None:
+                continue
+            joints = _joints_of_pixels(lm) + [x0, y0]
+            if np.linalg.norm(joints[0] - before[0]) < _CROP_KEEP * _side(before):
+                found.append(joints)
+                box = paint_box(lm + [x0, y0], w, h)
+                if box is not None:
+                    _paint(image, box)
         return found
 
     def close(self):
         self._pose.close()
 
 
-def associate(per_frame: list[list[np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
-    """The two characters over time from each frame's people (each (8, 2)).
+def _index(people: list[np.ndarray], person: np.ndarray) -> int:
+    """Which of a frame's ``people`` is ``person`` (the same array's values)."""
+    return next(i for i, p in enumerate(people) if p is person or np.array_equal(p, person))
+
+
+def torso_colours(frames, per_frame: list[list[np.ndarray]]) -> list[list[np.ndarray]]:
+    """Each found person's clothing colour: (3,) RGB in [0, 1], the median of small patches on the torso
+    (between the shoulders and the hips, (8, 2) pixel joints), NaN where none is in the frame."""
+    out = []
+    for image, people in zip(frames, per_frame):
+        h, w = image.shape[:2]
+        colours = []
+        for p in people:
+            # Half way and a quarter of the way down from each shoulder and the neck towards the hips.
+            tops, bottoms = p[[1, 2, 3]], p[[4, 5, 6]]
+            pts = np.concatenate([tops + f * (bottoms - tops) for f in (0.3, 0.5)]).round().astype(int)
+            r = max(1, int(0.03 * _side(p)))
+            patches = [image[max(y - r, 0):y + r + 1, max(x - r, 0):x + r + 1].reshape(-1, 3)
+                       for x, y in pts if 0 <= x < w and 0 <= y < h]
+            colours.append(np.median(np.concatenate(patches), axis=0) / 255.0 if patches else np.full(3, np.nan))
+        out.append(colours)
+    return out
+
+
+def associate(per_frame: list[list[np.ndarray]], colours: list[list[np.ndarray]] | None = None
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """The two characters over time from each frame's people (each (8, 2)), and their torso colours if given
+    (:func:`torso_colours`).
 
     Returns
     -------
@@ -199,17 +277,24 @@ def associate(per_frame: list[list[np.ndarray]]) -> tuple[np.ndarray, np.ndarray
         return joints, np.zeros((t, 2), bool)
     pair = sorted(per_frame[first][:2], key=lambda p: p[0, 0])
     joints[first] = pair
-    last = [pair[0], pair[1]]
     order = list(range(first + 1, t)) + list(range(first - 1, -1, -1))
+    colour_of = (lambda k, i: colours[k][i]) if colours is not None else (lambda k, i: np.full(3, np.nan))
+    pair_colours = [colour_of(first, _index(per_frame[first], p)) for p in pair]
     for k in order:
-        if k == first - 1:                       # going back from the first frame: start from it again
-            last = [joints[first, 0], joints[first, 1]]
+        if k in (first + 1, first - 1):          # from the first frame, forward and then back
+            last, worn = [joints[first, 0], joints[first, 1]], list(pair_colours)
         people = per_frame[k]
         if not people:
             continue
-        cost = np.array([[np.linalg.norm(p - q) for q in last] for p in people])      # (people, 2)
+        # Appendix B's L2 matching (in body sizes), and what each wears: a camera craning over a pair brings
+        # one where the other was last seen, and the joints alone then swap them.
+        cost = np.array([[np.linalg.norm(p - q) / max(_side(q), 1.0) for q in last] for p in people])
+        for i in range(len(people)):
+            for c in (0, 1):
+                d = np.linalg.norm(colour_of(k, i) - worn[c])
+                cost[i, c] += _COLOUR_WEIGHT * d if np.isfinite(d) else 0.0
         if len(people) >= 2:
-            # The better of the two ways to give two people to A and B (appendix B's L2 matching).
+            # The better of the two ways to give two people to A and B.
             i, j = min(((i, j) for i in range(len(people)) for j in range(len(people)) if i != j),
                        key=lambda ij: cost[ij[0], 0] + cost[ij[1], 1])
             joints[k, 0], joints[k, 1] = people[i], people[j]
@@ -219,6 +304,9 @@ def associate(per_frame: list[list[np.ndarray]]) -> tuple[np.ndarray, np.ndarray
         for c in (0, 1):
             if np.isfinite(joints[k, c]).all():
                 last[c] = joints[k, c]
+                new = colour_of(k, _index(people, joints[k, c]))
+                if np.isfinite(new).all():
+                    worn[c] = new if not np.isfinite(worn[c]).all() else worn[c] + _COLOUR_MEMORY * (new - worn[c])
     return joints, np.isfinite(joints).all(axis=(2, 3))
 
 
@@ -248,10 +336,14 @@ def main_character(joints: np.ndarray, found: np.ndarray) -> int:
 def detect(frames, tick=None) -> list[list[np.ndarray]]:
     """Each frame's people (up to two, each (8, 2) pixels); ``tick()`` is called after each frame."""
     detector = _Detector()
-    per_frame = []
+    per_frame, last = [], []
     try:
         for image in frames:
-            per_frame.append(detector.people(image))
+            people = detector.people(image, last=last)
+            per_frame.append(people)
+            # Where each was last seen: this frame's people, and those of before it did not find again.
+            last = people + [p for p in last if all(np.linalg.norm(p[0] - q[0]) >= _CROP_KEEP * _side(p)
+                                                    for q in people)][:max(0, 2 - len(people))]
             if tick is not None:
                 tick()
     finally:

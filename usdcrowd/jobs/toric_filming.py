@@ -550,7 +550,7 @@ def read_clip_reference(path, focal_length: float = FOCAL_LENGTH, fps: float | N
     fps = clip_fps or fps or FPS
     with frame_progress(len(frames), "detect poses", progress) as bar:
         per_frame = clip_poses.detect(frames, lambda: bar.update(1))
-    joints, found = clip_poses.associate(per_frame)
+    joints, found = clip_poses.associate(per_frame, clip_poses.torso_colours(frames, per_frame))
     both = float(found.all(axis=1).mean())
     if both < clip_poses.MIN_FOUND:
         raise UsdcrowdError(f"two people found in only {100 * both:.0f} % of the clip's {len(frames)} frames "
