@@ -44,8 +44,8 @@ HEAD = 1.625            # the rig's head point (midway between neck and head top
 # Where the joints sit on the canonical body (usdcrowd.character.body): x forward, y to its left, z up, metres.
 # Heights as the detector finds them on usdcrowd's characters (tools/calibrate_pose_joints.py: the ears' midpoint
 # 1.60, shoulders 1.42, hips 0.94); widths a person's (shoulder joints 0.19 m out, hips 0.1). On usdcrowd's
-# characters the detector puts the shoulders 0.09-0.12 m out (it still swaps left and right in about one
-# view of a face in six) and the nose at the head's centre: the training draws the widths and the nose
+# characters the detector puts the shoulders 0.08-0.12 m out (it still swaps left and right in about one
+# view of a face in five) and the nose at the head's centre: the training draws the widths and the nose
 # between the two (tools/train_feature_estimator.py).
 BODY = np.array([[0.0, 0.0, 1.61], [0.0, 0.0, 1.42], [0.0, 0.19, 1.42], [0.0, -0.19, 1.42],
                  [0.0, 0.0, 0.94], [0.0, 0.1, 0.94], [0.0, -0.1, 0.94], [0.105, 0.0, 1.60]])
