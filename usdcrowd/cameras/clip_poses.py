@@ -247,7 +247,7 @@ def torso_colours(frames, per_frame: list[list[np.ndarray]]) -> list[list[np.nda
         h, w = image.shape[:2]
         colours = []
         for p in people:
-            # Half way and a quarter of the way down from each shoulder and the neck towards the hips.
+            # Three tenths and half of the way down from each shoulder and the neck towards the hips.
             tops, bottoms = p[[1, 2, 3]], p[[4, 5, 6]]
             pts = np.concatenate([tops + f * (bottoms - tops) for f in (0.3, 0.5)]).round().astype(int)
             r = max(1, int(0.03 * _side(p)))
