@@ -234,11 +234,6 @@ class _Detector:
         self._pose.close()
 
 
-def _index(people: list[np.ndarray], person: np.ndarray) -> int:
-    """Which of a frame's ``people`` is ``person`` (the same array's values)."""
-    return next(i for i, p in enumerate(people) if p is person or np.array_equal(p, person))
-
-
 def torso_colours(frames, per_frame: list[list[np.ndarray]]) -> list[list[np.ndarray]]:
     """Each found person's clothing colour: (3,) RGB in [0, 1], the median of small patches on the torso
     (between the shoulders and the hips, (8, 2) pixel joints), NaN where none is in the frame."""
@@ -275,11 +270,11 @@ def associate(per_frame: list[list[np.ndarray]], colours: list[list[np.ndarray]]
     first = next((k for k, people in enumerate(per_frame) if len(people) >= 2), None)
     if first is None:
         return joints, np.zeros((t, 2), bool)
-    pair = sorted(per_frame[first][:2], key=lambda p: p[0, 0])
-    joints[first] = pair
+    pair = sorted(range(2), key=lambda i: per_frame[first][i][0, 0])       # indices of A and B
+    joints[first] = [per_frame[first][i] for i in pair]
     order = list(range(first + 1, t)) + list(range(first - 1, -1, -1))
     colour_of = (lambda k, i: colours[k][i]) if colours is not None else (lambda k, i: np.full(3, np.nan))
-    pair_colours = [colour_of(first, _index(per_frame[first], p)) for p in pair]
+    pair_colours = [colour_of(first, i) for i in pair]
     for k in order:
         if k in (first + 1, first - 1):          # from the first frame, forward and then back
             last, worn = [joints[first, 0], joints[first, 1]], list(pair_colours)
@@ -295,18 +290,15 @@ def associate(per_frame: list[list[np.ndarray]], colours: list[list[np.ndarray]]
                 cost[i, c] += _COLOUR_WEIGHT * d if np.isfinite(d) else 0.0
         if len(people) >= 2:
             # The better of the two ways to give two people to A and B.
-            i, j = min(((i, j) for i in range(len(people)) for j in range(len(people)) if i != j),
-                       key=lambda ij: cost[ij[0], 0] + cost[ij[1], 1])
-            joints[k, 0], joints[k, 1] = people[i], people[j]
+            given = dict(enumerate(min(((i, j) for i in range(len(people)) for j in range(len(people)) if i != j),
+                                       key=lambda ij: cost[ij[0], 0] + cost[ij[1], 1])))   # character -> person
         else:
-            who = int(np.argmin(cost[0]))
-            joints[k, who] = people[0]
-        for c in (0, 1):
-            if np.isfinite(joints[k, c]).all():
-                last[c] = joints[k, c]
-                new = colour_of(k, _index(people, joints[k, c]))
-                if np.isfinite(new).all():
-                    worn[c] = new if not np.isfinite(worn[c]).all() else worn[c] + _COLOUR_MEMORY * (new - worn[c])
+            given = {int(np.argmin(cost[0])): 0}
+        for c, i in given.items():
+            joints[k, c] = last[c] = people[i]
+            new = colour_of(k, i)
+            if np.isfinite(new).all():
+                worn[c] = new if not np.isfinite(worn[c]).all() else worn[c] + _COLOUR_MEMORY * (new - worn[c])
     return joints, np.isfinite(joints).all(axis=(2, 3))
 
 
