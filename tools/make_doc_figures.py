@@ -95,15 +95,18 @@ def metrics_table(folder: Path) -> tuple[dict, dict]:
             "blank": sum(float(c["blank"]) * k for c, k in zip(cams, settled) if k) / total,
             "worst_framed": min(float(c["framed"]) for c, k in zip(cams, settled) if k),
             "worst_blank": max(float(c["blank"]) for c, k in zip(cams, settled) if k),
+            "walled": sum(float(c["walled"]) * k for c, k in zip(cams, settled) if k) / total,
+            "worst_walled": max(float(c["walled"]) for c, k in zip(cams, settled) if k),
             "takes": sum(int(c["takes"]) for c in cams)}
         tracking_rows += [[f"{n} autonomous", c["camera"].rsplit("/", 1)[-1], c["settled_frames"],
                            f"{100 * float(c['framed']):.1f} %" if int(c["settled_frames"]) else "-",
                            f"{100 * float(c['blank']):.1f} %" if int(c["settled_frames"]) else "-",
+                           f"{100 * float(c['walled']):.1f} %" if int(c["settled_frames"]) else "-",
                            f"{100 * float(c['median_size']):.0f} %" if c["median_size"] != "nan" else "-",
                            f"{float(c['median_seconds_to_frame']):.2f}" if c["median_seconds_to_frame"] != "nan"
                            else "-"] for c in cams]
     tracking = {"columns": ["cameras", "camera", "tracking frames 2 s after taking the event",
-                            "half its people or more visible", "none visible", "their height on screen (median)",
+                            "half its people or more visible", "none visible", "only scenery or ground", "their height on screen (median)",
                             "seconds to frame it (median)"], "rows": tracking_rows}
     return figures, {"metrics": table, "tracking": tracking}
 

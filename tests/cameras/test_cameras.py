@@ -132,6 +132,21 @@ def test_aiming_torque_turns_at_full_rate_then_slows_inside_the_threshold():
     np.testing.assert_allclose(tau[0, 2], rate[0] * 0.5, atol=1e-9)          # 5 of 10 degrees left
 
 
+def test_aiming_pans_round_to_a_target_behind_a_camera_looking_down():
+    """Looking east 70 degrees down, with its target west-north-west 50 degrees down: the camera pans round
+    (about +Z, to its left) as a camera head does. The shortest rotation would swing the view through the
+    ground under the camera, where the pitch limit holds it."""
+    def look(yaw, pitch):
+        y, p = np.radians(yaw), np.radians(pitch)
+        return level_from_forward(np.array([[np.cos(p) * np.cos(y), np.cos(p) * np.sin(y), np.sin(p)]]))
+
+    rate, thr = np.radians([40.0]), np.radians([10.0])
+    tau = torques.aiming(look(0.0, -70.0), look(150.0, -50.0), np.zeros((1, 3)), rate, thr)
+    np.testing.assert_allclose(np.linalg.norm(tau[0]), rate[0], rtol=1e-9)
+    pan, tilt = np.radians(150.0), np.radians(20.0)
+    assert tau[0, 2] == pytest.approx(rate[0] * pan / np.hypot(pan, tilt), rel=1e-6)
+
+
 def test_avoidance_torque_pans_away_from_the_overlapping_camera():
     pos = np.array([[0.0, 0.0, 2.0], [10.0, 0.0, 2.0]])
     fwd = np.array([[0.0, 1.0, 0.0], [0.0, 1.0, 0.0]])

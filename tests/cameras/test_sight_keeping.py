@@ -127,3 +127,93 @@ def test_a_camera_told_to_film_an_event_faces_it_when_it_begins():
     late = film(pos, times, FPS, cams, events, model.Obstacles.empty(), seed=4,
                 params=CameraParams(ready_seconds=0.0))[0]
     assert not in_picture(late, start)
+
+
+def test_a_camera_told_to_film_an_event_faces_its_people_not_where_it_was_authored():
+    """The harbour's boat arrival is authored round the boat, but its people are ashore: a camera told to
+    film it turns, before it begins, to the people it will frame (the authored centre is 90 degrees off)."""
+    t = 24 * 8
+    times = np.arange(1, t + 1, dtype=np.float64)
+    pos = np.zeros((t, 2, 3))
+    pos[:, 0, :2], pos[:, 1, :2] = [20.0, -0.5], [20.0, 0.5]
+    start = 5 * 24
+    ev = make_event("/E/Arrival", INTERACTION, pos, [0, 1], start, t - 1, times)
+    ev.center[:] = [0.0, 20.0, 0.0]                     # the boat, north of the camera
+    cams = _one_camera([0.0, 0.0, 2.0], [-10.0, 0.0, 1.5], [1.5, 4.0])
+    cams.target[:] = ["/E/Arrival"]
+    tr = film(pos, times, FPS, cams, model.EventTable([ev]), model.Obstacles.empty(), seed=4)[0]
+    q = tracking_quality([tr], pos, model.EventTable([ev]), np.ones(2, bool), model.Obstacles.empty(), FPS)[0]
+    assert tr.tracked[start] == "/E/Arrival"
+    assert q.share[start] == 1.0, q.share[start:start + 24]
+
+
+def _walker_passing_under(camera_height):
+    """One person walks +X at 1.4 m/s along y = 0 from x = -25 for 36 s, under where a camera told to film
+    them stands at the start (x = 6, ``camera_height`` up, looking at them)."""
+    t = 24 * 36
+    times = np.arange(1, t + 1, dtype=np.float64)
+    pos = np.zeros((t, 1, 3))
+    pos[:, 0, 0] = -25.0 + np.arange(t) * 1.4 / FPS
+    events = model.EventTable([make_event("/E/Walker", INTERACTION, pos, [0], 0, t - 1, times)])
+    cams = _one_camera([6.0, 0.0, camera_height], [-25.0, 0.0, 1.1], [1.5, 8.0])
+    cams.target[:] = ["/E/Walker"]
+    return pos, times, events, cams
+
+
+def test_a_person_walking_at_a_tracking_camera_stays_in_its_picture_as_they_pass():
+    """Seen from the front, a walker comes at the camera: it backs away and, where they pass it, pans and
+    tilts round to keep them (a turn through the ground below it would be stopped by the pitch limit;
+    a crane move taking all of the camera's force would leave it coasting over them)."""
+    for height in (3.0, 7.5):
+        pos, times, events, cams = _walker_passing_under(height)
+        tr = film(pos, times, FPS, cams, events, model.Obstacles.empty(), seed=5)[0]
+        q = tracking_quality([tr], pos, events, np.ones(1, bool), model.Obstacles.empty(), FPS)[0]
+        late = q.settled & (np.arange(len(times)) > 2 * FPS)
+        assert (q.share[late] == 1.0).all(), (height, np.flatnonzero(late & (q.share < 1.0))[:5])
+        flat = np.linalg.norm(tr.cam_to_world[late, 3, :2] - pos[late, 0, :2], axis=1)
+        assert flat.min() > 1.0, (height, flat.min())
+
+
+def test_a_camera_right_over_the_person_it_films_steps_back_to_frame_them():
+    """A camera told to film a still person, authored as an 8 m wide event, starts almost over them (0.3 m
+    off, 3 m up): the framing range's nearest viewpoints lie ~10 m out on both sides, and chasing whichever
+    was nearer this step held the camera over them; it steps straight back."""
+    t = 24 * 10
+    times = np.arange(1, t + 1, dtype=np.float64)
+    pos = np.zeros((t, 1, 3))
+    ev = make_event("/E/Still", INTERACTION, pos, [0], 0, t - 1, times)
+    ev.radius[:] = 8.0
+    events = model.EventTable([ev])
+    cams = _one_camera([0.3, 0.05, 3.0], [0.0, 0.0, 1.1], [1.5, 6.0])
+    cams.target[:] = ["/E/Still"]
+    tr = film(pos, times, FPS, cams, events, model.Obstacles.empty(), seed=6)[0]
+    q = tracking_quality([tr], pos, events, np.ones(1, bool), model.Obstacles.empty(), FPS)[0]
+    late = np.arange(t) > 2 * FPS
+    assert (q.share[late] == 1.0).all(), np.flatnonzero(late & (q.share < 1.0))[:5]
+    assert np.linalg.norm(tr.cam_to_world[4 * int(FPS):, 3, :2], axis=1).min() > 5.0
+
+
+def _pair_passing_a_gap_in_a_wall():
+    """A pair walks +X at 1.5 m/s along y = 0 from x = -6, behind a 30 m tall wall at y = -3 with a 0.8 m gap
+    at x = 0: a camera 12 m south of the gap sees them through it for about half a second."""
+    t = 24 * 10
+    times = np.arange(1, t + 1, dtype=np.float64)
+    pos = np.zeros((t, 2, 3))
+    pos[:, :, 0] = (-6.0 + np.arange(t) * 1.5 / FPS)[:, None] + [0.0, 0.6]
+    ev = make_event("/E/Pair", INTERACTION, pos, [0, 1], 0, t - 1, times)
+    walls = [np.array([[x0, -3.2], [x1, -3.2], [x1, -2.8], [x0, -2.8]]) for x0, x1 in ((-60.0, -0.4), (0.4, 60.0))]
+    return pos, times, model.EventTable([ev]), model.Obstacles(["/West", "/East"], walls, np.full(2, 30.0))
+
+
+def test_a_scout_does_not_take_people_it_sees_walking_behind_a_wall():
+    """A scout glimpses a pair through a gap in a wall they are walking behind: where they will be in
+    ``occlusion_lookahead`` seconds it would not see them, so it does not take them (with no look ahead
+    it takes them and films the wall until it gives up)."""
+    pos, times, events, walls = _pair_passing_a_gap_in_a_wall()
+    cams = _one_camera([0.0, -15.0, 1.6], [0.0, 0.0, 1.4], [1.5, 1.7])
+    still = dict(wander_jitter=0.0, wander_speed=0.0)
+    tr = film(pos, times, FPS, cams, events, walls, params=CameraParams(**still), seed=7)[0]
+    assert not any(tr.tracked), [k for k, e in enumerate(tr.tracked) if e][:3]
+    blind = film(pos, times, FPS, cams, events, walls, params=CameraParams(occlusion_lookahead=0.0, **still),
+                 seed=7)[0]
+    assert any(blind.tracked)

@@ -42,6 +42,8 @@ def test_takes_settling_and_blank_frames_are_counted_frame_by_frame():
     share = np.where((np.arange(t) >= 99) & (np.arange(t) < 119), walled.share, clear.share)
     assert np.isnan(clear.share[:9]).all() and (clear.share[9:39] == 0).all() and (clear.share[39:] == 1).all()
     assert (walled.share[39:] == 0).all()
+    # Looking away, and behind the wall, the picture shows no one of the pair: walled.
+    assert clear.walled[9:39].all() and not clear.walled[39:].any() and walled.walled[39:].all()
     assert clear.takes == [("/E/Pair", 10.0, pytest.approx(30 / FPS))]
     settled = clear.settled
     assert not settled[:9 + int(SETTLE_SECONDS * FPS)].any() and settled[9 + int(SETTLE_SECONDS * FPS):].all()
@@ -49,9 +51,29 @@ def test_takes_settling_and_blank_frames_are_counted_frame_by_frame():
     assert s["settled_frames"] == t - 9 - 48 and s["framed"] == 1.0 and s["blank"] == 0.0
     q = clear
     q.share = share
+    q.walled = (np.arange(t) >= 99) & (np.arange(t) < 119)
     s = q.summary()
     assert s["blank"] == pytest.approx(20 / (t - 57)) and s["framed"] == pytest.approx(1 - 20 / (t - 57))
+    assert s["walled"] == pytest.approx(20 / (t - 57))
     assert pooled([q, q])["settled_frames"] == 2 * (t - 57)
+
+
+def test_a_passer_by_in_front_of_the_event_is_a_blank_frame_but_not_walled():
+    """A third person stands on the line from the camera to a pair: none of the pair is visible (blank),
+    but the picture shows a person in front of them, not only scenery."""
+    t = 60
+    times = np.arange(1, t + 1, dtype=np.float64)
+    pos = np.zeros((t, 3, 3))
+    pos[:, 0, :2], pos[:, 1, :2], pos[:, 2, :2] = [10.0, -0.1], [10.0, 0.1], [3.0, 0.0]
+    ev = model.Event("/E/Pair", model.code(model.EVENT_KINDS, "interaction"), 1.0, float(t), np.arange(2, dtype=np.int32),
+                     times.copy(), np.ones((t, 2), bool), np.zeros((t, 3)), np.ones(t))
+    mats = np.repeat(look_at([0.0, 0.0, 1.2], [10.0, 0.0, 1.2]), t, axis=0)
+    track = model.CameraTrack("/Cam", times, mats, np.full(t, 35.0), 36.0, 20.25, 0.1, 500.0,
+                              np.ones(t, np.int8), ["/E/Pair"] * t)
+    q = tracking_quality([track], pos, model.EventTable([ev]), np.ones(3, bool), model.Obstacles.empty(), FPS)[0]
+    assert (q.share == 0).all() and not q.walled.any()
+    s = q.summary()
+    assert s["blank"] == 1.0 and s["walled"] == 0.0
 
 
 @pytest.fixture(scope="module")
@@ -85,9 +107,10 @@ def _check_targets(rows):
 
 def test_harbour_tracking_cameras_are_rarely_blank_whatever_the_seed(simulated_harbour):
     """Five runs of 4 camera agents on the harbour (seeds 0-4 of their wandering): in the median run no
-    settled tracking frame shows none of the event's people, and in none more than 4 %. (Measured on two
-    crowds: the worst run 2 % before walkers' overlap pushes were held to their speed limit, 3.1 % after,
-    one second of ScoutWest behind shoppers hiding an interaction; the other four runs 0.)"""
+    settled tracking frame shows none of the event's people, nor only scenery or ground; in none more
+    than 1 % blank or 0.5 % walled. (Measured: 0 and 0 in all eight runs of seeds 0-7; before cameras
+    backed away from people walking at them and panned round as a camera head does, the worst run was
+    3.1 %. Another machine's rounding is another chaotic run: hence bounds, not zeros, per run.)"""
     from usdcrowd.cameras.overview import crowd_summary
     from usdcrowd.jobs.filming import load_shot
     from usdcrowd.jobs.pipeline import film_cameras
@@ -95,14 +118,17 @@ def test_harbour_tracking_cameras_are_rarely_blank_whatever_the_seed(simulated_h
     sc = load_shot(simulated_harbour / "shot.usda", progress=False)
     visible = sc.scenario.agents.visible
     summary = crowd_summary(sc.positions, visible)
-    blank = []
+    blank, walled = [], []
     for seed in range(5):
         tracks = film_cameras(sc.scenario, sc.positions, sc.events, sc.default_prim, False, count=4, static=0,
                               seed=seed, summary=summary)
         quality = tracking_quality([t for t in tracks if t.state is not None], sc.positions, sc.events, visible,
                                    sc.scenario.obstacles, FPS, overhead=sc.scenario.overhead)
-        blank.append(pooled(quality)["blank"])
-    assert np.median(blank) == 0.0 and max(blank) <= 0.04, blank
+        p = pooled(quality)
+        blank.append(p["blank"])
+        walled.append(p["walled"])
+    assert np.median(blank) == 0.0 and max(blank) <= 0.01, blank
+    assert np.median(walled) == 0.0 and max(walled) <= 0.005, walled
 
 
 def test_harbour_tracking_cameras_frame_their_event_after_two_seconds(harbour_metrics):

@@ -27,6 +27,9 @@ class CameraParams:
         1/s: the forces are velocity differences (Reynolds' desired minus
         current velocity); this turns their sum into an acceleration before
         the maxForce limit (at 1/s a camera would lag a second behind).
+    crane_share : float
+        Share of maxForce a vertical (crane) move may take before horizontal moves get the rest (at 1, a
+        camera rising or sinking at full force could not steer aside from people walking at it).
     angular_gain : float
         1/s: how fast the rotational velocity follows a torque's desired one
         (the ``q_dot_d q_dot_c^-1`` products of Algorithms 5 and 6 scaled per second).
@@ -124,6 +127,7 @@ class CameraParams:
     w_avoid: float = 0.4
     w_wander_torque: float = 1.0
     force_gain: float = 3.0
+    crane_share: float = 0.8
     angular_gain: float = 4.0
     beta_deg: float = 80.0
     min_frame_width: float = 0.6

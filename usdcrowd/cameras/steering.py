@@ -154,6 +154,11 @@ class CameraAgents:
         self.refused_until = np.full(c, -np.inf)
         self._seen_time = None
         self._seen_positions = None
+        # Everyone's ground velocity (n, 3), m/s, from the last two time codes (what a camera sees of
+        # people's motion: where they walk next).
+        self._pace_time = None
+        self._pace_positions = None
+        self.pace = np.zeros((0, 3))
 
     def __len__(self) -> int:
         return len(self.p)
@@ -222,8 +227,10 @@ class CameraAgents:
         fwd, right, up = axes(self.q[free])
         seen = np.zeros((len(free), len(running)), bool)
         dist = np.full((len(free), len(running)), np.inf)
+        moving = self.pace.shape == np.shape(positions)
         for j, k in enumerate(running):
-            pts = self._event_state(k, time, positions, core=False)[1] + [0.0, 0.0, self.params.look_height]
+            rows, pts = self._event_state(k, time, positions, core=False)[:2]
+            pts = pts + [0.0, 0.0, self.params.look_height]
             d = pts[None] - self.p[free, None]                        # (f, m, 3)
             z = np.einsum("fmk,fk->fm", d, fwd)
             x = np.einsum("fmk,fk->fm", d, right)
@@ -231,10 +238,15 @@ class CameraAgents:
             r = np.linalg.norm(d, axis=2)
             inside = (z > 0.5) & (r < self.params.scout_range) & (np.abs(x) <= self.tan_x[free, None] * z) & (
                 np.abs(y) <= self.tan_y[free, None] * z)
-            # ... and not behind scenery: a camera does not see through a building.
+            # ... and not behind scenery: a camera does not see through a building, nor takes people it
+            # sees walking behind one (where they will be ``occlusion_lookahead`` seconds on).
             f_i, m_i = np.nonzero(inside)
             if len(f_i) and len(self._prisms):
-                inside[f_i, m_i] = ~self._prisms.blocks(self.p[free[f_i]], pts[m_i])
+                clear = ~self._prisms.blocks(self.p[free[f_i]], pts[m_i])
+                if moving:
+                    later = pts[m_i] + self.pace[rows[m_i]] * [1.0, 1.0, 0.0] * self.params.occlusion_lookahead
+                    clear &= ~self._prisms.blocks(self.p[free[f_i]], later)
+                inside[f_i, m_i] = clear
             inside &= ~((self.refused[free] == k) & (time < self.refused_until[free]))[:, None]
             seen[:, j] = inside.any(axis=1)
             dist[:, j] = np.where(inside, r, np.inf).min(axis=1)
@@ -279,10 +291,12 @@ class CameraAgents:
         force += self._forces(look, height, fwd, right, crowd_centre, crowd_radius)
         # Algorithm 1, with Reynolds' limits on force and speed; the crane's vertical move comes first
         # within them (Reynolds' prioritised allocation): a camera rising over people who hide its event
-        # is not held down by its horizontal moves.
+        # is not held down by its horizontal moves. Up to ``crane_share`` of the force: a crane move
+        # taking all of it would leave a camera coasting into people walking at it.
         t = self.table
-        force = _clamp_vertical_first(self.params.force_gain * force, t.max_force)
-        force = _clamp_vertical_first(self._brake_at_bounds(force, dt), t.max_force)
+        share = self.params.crane_share
+        force = _clamp_vertical_first(self.params.force_gain * force, t.max_force, share)
+        force = _clamp_vertical_first(self._brake_at_bounds(force, dt), t.max_force, share)
         self.v = _clamp(self.v + force * dt, t.max_speed)
         self.p = self.p + self.v * dt
         self._constrain()
@@ -309,6 +323,7 @@ class CameraAgents:
         c = len(self)
         force = np.zeros((c, 3))
         self._measure_sight(time, positions)       # may send a camera that lost its event back to scouting
+        self._keep_pace(time, positions)
         tracking = np.flatnonzero(self.tracked >= 0)
         scouting = np.flatnonzero(self.tracked < 0)
         look = self.p + fwd * prm.wander_look_distance
@@ -318,31 +333,30 @@ class CameraAgents:
             b = np.zeros((len(tracking), 2))
             n_members = np.zeros(len(tracking))
             radius = np.zeros(len(tracking))
+            pace = np.zeros((len(tracking), 3))
             # Where each camera frames its event from: near where it stands, or, while it walks round
             # the event to see it, near the bearing it seeks.
             near = self.p[tracking, :2].copy()
             for j, cam in enumerate(tracking):
-                _, pts, r = self._event_state(self.tracked[cam], time, positions)
+                rows, pts, r = self._event_state(self.tracked[cam], time, positions)
                 if np.isfinite(self.seek[cam]):
                     near[j] = self._seek_point(cam, pts[:, :2].mean(axis=0))
                 a[j], b[j] = _extremes(near[j], pts[:, :2])
                 look[cam] = pts.mean(axis=0) + np.array([0.0, 0.0, prm.look_height])
                 n_members[j], radius[j] = len(pts), r
+                if self.pace.shape == np.shape(positions):
+                    pace[j] = self.pace[rows].mean(axis=0)          # the event's people's mean velocity
             # An event's area is framed too: one visible member of a wide authored event is not a close-up.
             width = np.maximum(prm.min_frame_width, radius)
-            goal = forces.framing_target(near, a, b, self.alpha[tracking], self.beta[tracking], width)
-            # A craned camera stands back far enough to look at its event less steeply than
-            # ``steepest_deg`` (the framing range is drawn for a level view).
-            centre = look[tracking, :2]
-            out = goal - centre
-            reach = np.linalg.norm(out, axis=1)
-            least = (self.p[tracking, 2] - prm.look_height) / np.tan(np.radians(prm.steepest_deg))
-            away = np.where(reach[:, None] > 1e-6, out / np.maximum(reach, 1e-9)[:, None],
-                            _unit(self.p[tracking, :2] - centre))
-            goal = np.where((reach < least)[:, None], centre + away * least[:, None], goal)
+            goal = self._framing_goal(tracking, near, a, b, width, look[tracking, :2])
             goal3 = np.column_stack([goal, self.p[tracking, 2]])
             f = forces.arrival(self.p[tracking], goal3, self.v[tracking] * [1, 1, 0], t.max_speed[tracking],
                                t.arrival_distance[tracking])
+            # People walking at the camera: it backs away as fast as they come (Reynolds' offset pursuit,
+            # for the approach only; an event walking off is followed by the arrival alone).
+            back = _unit(self.p[tracking, :2] - look[tracking, :2])
+            coming = np.maximum(np.einsum("ij,ij->i", pace[:, :2], back), 0.0)
+            f[:, :2] += coming[:, None] * back
             force[tracking] += prm.w_framing * f
             height[tracking] = forces.crane_height(n_members, radius, t.elevation[tracking], prm.crane_members,
                                                    prm.crane_gain)
@@ -358,13 +372,55 @@ class CameraAgents:
                                      np.zeros(len(scouting))])
             look[scouting] = self.p[scouting] * [1.0, 1.0, 0.0] + prm.wander_look_distance * ahead + [
                 0.0, 0.0, prm.look_height]
-            # A camera told to film an event (an authored target) turns to where it will begin in the
-            # last ``ready_seconds`` before it does: it is not still turning round when it starts.
+            # A camera told to film an event (an authored target) turns to the people who will take part
+            # (or, if it names none, where it will begin) in the last ``ready_seconds`` before it does:
+            # it is not still turning round when it starts.
             for cam in scouting[self.pinned[scouting] >= 0]:
                 e = self.events[self.pinned[cam]]
-                if len(e.center) and e.start - prm.ready_seconds * self.fps <= time < e.start:
+                if not e.start - prm.ready_seconds * self.fps <= time < e.start:
+                    continue
+                rows = e.members_at(e.start)
+                if self.visible is not None and self.visible[rows].any():
+                    rows = rows[self.visible[rows]]
+                if len(rows):
+                    look[cam] = positions[rows].mean(axis=0) + [0.0, 0.0, prm.look_height]
+                elif len(e.center):
                     look[cam] = e.center[0] + [0.0, 0.0, prm.look_height]
         return look, height, force
+
+    def _framing_goal(self, tracking: np.ndarray, near: np.ndarray, a: np.ndarray, b: np.ndarray,
+                      width: np.ndarray, centre: np.ndarray) -> np.ndarray:
+        """(k, 2) where tracking cameras ``tracking`` go to frame their events: the viewpoint of the
+        framing range (section 4.3) nearest ``near`` (k, 2) for extremes ``a``, ``b`` (k, 2) and ``width``
+        (k,), pushed back from the event's ``centre`` (k, 2) as the rules below say."""
+        prm = self.params
+        goal = forces.framing_target(near, a, b, self.alpha[tracking], self.beta[tracking], width)
+        out = goal - centre
+        reach = np.linalg.norm(out, axis=1)
+        # Deep inside the range (people walked at the camera), the nearest viewpoint may lie on either
+        # side and flip from one step to the next, holding the camera over them: it steps straight back.
+        mine = near - centre
+        inside = np.linalg.norm(mine, axis=1) < 0.5 * reach
+        back = _unit(mine)
+        out = np.where(inside[:, None], back * reach[:, None], out)
+        # A craned camera stands back far enough to look at its event less steeply than
+        # ``steepest_deg`` (the framing range is drawn for a level view).
+        least = (self.p[tracking, 2] - prm.look_height) / np.tan(np.radians(prm.steepest_deg))
+        away = np.where(reach[:, None] > 1e-6, out / np.maximum(reach, 1e-9)[:, None],
+                        _unit(self.p[tracking, :2] - centre))
+        return np.where((reach < least)[:, None], centre + away * least[:, None], centre + out)
+
+    def _keep_pace(self, time: float, positions: np.ndarray) -> None:
+        """``pace`` (n, 3): everyone's velocity over the last time codes, m/s (zero on the first)."""
+        if self._pace_time is not None and time == self._pace_time:
+            return
+        positions = np.asarray(positions, dtype=np.float64)
+        last, previous = self._pace_time, self._pace_positions
+        self._pace_time, self._pace_positions = time, positions.copy()
+        if previous is None or previous.shape != positions.shape or time <= last:
+            self.pace = np.zeros_like(positions)
+            return
+        self.pace = (positions - previous) / (time - last) * self.fps
 
     def _sight_height(self, tracking: np.ndarray, look: np.ndarray, height: np.ndarray, dt: float) -> np.ndarray:
         """(k,) the heights tracking cameras ``tracking`` stand at for sight, from the ``height`` (k,) their
@@ -456,9 +512,10 @@ class CameraAgents:
         t = self.table
         seen = np.ones(len(owner), bool)
         for ahead, where in moments:
-            seen_then = seen_points(self.p[cam_of] + ahead * self.v[cam_of], (right[cam_of], up[cam_of], fwd[cam_of]),
-                                    self.tan_x[cam_of], self.tan_y[cam_of], t.near[cam_of], t.far[cam_of], where, owner,
-                                    candidates, self._prisms)
+            eye = self.p[cam_of] + ahead * self.v[cam_of]
+            view = (right[cam_of], up[cam_of], fwd[cam_of])
+            seen_then = seen_points(eye, view, self.tan_x[cam_of], self.tan_y[cam_of], t.near[cam_of], t.far[cam_of],
+                                    where, owner, candidates, self._prisms)
             if ahead == 0.0:
                 seen_now = np.bincount(cam_of, weights=seen_then, minlength=len(self))
             seen &= seen_then
@@ -724,11 +781,11 @@ def _extremes(camera_xy: np.ndarray, pts: np.ndarray):
     return extreme_pair(camera_xy, pts)
 
 
-def _clamp_vertical_first(v: np.ndarray, limit: np.ndarray) -> np.ndarray:
-    """(c, 3) ``v`` within ``limit`` (c,) in length, its vertical part kept first, the horizontal one
-    shortened to what is left."""
+def _clamp_vertical_first(v: np.ndarray, limit: np.ndarray, share: float) -> np.ndarray:
+    """(c, 3) ``v`` within ``limit`` (c,) in length, its vertical part (up to ``share`` of the limit) kept
+    first, the horizontal one shortened to what is left."""
     out = v.copy()
-    out[:, 2] = np.clip(v[:, 2], -limit, limit)
+    out[:, 2] = np.clip(v[:, 2], -share * limit, share * limit)
     room = np.sqrt(np.maximum(limit ** 2 - out[:, 2] ** 2, 0.0))
     out[:, :2] = _clamp(v[:, :2], room)
     return out

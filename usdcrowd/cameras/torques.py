@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from .frustum import frustums_intersect_2d
-from .orientation import rotation_to
+from .orientation import axes
 
 _UP = np.array([0.0, 0.0, 1.0])
 
@@ -19,10 +19,16 @@ def aiming(q: np.ndarray, q_desired: np.ndarray, omega: np.ndarray, max_rate: np
            threshold: np.ndarray) -> np.ndarray:
     """Algorithm 5: turn toward ``q_desired`` at full rate, slowing inside ``threshold`` (arrival).
 
+    The turn is a pan about the world's up axis and a tilt about the camera's
+    right axis, as a camera head moves, not the shortest rotation between the
+    two orientations: for a target behind a camera looking steeply down, the
+    shortest rotation runs through the nadir, which the pitch limit forbids,
+    and the camera would crawl along that limit instead of panning round.
+
     Parameters
     ----------
     q, q_desired : (c, 4) float
-        Current and desired orientations.
+        Current and desired orientations (roll-free).
     omega : (c, 3) float
         Current rotational velocity, rad/s.
     max_rate, threshold : (c,) float
@@ -33,7 +39,14 @@ def aiming(q: np.ndarray, q_desired: np.ndarray, omega: np.ndarray, max_rate: np
     (c, 3) float64
         T_aim.
     """
-    angle, axis = rotation_to(q, q_desired)
+    fwd, right, _ = axes(q)
+    goal = axes(q_desired)[0]
+    pan = np.arctan2(goal[:, 1], goal[:, 0]) - np.arctan2(fwd[:, 1], fwd[:, 0])
+    pan = (pan + np.pi) % (2.0 * np.pi) - np.pi
+    tilt = np.arcsin(np.clip(goal[:, 2], -1.0, 1.0)) - np.arcsin(np.clip(fwd[:, 2], -1.0, 1.0))
+    angle = np.hypot(pan, tilt)
+    turn = pan[:, None] * _UP + tilt[:, None] * right
+    axis = turn / np.maximum(angle, 1e-12)[:, None]
     rate = np.where(angle > threshold, max_rate, max_rate * angle / np.maximum(threshold, 1e-9))
     return axis * rate[:, None] - omega
 

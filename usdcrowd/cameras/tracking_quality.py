@@ -43,6 +43,9 @@ class TrackingQuality:
         Seconds since the camera took the event it tracks (NaN while scouting).
     takes : list of (str, float, float)
         (event, time code taken, seconds to frame it or NaN if it never was).
+    walled : (t,) bool
+        None of the tracked event's people is in the picture unhidden by scenery: the picture shows
+        only scenery or ground (a passer-by in front of them does not count; False while scouting).
     """
 
     camera: str
@@ -52,6 +55,7 @@ class TrackingQuality:
     size: np.ndarray
     since: np.ndarray
     takes: list
+    walled: np.ndarray
 
     @property
     def settled(self) -> np.ndarray:
@@ -63,18 +67,20 @@ class TrackingQuality:
         s = self.settled & ~np.isnan(self.share)
         share = self.share[s]
         return {"tracking_frames": int((~np.isnan(self.since)).sum()),
-                **_shares(share, [t for _, _, t in self.takes]),
+                **_shares(share, self.walled[s], [t for _, _, t in self.takes]),
                 "median_size": float(np.median(self.size[s][share > 0])) if (share > 0).any() else float("nan")}
 
 
-def _shares(share: np.ndarray, seconds_to_frame: list) -> dict:
-    """Settled frames, the shares framed and blank, the mean share visible ((f,) shares of settled frames),
+def _shares(share: np.ndarray, walled: np.ndarray, seconds_to_frame: list) -> dict:
+    """Settled frames, the shares framed, blank and walled (``walled`` (f,) of the same frames), the mean
+    share visible ((f,) shares of settled frames),
     and the takes, those never framed and the median seconds to frame one (NaN where there is nothing)."""
     ttf = np.array(seconds_to_frame, dtype=np.float64)
     some = len(share) > 0
     return {"settled_frames": int(len(share)),
             "framed": float(np.mean(share >= FRAMED_SHARE)) if some else float("nan"),
             "blank": float(np.mean(share == 0)) if some else float("nan"),
+            "walled": float(np.mean(walled)) if some else float("nan"),
             "mean_share": float(np.mean(share)) if some else float("nan"),
             "takes": int(len(ttf)), "never_framed": int(np.isnan(ttf).sum()),
             "median_seconds_to_frame": float(np.nanmedian(ttf)) if np.isfinite(ttf).any() else float("nan")}
@@ -110,6 +116,7 @@ def tracking_quality(tracks: list[model.CameraTrack], positions, events: model.E
     prisms = Prisms.of(obstacles, overhead=overhead)
     c, t = len(agents), len(times)
     share = np.full((c, t), np.nan)
+    walled = np.zeros((c, t), bool)
     size = np.zeros((c, t))
     near = np.array([tr.near for tr in agents])
     far = np.array([tr.far for tr in agents])
@@ -130,6 +137,7 @@ def tracking_quality(tracks: list[model.CameraTrack], positions, events: model.E
                 continue
             seen = v.visible[k, idx]
             share[k, i] = seen.mean()
+            walled[k, i] = not (v.in_frame[k, idx] & ~v.hidden_by_scenery[k, idx]).any()
             size[k, i] = float(np.median(v.height[k, idx][seen])) if seen.any() else 0.0
     out = []
     for k, tr in enumerate(agents):
@@ -147,12 +155,14 @@ def tracking_quality(tracks: list[model.CameraTrack], positions, events: model.E
             if np.isnan(takes[-1][2]) and share[k, i] >= FRAMED_SHARE:
                 takes[-1][2] = float(since[i])
         out.append(TrackingQuality(tr.path, times, list(tr.tracked), share[k], size[k], since,
-                                   [tuple(x) for x in takes]))
+                                   [tuple(x) for x in takes], walled[k]))
     return out
 
 
 def pooled(qualities: list[TrackingQuality]) -> dict:
     """Every camera's settled tracking frames and takes together: the shares framed and blank, the mean
     share visible, and the median seconds to frame a take (NaN where nothing was tracked)."""
-    share = np.concatenate([q.share[q.settled & ~np.isnan(q.share)] for q in qualities]) if qualities else np.zeros(0)
-    return {"cameras": len(qualities), **_shares(share, [t for q in qualities for _, _, t in q.takes])}
+    kept = [q.settled & ~np.isnan(q.share) for q in qualities]
+    share = np.concatenate([q.share[s] for q, s in zip(qualities, kept)]) if qualities else np.zeros(0)
+    walled = np.concatenate([q.walled[s] for q, s in zip(qualities, kept)]) if qualities else np.zeros(0, bool)
+    return {"cameras": len(qualities), **_shares(share, walled, [t for q in qualities for _, _, t in q.takes])}

@@ -39,10 +39,12 @@ def run(args) -> int:
             print(f"  {n:>7} {kind:<12} {s['mean_active_share']:>12.3f} {s['mean_active_idle_ratio']:>11.3f} "
                   f"{s['mean_viewed_share']:>12.3f}")
     print("  tracking cameras (2 s after taking an event): frames with half its people or more visible, "
-          "with none, seconds to frame it (median)")
+          "with none, with only scenery or ground (none in the picture unhidden by it), seconds to frame it "
+          "(median)")
     for n in counts:
         q = results[n]["tracking"]
         print(f"  {n:>7} autonomous  framed {q['framed']:6.1%}  blank {q['blank']:6.1%}  "
+              f"walled {q['walled']:6.1%}  "
               f"{q['median_seconds_to_frame']:.2f} s over {q['takes']} takes")
     gallery = results[counts[0]].get("gallery")
     if gallery:

@@ -289,7 +289,7 @@ def _write_tracking_csv(path, quality) -> None:
     """One row per camera agent: how well it framed what it tracked (:mod:`usdcrowd.cameras.tracking_quality`)."""
     from ..atomic import atomic_path
 
-    keys = ["tracking_frames", "settled_frames", "framed", "blank", "mean_share", "median_size", "takes",
+    keys = ["tracking_frames", "settled_frames", "framed", "blank", "walled", "mean_share", "median_size", "takes",
             "never_framed", "median_seconds_to_frame"]
     with atomic_path(path) as tmp, open(tmp, "w", newline="") as fh:
         w = csv.writer(fh)
