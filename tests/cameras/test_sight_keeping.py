@@ -217,3 +217,22 @@ def test_a_scout_does_not_take_people_it_sees_walking_behind_a_wall():
     blind = film(pos, times, FPS, cams, events, walls, params=CameraParams(occlusion_lookahead=0.0, **still),
                  seed=7)[0]
     assert any(blind.tracked)
+
+
+def test_a_camera_closing_in_on_people_under_an_awning_comes_down_in_time():
+    """A pair talks under a 10 m awning (2.6 to 3.2 m up); a camera told to film them flies in from 30 m
+    away at 7 m. The height it may look from without the awning's edge in the way falls as it closes in:
+    choosing it from where it will be, not only where it is, it comes down in time and never loses them."""
+    t = 24 * 12
+    times = np.arange(1, t + 1, dtype=np.float64)
+    pos = np.zeros((t, 2, 3))
+    pos[:, 0, :2], pos[:, 1, :2] = [-0.5, 0.0], [0.5, 0.0]
+    events = model.EventTable([make_event("/E/Talk", INTERACTION, pos, [0, 1], 0, t - 1, times)])
+    awning = model.Obstacles(["/Awning"], [np.array([[-5.0, -5.0], [5.0, -5.0], [5.0, 5.0], [-5.0, 5.0]])],
+                             np.array([3.2]), bottom=np.array([2.6]))
+    cams = _one_camera([0.0, -30.0, 7.0], [0.0, 0.0, 1.1], [1.5, 8.0])
+    cams.target[:] = ["/E/Talk"]
+    prm = CameraParams(crane_members=1, crane_gain=10.0)      # it would stay high above the pair
+    tr = film(pos, times, FPS, cams, events, model.Obstacles.empty(), params=prm, seed=8, overhead=awning)[0]
+    q = tracking_quality([tr], pos, events, np.ones(2, bool), model.Obstacles.empty(), FPS, overhead=awning)[0]
+    assert q.walled.sum() == 0 and (q.share > 0).all(), np.flatnonzero(q.share == 0)[:5]

@@ -551,10 +551,14 @@ class CameraAgents:
         if len(self._prisms) == 0:
             return heights, np.ones(_HEIGHTS, bool)
         k = len(people)
-        eye = np.repeat(np.column_stack([np.tile(self.p[cam, :2], (_HEIGHTS, 1)), heights]), 2 * k, 0)
+        # From its ground point now and where it flies in ``occlusion_lookahead``: a camera closing in on
+        # people under an awning starts down before the awning's edge is between them.
         body = np.concatenate([people + [0.0, 0.0, CHEST_HEIGHT], people + [0.0, 0.0, HEAD_HEIGHT]])
-        hidden = self._prisms.blocks(eye, np.tile(body, (_HEIGHTS, 1))).reshape(_HEIGHTS, 2, k).all(axis=1)
-        clear = (~hidden).sum(axis=1)
+        clear = np.zeros(_HEIGHTS)
+        for ground in (self.p[cam, :2], self.p[cam, :2] + self.v[cam, :2] * self.params.occlusion_lookahead):
+            eye = np.repeat(np.column_stack([np.tile(ground, (_HEIGHTS, 1)), heights]), 2 * k, 0)
+            hidden = self._prisms.blocks(eye, np.tile(body, (_HEIGHTS, 1))).reshape(_HEIGHTS, 2, k).all(axis=1)
+            clear += (~hidden).sum(axis=1)
         return heights, clear == clear.max()
 
     def _seek_point(self, cam: int, centre: np.ndarray) -> np.ndarray:
