@@ -511,9 +511,18 @@ class CameraAgents:
         fwd, right, up = axes(self.q)
         t = self.table
         seen = np.ones(len(owner), bool)
+        count = np.bincount(cam_of, minlength=len(self))
         for ahead, where in moments:
             eye = self.p[cam_of] + ahead * self.v[cam_of]
             view = (right[cam_of], up[cam_of], fwd[cam_of])
+            if ahead > 0.0:
+                # Ahead, the camera will have turned to follow its people: only what hides them counts (a
+                # walker coming at it leaves its present frame at the bottom; that is no reason to crane).
+                centre = np.column_stack([np.bincount(cam_of, weights=where[owner, k], minlength=len(self))
+                                          for k in range(3)]) / np.maximum(count, 1)[:, None]
+                ahead_fwd, ahead_right, ahead_up = axes(_level_towards(
+                    centre[cam_of] + [0.0, 0.0, prm.look_height] - eye))
+                view = (ahead_right, ahead_up, ahead_fwd)
             seen_then = seen_points(eye, view, self.tan_x[cam_of], self.tan_y[cam_of], t.near[cam_of], t.far[cam_of],
                                     where, owner, candidates, self._prisms)
             if ahead == 0.0:
