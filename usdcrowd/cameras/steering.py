@@ -362,31 +362,39 @@ class CameraAgents:
                                                    prm.crane_gain)
             height[tracking] = self._sight_height(tracking, look, height[tracking], dt)
         if len(scouting):
-            self.wander[scouting] += self.rng.normal(0.0, prm.wander_jitter * np.sqrt(dt), len(scouting))
-            self._head_back(scouting, crowd_centre, crowd_radius, dt)
-            force[scouting] += prm.w_wander * forces.wandering(self.v[scouting], self.wander[scouting],
-                                                               t.max_speed[scouting], prm.wander_speed)
-            # The wandering torque (section 4.4): aim at a point along the camera's own wandering
-            # direction, at people's height; a scout knows nobody it has not seen.
-            ahead = np.column_stack([np.cos(self.wander[scouting]), np.sin(self.wander[scouting]),
-                                     np.zeros(len(scouting))])
-            look[scouting] = self.p[scouting] * [1.0, 1.0, 0.0] + prm.wander_look_distance * ahead + [
-                0.0, 0.0, prm.look_height]
-            # A camera told to film an event (an authored target) turns to the people who will take part
-            # (or, if it names none, where it will begin) in the last ``ready_seconds`` before it does:
-            # it is not still turning round when it starts.
-            for cam in scouting[self.pinned[scouting] >= 0]:
-                e = self.events[self.pinned[cam]]
-                if not e.start - prm.ready_seconds * self.fps <= time < e.start:
-                    continue
-                rows = e.members_at(e.start)
-                if self.visible is not None and self.visible[rows].any():
-                    rows = rows[self.visible[rows]]
-                if len(rows):
-                    look[cam] = positions[rows].mean(axis=0) + [0.0, 0.0, prm.look_height]
-                elif len(e.center):
-                    look[cam] = e.center[0] + [0.0, 0.0, prm.look_height]
+            force[scouting] += self._scout(scouting, time, positions, look, crowd_centre, crowd_radius, dt)
         return look, height, force
+
+    def _scout(self, scouting: np.ndarray, time: float, positions: np.ndarray, look: np.ndarray,
+               crowd_centre: np.ndarray, crowd_radius: float, dt: float) -> np.ndarray:
+        """(k, 3) the wandering force of scouting cameras ``scouting`` (k,); sets their aim points in
+        ``look`` (c, 3)."""
+        prm, t = self.params, self.table
+        self.wander[scouting] += self.rng.normal(0.0, prm.wander_jitter * np.sqrt(dt), len(scouting))
+        self._head_back(scouting, crowd_centre, crowd_radius, dt)
+        wander = prm.w_wander * forces.wandering(self.v[scouting], self.wander[scouting], t.max_speed[scouting],
+                                                 prm.wander_speed)
+        # The wandering torque (section 4.4): aim at a point along the camera's own wandering
+        # direction, at people's height; a scout knows nobody it has not seen.
+        ahead = np.column_stack([np.cos(self.wander[scouting]), np.sin(self.wander[scouting]),
+                                 np.zeros(len(scouting))])
+        look[scouting] = self.p[scouting] * [1.0, 1.0, 0.0] + prm.wander_look_distance * ahead + [
+            0.0, 0.0, prm.look_height]
+        # A camera told to film an event (an authored target) turns to the people who will take part
+        # (or, if it names none, where it will begin) in the last ``ready_seconds`` before it does:
+        # it is not still turning round when it starts.
+        for cam in scouting[self.pinned[scouting] >= 0]:
+            e = self.events[self.pinned[cam]]
+            if not e.start - prm.ready_seconds * self.fps <= time < e.start:
+                continue
+            rows = e.members_at(e.start)
+            if self.visible is not None and self.visible[rows].any():
+                rows = rows[self.visible[rows]]
+            if len(rows):
+                look[cam] = positions[rows].mean(axis=0) + [0.0, 0.0, prm.look_height]
+            elif len(e.center):
+                look[cam] = e.center[0] + [0.0, 0.0, prm.look_height]
+        return wander
 
     def _framing_goal(self, tracking: np.ndarray, near: np.ndarray, a: np.ndarray, b: np.ndarray,
                       width: np.ndarray, centre: np.ndarray) -> np.ndarray:
@@ -511,18 +519,10 @@ class CameraAgents:
         fwd, right, up = axes(self.q)
         t = self.table
         seen = np.ones(len(owner), bool)
-        count = np.bincount(cam_of, minlength=len(self))
         for ahead, where in moments:
             eye = self.p[cam_of] + ahead * self.v[cam_of]
-            view = (right[cam_of], up[cam_of], fwd[cam_of])
-            if ahead > 0.0:
-                # Ahead, the camera will have turned to follow its people: only what hides them counts (a
-                # walker coming at it leaves its present frame at the bottom; that is no reason to crane).
-                centre = np.column_stack([np.bincount(cam_of, weights=where[owner, k], minlength=len(self))
-                                          for k in range(3)]) / np.maximum(count, 1)[:, None]
-                ahead_fwd, ahead_right, ahead_up = axes(_level_towards(
-                    centre[cam_of] + [0.0, 0.0, prm.look_height] - eye))
-                view = (ahead_right, ahead_up, ahead_fwd)
+            view = (right[cam_of], up[cam_of], fwd[cam_of]) if ahead == 0.0 else self._turned(eye, cam_of,
+                                                                                                where[owner])
             seen_then = seen_points(eye, view, self.tan_x[cam_of], self.tan_y[cam_of], t.near[cam_of], t.far[cam_of],
                                     where, owner, candidates, self._prisms)
             if ahead == 0.0:
@@ -533,6 +533,17 @@ class CameraAgents:
                                     / np.bincount(cam_of, minlength=len(self))[counted])
         self._give_up(time, counted, seen_now[counted] > 0)
         self._seek_sight(time, groups, moments)
+
+    def _turned(self, eye: np.ndarray, cam_of: np.ndarray, people: np.ndarray) -> tuple:
+        """(right, up, forward), three (m, 3): each camera ``cam_of`` (m,) at ``eye`` (m, 3) turned to the
+        mean of its ``people`` (m, 3) ground positions. Ahead, a camera will have turned to follow its
+        people: only what hides them counts (a walker coming at it leaves its present frame at the
+        bottom; that is no reason to crane)."""
+        count = np.maximum(np.bincount(cam_of, minlength=len(self)), 1)
+        centre = np.column_stack([np.bincount(cam_of, weights=people[:, k], minlength=len(self))
+                                  for k in range(3)]) / count[:, None]
+        fwd, right, up = axes(_level_towards(centre[cam_of] + [0.0, 0.0, self.params.look_height] - eye))
+        return right, up, fwd
 
     def _give_up(self, time: float, cams: np.ndarray, seeing: np.ndarray) -> None:
         """Tracking cameras ``cams`` that have seen none of their event's people for ``give_up_seconds``
