@@ -236,3 +236,28 @@ def test_a_camera_closing_in_on_people_under_an_awning_comes_down_in_time():
     tr = film(pos, times, FPS, cams, events, model.Obstacles.empty(), params=prm, seed=8, overhead=awning)[0]
     q = tracking_quality([tr], pos, events, np.ones(2, bool), model.Obstacles.empty(), FPS, overhead=awning)[0]
     assert q.walled.sum() == 0 and (q.share > 0).all(), np.flatnonzero(q.share == 0)[:5]
+
+
+def _group_behind_a_wall(gap):
+    """Seven people stand 1 m apart along y = 0 (x = -3 to 3) behind a 30 m tall wall at y = -3 with a gap
+    ``gap`` = (x0, x1); a camera 15 m south of x = 0.5 sees those whose sight line passes the gap."""
+    t = 24 * 3
+    times = np.arange(1, t + 1, dtype=np.float64)
+    pos = np.zeros((t, 7, 3))
+    pos[:, :, 0] = np.arange(-3.0, 4.0)
+    ev = make_event("/E/Group", GROUP, pos, np.arange(7), 0, t - 1, times)
+    walls = [np.array([[x0, -3.2], [x1, -3.2], [x1, -2.8], [x0, -2.8]]) for x0, x1 in ((-60.0, gap[0]), (gap[1], 60.0))]
+    cams = _one_camera([0.5, -15.0, 1.6], [0.5, 0.0, 1.4], [1.5, 1.7])
+    return pos, times, model.EventTable([ev]), model.Obstacles(["/West", "/East"], walls, np.full(2, 30.0)), cams
+
+
+def test_a_scout_takes_a_group_only_when_it_sees_a_good_part_of_it():
+    """Through a gap showing two of a group of seven a scout does not take it (under ``take_share``, a
+    third); through one showing three it does, and with ``take_share`` 0 a glimpse of two is enough."""
+    still = dict(wander_jitter=0.0, wander_speed=0.0)
+    pos, times, events, walls, cams = _group_behind_a_wall((-0.3, 1.3))         # people at x = 0 and 1
+    assert not any(film(pos, times, FPS, cams, events, walls, params=CameraParams(**still), seed=9)[0].tracked)
+    glimpse = film(pos, times, FPS, cams, events, walls, params=CameraParams(take_share=0.0, **still), seed=9)[0]
+    assert all(glimpse.tracked)
+    pos, times, events, walls, cams = _group_behind_a_wall((-1.1, 1.3))         # x = -1, 0 and 1
+    assert all(film(pos, times, FPS, cams, events, walls, params=CameraParams(**still), seed=9)[0].tracked)

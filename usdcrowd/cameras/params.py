@@ -109,6 +109,9 @@ class CameraParams:
     give_up_seconds : float
         A tracking camera that has seen none of its event's people this long leaves it (and does not take
         it again for as long).
+    take_share : float
+        A scout takes an event when at least this share of the people of it in its frame are clear of
+        scenery, now and ``occlusion_lookahead`` on (and at least one).
     contain_margin : float
         Metres beyond the crowd's extent where containment starts pulling back.
     min_track_seconds : float
@@ -160,5 +163,6 @@ class CameraParams:
     seek_seconds: float = 6.0
     give_up_seconds: float = 2.5
     ready_seconds: float = 4.0
+    take_share: float = 1.0 / 3.0
     contain_margin: float = 10.0
     min_track_seconds: float = 3.0

@@ -238,8 +238,9 @@ class CameraAgents:
             r = np.linalg.norm(d, axis=2)
             inside = (z > 0.5) & (r < self.params.scout_range) & (np.abs(x) <= self.tan_x[free, None] * z) & (
                 np.abs(y) <= self.tan_y[free, None] * z)
+            framed = inside.sum(axis=1)
             # ... and not behind scenery: a camera does not see through a building, nor takes people it
-            # sees walking behind one (where they will be ``occlusion_lookahead`` seconds on).
+            # sees walking behind one (where they will be ``occlusion_lookahead`` seconds on) ...
             f_i, m_i = np.nonzero(inside)
             if len(f_i) and len(self._prisms):
                 clear = ~self._prisms.blocks(self.p[free[f_i]], pts[m_i])
@@ -248,7 +249,9 @@ class CameraAgents:
                     clear &= ~self._prisms.blocks(self.p[free[f_i]], later)
                 inside[f_i, m_i] = clear
             inside &= ~((self.refused[free] == k) & (time < self.refused_until[free]))[:, None]
-            seen[:, j] = inside.any(axis=1)
+            # ... and sees a good part of them: a glimpse of a few of a group walking under an awning is
+            # no view of it.
+            seen[:, j] = inside.sum(axis=1) >= np.maximum(1, self.params.take_share * framed)
             dist[:, j] = np.where(inside, r, np.inf).min(axis=1)
         run = np.asarray(running)
         for row, cam in enumerate(free):
