@@ -14,6 +14,10 @@
     python tools/bench.py realism         # corridors and bottlenecks against Weidmann and the Jülich flows, and JuPedSim
 
 Each measured run happens in a child process so that its peak memory is its own.
+Every section prints the machine's core count and load before and after it
+(recorded with ``--record`` as ``machine_load``). The sections measured
+against JuPedSim (sim, realism) stop in one line when it is not installed
+(``make bench`` installs it); ``--allow-missing-peers`` measures usdcrowd alone.
 Targets (2-core machine): author 10,000 x 300 in <= 20 s and <= 4 GiB; 100
 camera agents with 10,000 characters (event detection included) >= 30 steps/s;
 simulate's peak memory at 6,000 frames within 10 % of 750, and 10,000 agents x
@@ -101,6 +105,20 @@ def bench_author(agents: int, frames: int) -> dict:
     print(f"   with event detection (simulate's default): {e['seconds']:.2f} s "
           f"({e['seconds'] / r['seconds']:.2f}x), peak {e['peak_mib']:,} MiB")
     return {"alone": r, "with_events": e}
+
+
+def load() -> str:
+    """The machine's load averages over 1, 5 and 15 minutes ("n/a" where the system does not say)."""
+    try:
+        return "/".join(f"{x:.2f}" for x in os.getloadavg())
+    except (AttributeError, OSError):
+        return "n/a"
+
+
+def _installed(module: str) -> bool:
+    import importlib.util
+
+    return importlib.util.find_spec(module) is not None
 
 
 def bench_section(name: str, **kw):
@@ -238,20 +256,30 @@ def main(argv=None) -> int:
     p.add_argument("--frames", type=int, default=300)
     p.add_argument("--sizes", default="1000,10000,100000", help="agent counts of the sim section")
     p.add_argument("--long", action="store_true", help="memory: also 10,000 agents x 10,000 frames")
+    p.add_argument("--allow-missing-peers", action="store_true",
+                   help="sim and realism: measure usdcrowd alone when JuPedSim is not installed (default: an error)")
     p.add_argument("--record", action="store_true",
                    help="write what each section measured to docs/data/bench_<section>.json and fill the pages")
     args = p.parse_args(argv)
-    print(f"machine: {os.cpu_count()} cores, python {sys.version.split()[0]}")
-    found = {}
+    print(f"machine: {os.cpu_count()} cores, load {load()}, python {sys.version.split()[0]}")
+    peers = not args.allow_missing_peers or _installed("jupedsim")
+    found, loads = {}, {}
+
+    def measure(section, run, *a, **kw):
+        before = load()
+        found[section] = run(*a, **kw)
+        loads[section] = {"cores": os.cpu_count(), "load_before": before, "load_after": load()}
+        print(f"   ({section}: load {before} before, {loads[section]['load_after']} after, {os.cpu_count()} cores)")
+
     if args.section in ("all", "author"):
-        found["author"] = bench_author(args.agents, args.frames)
+        measure("author", bench_author, args.agents, args.frames)
     if args.section in ("all", "sim"):
-        found["sim"] = bench_section("sim", sizes=tuple(int(s) for s in args.sizes.split(",")))
+        measure("sim", bench_section, "sim", sizes=tuple(int(s) for s in args.sizes.split(",")), jupedsim=peers)
     for name in ("cameras", "moe", "preview", "render", "dataset", "realism"):
         if args.section in ("all", name):
-            found[name] = bench_section(name)
+            measure(name, bench_section, name, **({"jupedsim": peers} if name == "realism" else {}))
     if args.section in ("all", "memory"):
-        found["memory"] = bench_section("memory", long=args.long)
+        measure("memory", bench_section, "memory", long=args.long)
     if args.record:
         from docfigures import record
 
@@ -259,6 +287,7 @@ def main(argv=None) -> int:
             if result:
                 source = "tools/bench.py" if section == "author" else f"tools/bench_{section}.py"
                 figures, tables, images = figures_of(section, result)
+                figures = {**figures, "machine_load": loads[section]}
                 record(f"bench_{section}", source, figures=figures, tables=tables, images=images,
                        command=f"python tools/bench.py {section}" + (" --long" if args.long and section == "memory" else ""))
     return 0

@@ -45,6 +45,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "tools"))          # bench_sim, its sibling
 
 FPS = 16.0                   # recorded frames per second (what PedPy analyses)
 DT = 0.01                    # both simulators' step, s
@@ -281,8 +282,13 @@ def overspeed(xy: np.ndarray, speed: np.ndarray) -> float:
 
 
 # ------------------------------------------------------------------------------------------------ main
-def run(quick: bool = False) -> dict:
-    """Simulate, analyse and plot every scene (docs/images/realism.png); print and return the summary."""
+def run(quick: bool = False, jupedsim: bool = True) -> dict:
+    """Simulate, analyse and plot every scene (docs/images/realism.png); print and return the summary.
+    With ``jupedsim`` (the default) JuPedSim, the peer, must be installed (else one line and exit)."""
+    if jupedsim:
+        from bench_sim import require_jupedsim
+
+        require_jupedsim("realism")
     t0 = time.perf_counter()
     results = measure(quick)
     plot(results, IMAGE)

@@ -109,6 +109,18 @@ def bench_usdcrowd(n: int, steps: int, warmup: int = 3) -> dict:
             "rebuilds": sim.nl.rebuilds}
 
 
+def require_jupedsim(section: str) -> None:
+    """Stop with one line naming the missing peer and how to install it (a benchmark that compares with
+    JuPedSim and prints n/a in its place says nothing)."""
+    try:
+        import jupedsim  # noqa: F401
+        import shapely  # noqa: F401
+    except ImportError as exc:
+        raise SystemExit(f"tools/bench.py {section}: JuPedSim, the peer it is measured against, is missing ({exc}): "
+                         "pip install -e '.[bench]' (or make bench), or --allow-missing-peers to measure "
+                         "usdcrowd alone") from None
+
+
 def bench_jupedsim(n: int, steps: int, warmup: int = 3) -> float | None:
     """Steps per second of JuPedSim's CollisionFreeSpeedModel on the same scene, or None."""
     try:
@@ -150,13 +162,16 @@ def run(sizes=(1000, 10000, 100000), steps=None, jupedsim: bool = True) -> list[
     steps : int or dict, optional
         Timed steps (default: 200 / 60 / 12 by size).
     jupedsim : bool
-        Also time JuPedSim when it is installed.
+        Also time JuPedSim, the peer each row is measured against; missing, it is an error
+        (:func:`require_jupedsim`), not a column of n/a.
 
     Returns
     -------
     list of dict
         Keys: agents, steps_per_s, setup_s, peak_mib, rebuilds, jupedsim_steps_per_s, ratio.
     """
+    if jupedsim:
+        require_jupedsim("sim")
     rows = []
     print(f"{'agents':>8} {'steps/s':>9} {'setup s':>8} {'peak MiB':>9} {'JuPedSim/s':>11} {'ratio':>7}")
     for n in sizes:

@@ -28,3 +28,19 @@ def test_bench_scene_is_valid_and_overlap_free_at_start():
     from scipy.spatial import cKDTree
     assert len(cKDTree(p.T).query_pairs(0.5)) == 0
     assert np.all(np.abs(p) < 100.0)
+
+
+def test_a_missing_peer_stops_the_benchmark_in_one_line(monkeypatch):
+    """A row measured against JuPedSim is not printed with n/a in its place: without JuPedSim the sim and
+    realism benchmarks stop at once, naming it and how to install it."""
+    import sys
+
+    import pytest
+
+    monkeypatch.setitem(sys.modules, "jupedsim", None)          # import jupedsim -> ImportError
+    with pytest.raises(SystemExit) as stop:
+        _bench().run(sizes=(400,), steps=5)
+    message = str(stop.value)
+    assert "JuPedSim" in message and "pip install -e '.[bench]'" in message and "\n" not in message
+    with pytest.raises(SystemExit, match="realism: JuPedSim"):
+        load_tool("bench_realism").run(quick=True)
