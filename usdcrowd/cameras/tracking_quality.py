@@ -6,7 +6,9 @@ tracks an event: are the event's people on screen, not hidden by a wall or
 by others, and large enough to see; and how long after taking the event
 does the camera get there? Per tracking frame this measures the share of
 the event's (rendered) people visible (:mod:`.sightlines`) and their median
-height on screen, and per take the time to frame it (at least half its
+height on screen, whether the picture shows only scenery or ground (none of
+them in frame unhidden by scenery: "walled"; a passer-by in front of them
+does not count), and per take the time to frame it (at least half its
 people visible).
 """
 
