@@ -347,8 +347,7 @@ class CameraAgents:
                 a[j], b[j] = _extremes(near[j], pts[:, :2])
                 look[cam] = pts.mean(axis=0) + np.array([0.0, 0.0, prm.look_height])
                 n_members[j], radius[j] = len(pts), r
-                if self.pace.shape == np.shape(positions):
-                    pace[j] = self.pace[rows].mean(axis=0)          # the event's people's mean velocity
+                pace[j] = self.pace[rows].mean(axis=0)          # the event's people's mean velocity
             # An event's area is framed too: one visible member of a wide authored event is not a close-up.
             width = np.maximum(prm.min_frame_width, radius)
             goal = self._framing_goal(tracking, near, a, b, width, look[tracking, :2])
