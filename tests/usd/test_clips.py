@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-from dataclasses import fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -30,7 +29,7 @@ def _chunks(frames: model.CrowdFrames, size: int):
     """The frames in chunks of ``size`` (which straddle the clip windows)."""
     for s in range(0, len(frames.times), size):
         sl = slice(s, s + size)
-        yield replace(frames, **{f.name: getattr(frames, f.name)[sl] for f in fields(frames) if f.name != "path_method"})
+        yield frames.frames(sl)
 
 
 def _wandering(sc):

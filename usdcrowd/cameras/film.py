@@ -54,9 +54,12 @@ def film(positions: np.ndarray, times: np.ndarray, fps: float, cameras: model.Ca
     state = np.zeros((t, c), np.int8)
     tracked = []
     dt = 1.0 / (fps * params.substeps)
+    held = _Held(positions)
     for k in range(t):
-        pos = np.asarray(positions[k], dtype=np.float64)
-        centre, radius = crowd_extent(pos[vis])
+        pos, here = held(k)
+        if here is not None:                    # a replay: who is in the scene changes frame by frame
+            agents.show(vis & here)
+        centre, radius = crowd_extent(pos[vis if here is None else vis & here])
         agents.update_modes(float(times[k]), pos)
         if k > 0:               # the first frame shows the authored pose (levelled)
             for _ in range(params.substeps):
@@ -76,3 +79,46 @@ def film(positions: np.ndarray, times: np.ndarray, fps: float, cameras: model.Ca
                                      float(cameras.vertical_aperture[j]), float(cameras.near[j]),
                                      float(cameras.far[j]), state[:, j], [tr[j] for tr in tracked], row))
     return out
+
+
+class _Held:
+    """Frame ``k`` of the crowd for the cameras, and who is in the scene then.
+
+    NaN positions (people who have not come yet or have gone, in a replay)
+    hold the nearest position the person has, so every velocity a camera
+    estimates stays finite; they are hidden from the cameras by ``here``.
+    """
+
+    def __init__(self, positions):
+        self.positions = positions
+        self.last = None
+        self.first = None
+
+    def __call__(self, k: int) -> tuple[np.ndarray, np.ndarray | None]:
+        pos = np.asarray(self.positions[k], dtype=np.float64)
+        here = np.isfinite(pos[:, 0])
+        if self.first is None and here.all():
+            return pos, None
+        if self.first is None:
+            self.first = _first_positions(self.positions)
+            self.last = self.first.copy()
+        self.last[here] = pos[here]
+        return np.where(here[:, None], pos, self.last), here
+
+
+def _first_positions(positions) -> np.ndarray:
+    """(n, 3) each person's first finite position over the shot (zeros for one never there)."""
+    from ..core.framestore import frame_blocks
+
+    first = np.full(positions.shape[1:], np.nan)
+    for block in frame_blocks(positions):
+        todo = ~np.isfinite(first[:, 0])
+        if not todo.any():
+            break
+        block = np.asarray(block, dtype=np.float64)[:, todo]
+        seen = np.isfinite(block[..., 0])
+        k = np.argmax(seen, axis=0)
+        got = seen.any(axis=0)
+        rows = np.flatnonzero(todo)[got]
+        first[rows] = block[k[got], np.flatnonzero(got)]
+    return np.nan_to_num(first)

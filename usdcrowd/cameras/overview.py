@@ -34,12 +34,33 @@ def crowd_summary(positions, visible: np.ndarray, block: int = 256) -> tuple[np.
     centres, spreads = [], []
     for frames in frame_blocks(positions, size=block):
         pos = frames[:, vis].astype(np.float64)
-        c = pos.mean(axis=1)
-        centres.append(c)
-        spreads.append(np.linalg.norm(pos - c[:, None], axis=2).max(axis=1))
+        here = np.isfinite(pos[..., 0])             # NaN: not in the scene at that frame (a replay)
+        if here.all():
+            c = pos.mean(axis=1)
+            centres.append(c)
+            spreads.append(np.linalg.norm(pos - c[:, None], axis=2).max(axis=1))
+            continue
+        count = here.sum(axis=1)
+        c = np.where(here[..., None], pos, 0.0).sum(axis=1) / np.maximum(count, 1)[:, None]
+        d = np.where(here, np.linalg.norm(np.nan_to_num(pos) - c[:, None], axis=2), 0.0)
+        centres.append(np.where(count[:, None] > 0, c, np.nan))
+        spreads.append(np.where(count > 0, d.max(axis=1, initial=0.0), np.nan))
     if not centres:
         return np.zeros((0, 3)), np.zeros(0)
-    return np.concatenate(centres), np.concatenate(spreads)
+    return _filled(np.concatenate(centres)), _filled(np.concatenate(spreads))
+
+
+def _filled(values: np.ndarray) -> np.ndarray:
+    """``values`` (t, ...) with NaN frames (nobody in the scene) given the nearest frame's values."""
+    bad = ~np.isfinite(values.reshape(len(values), -1)).all(axis=1)
+    if not bad.any() or bad.all():
+        return np.nan_to_num(values) if bad.all() else values
+    good = np.flatnonzero(~bad)
+    nearest = good[np.clip(np.searchsorted(good, np.arange(len(values))), 0, len(good) - 1)]
+    before = good[np.clip(np.searchsorted(good, np.arange(len(values))) - 1, 0, len(good) - 1)]
+    pick = np.where(np.abs(before - np.arange(len(values))) < np.abs(nearest - np.arange(len(values))), before,
+                    nearest)
+    return values[pick]
 
 
 def overview_track(centre: np.ndarray, spread: np.ndarray, times: np.ndarray, fps: float,

@@ -163,6 +163,11 @@ class CameraAgents:
     def __len__(self) -> int:
         return len(self.p)
 
+    def show(self, visible: np.ndarray) -> None:
+        """Who is rendered from now on (n,) bool: a replay's people enter and leave."""
+        self.visible = np.asarray(visible, bool)
+        self.visible_rows = np.flatnonzero(self.visible)
+
     # ------------------------------------------------------------------ modes
     def _running(self, time: float) -> list[int]:
         """Events under way at ``time`` with someone taking part (someone visible, if visibility is known)."""

@@ -16,10 +16,10 @@ from .. import __version__
 from ..core.errors import UsdcrowdError
 from ..interrupts import Terminated, terminate_as_exception
 from . import (cameras, dataset, demo, edit, export, features, frame, inspect_cmd, metrics, new, place, preview,
-               render, simulate, validate)
+               render, replay, simulate, validate)
 
-COMMANDS = (new, inspect_cmd, validate, simulate, cameras, frame, edit, metrics, features, preview, render, export,
-            place, dataset, demo)
+COMMANDS = (new, inspect_cmd, validate, simulate, replay, cameras, frame, edit, metrics, features, preview, render,
+            export, place, dataset, demo)
 EXIT_USER_ERROR = 2
 # OSErrors that are the environment's (reported in one line), not a bug.
 _ENVIRONMENT_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.ENOENT,

@@ -368,6 +368,10 @@ class CrowdFrames:
         Point the head and torso turn to, metres; NaN where none.
     path_method : (n,) int8
         Code into PATH_METHODS, per agent for the whole shot.
+    present : (t, n) bool or None
+        Who is in the scene at each frame (replayed tracks: people enter and
+        leave); None: everyone, all the time. An absent agent's other fields
+        hold where it enters or leaves, standing.
     """
 
     times: np.ndarray
@@ -380,10 +384,18 @@ class CrowdFrames:
     health: np.ndarray
     look_at: np.ndarray
     path_method: np.ndarray
+    present: np.ndarray | None = None
 
     @property
     def n_agents(self) -> int:
         return self.position.shape[1]
+
+    def frames(self, key: slice) -> "CrowdFrames":
+        """The frames ``key`` selects (a slice of the time axis), every agent."""
+        from dataclasses import fields, replace
+
+        return replace(self, **{f.name: getattr(self, f.name)[key] for f in fields(self)
+                                if f.name != "path_method" and getattr(self, f.name) is not None})
 
 
 # Events (seed 000, section 4.1) and camera agents (sections 4.2 to 4.4).

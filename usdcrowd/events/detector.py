@@ -95,6 +95,8 @@ class EventDetector:
             ok = self.visible & np.isfinite(pos).all(axis=1) & np.isfinite(vel).all(axis=1)
             if chunk.health is not None:
                 ok &= chunk.health[i] != _DEAD
+            if chunk.present is not None:           # a replay's people before they come, after they go
+                ok &= chunk.present[i]
             speed = np.hypot(vel[:, 0], vel[:, 1])
             t = float(times[i])
             self._interactions.step(self.frames_fed, t, pos, chunk.heading[i], speed, ok)

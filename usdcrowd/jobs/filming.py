@@ -92,7 +92,10 @@ def load_shot(shot_path: str | os.PathLike, seed: int | None = None, progress: b
     positions = FrameStore(len(scenario.agents), folder=Path(shot_path).parent)
     with frame_progress(scenario.time.n_frames, "read crowd", progress) as bar:
         for frames in _crowd_windows(stage, scenario, rows, shot_path):
-            positions.append(frames.position.astype(np.float32))
+            position = frames.position.astype(np.float32)
+            if frames.present is not None:                      # NaN where someone is not in the scene
+                position[~frames.present] = np.nan
+            positions.append(position)
             if det is not None:
                 det.feed(frames)
             bar.update(len(frames.times))
@@ -156,7 +159,8 @@ def _reorder(frames: model.CrowdFrames, order: np.ndarray, n: int) -> model.Crow
     path_method[order] = frames.path_method
     return model.CrowdFrames(frames.times, move(frames.position), move(frames.heading), move(frames.velocity),
                              move(frames.behavior), move(frames.anim_class), move(frames.anim_phase),
-                             move(frames.health), move(frames.look_at), path_method)
+                             move(frames.health), move(frames.look_at), path_method,
+                             None if frames.present is None else move(frames.present))
 
 
 def refilm_shot(shot_path: str | os.PathLike, count: int | None = None, static: int = 0,

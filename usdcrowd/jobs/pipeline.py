@@ -312,12 +312,14 @@ def _author_frames(writer, chunks, scenario, plotted, stride, progress, collecte
             if detector is not None:
                 detector.feed(chunk)
             position = chunk.position.astype(np.float32)       # as the cameras read it back from a shot
+            if chunk.present is not None:                      # NaN where someone is not in the scene
+                position[~chunk.present] = np.nan
             collected.positions.append(position)
             centre, spread = crowd_summary(position, scenario.agents.visible)
             collected.centres.append(centre)
             collected.spreads.append(spread)
             keep = (done + np.arange(len(chunk.times))) % stride == 0
-            collected.tracks.append(chunk.position[keep][:, plotted])
+            collected.tracks.append(position[keep][:, plotted])
             done += len(chunk.times)
             bar.update(len(chunk.times))
 

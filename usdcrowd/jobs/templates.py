@@ -134,7 +134,7 @@ def new_scenario(template: str, out: str | os.PathLike, agents: int | None = Non
     roots = []
     if scenery is not None:
         del stage           # an open stage would try to compose the reference from an anonymous layer
-        roots = _replace_scenery(layer, scenery, out)
+        roots = replace_scenery(layer, scenery, out)
     with atomic_path(out) as tmp:
         if not layer.Export(str(tmp)):
             raise UsdcrowdError("could not be written", file=str(out))
@@ -148,7 +148,7 @@ def new_scenario(template: str, out: str | os.PathLike, agents: int | None = Non
             "scenery_roots": roots}
 
 
-def _replace_scenery(layer, scenery, out: Path) -> list[str]:
+def replace_scenery(layer, scenery, out: Path) -> list[str]:
     """The DCC scenery in place of the template's (and its lights in place of the template's, if any).
 
     Returns the names of the scenery's root prims, each referenced under the template's Scenery.

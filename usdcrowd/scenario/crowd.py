@@ -155,7 +155,9 @@ def read_crowd(shot, frames=None) -> tuple[model.CrowdFrames, CrowdInfo]:
         - ``anim_phase`` (t, n): zeros, and ``look_at`` (t, n, 3): NaN. The
           skeleton gives the sine of the cycle's phase and the head's
           direction, not the phase or the point looked at;
-        - ``path_method`` (n,): crowd:pathMethod codes.
+        - ``path_method`` (n,): crowd:pathMethod codes;
+        - ``present`` (t, n): who is shown at each frame, where an agent's
+          visibility is time-sampled (a replay), else None.
     info : CrowdInfo
         Paths, ids, visibility, groups and heights of the rows; time ranges.
 
@@ -290,7 +292,22 @@ def _frames_of(agents, codes, position, heading, velocity, anim_class) -> model.
         velocity=velocity.astype(np.float32), behavior=state("behavior", model.BEHAVIORS),
         anim_class=anim_class.astype(np.int8), anim_phase=np.zeros((t_out, n), np.float32),
         health=state("health", model.HEALTH_STATES), look_at=np.full((t_out, n, 3), np.nan, np.float32),
-        path_method=np.array([path_method(p) for p, _ in agents], np.int8))
+        path_method=np.array([path_method(p) for p, _ in agents], np.int8), present=_presence(agents, codes))
+
+
+def _presence(agents, codes: np.ndarray) -> np.ndarray | None:
+    """(t, n) who is shown at each frame, where visibility is time-sampled (a replay's people come and go);
+    None where no agent's visibility changes over time."""
+    from pxr import UsdGeom
+
+    varying = [(a, UsdGeom.Imageable(p)) for a, (p, _) in enumerate(agents)
+               if UsdGeom.Imageable(p).GetVisibilityAttr().ValueMightBeTimeVarying()]
+    if not varying:
+        return None
+    present = np.ones((len(codes), len(agents)), bool)
+    for a, img in varying:
+        present[:, a] = [img.ComputeVisibility(float(t)) != UsdGeom.Tokens.invisible for t in codes]
+    return present
 
 
 def _info(agents, codes, shot_time: model.TimeRange) -> CrowdInfo:

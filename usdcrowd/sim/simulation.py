@@ -605,4 +605,4 @@ def concat_frames(chunks: list[CrowdFrames]) -> CrowdFrames:
     cat = lambda name: np.concatenate([getattr(c, name) for c in chunks])  # noqa: E731
     return CrowdFrames(cat("times"), cat("position"), cat("heading"), cat("velocity"), cat("behavior"),
                        cat("anim_class"), cat("anim_phase"), cat("health"), cat("look_at"),
-                       chunks[0].path_method)
+                       chunks[0].path_method, None if chunks[0].present is None else cat("present"))

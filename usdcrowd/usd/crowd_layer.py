@@ -234,6 +234,8 @@ def write_group_properties(layer, stage, group_paths: list[str]) -> None:
 
 
 _TOKEN_SLOTS = (("behavior", model.BEHAVIORS), ("anim_class", model.ANIM_CLASSES), ("health", model.HEALTH_STATES))
+# Written when the frames say who is present (a replay's people come and go): UsdGeom's visibility.
+_PRESENCE_SLOT = ("present", ("inherited", "invisible"))
 
 
 class _AgentPart:
@@ -251,6 +253,7 @@ class _AgentPart:
         self.authored = authored
         self._last: dict[str, np.ndarray] = {}
         self._paths: list = []
+        self._slots = _TOKEN_SLOTS
         self._height = scenario.agents.height[self.rows]
         self._animator = Animator(1.0 / scenario.time.fps, self._height)
         a = scenario.agents
@@ -352,7 +355,29 @@ class _AgentPart:
         rot, trans = self._animator(frames)
         rot, trans, _ = apply_root_motion(rot, trans, frames.position, frames.heading, self._height)
         tokens = {key: getattr(frames, key) for key, _ in _TOKEN_SLOTS}
+        if frames.present is not None:
+            self._track_presence()
+            leader = self.scenario.agents.role[self.rows] == model.ROLES.index("invisibleLeader")
+            tokens["present"] = (~np.asarray(frames.present, bool) | leader[None, :]).astype(np.int8)
         self.write_samples(frames.times, rig.to_usd_quat_order(rot), trans, tokens)
+
+    def _track_presence(self) -> None:
+        """From the first chunk that says who is present: visibility is sampled per agent (time samples
+        override the invisible default an invisible leader has, so those are sampled invisible)."""
+        from pxr import Sdf
+
+        if self._slots is not _TOKEN_SLOTS:
+            return
+        if self._windows or self._last:
+            raise ValueError("presence must be given from the first chunk on")
+        self._slots = _TOKEN_SLOTS + (_PRESENCE_SLOT,)
+        with Sdf.ChangeBlock():
+            for j, i in enumerate(self.rows):
+                path = self.scenario.agents.path[i]
+                spec = self.layer.GetPrimAtPath(path)
+                if "visibility" not in spec.attributes:
+                    _attr(spec, "visibility", _types().Token)
+                self._paths[j] = self._paths[j] + (Sdf.Path(f"{path}.visibility"),)
 
     def write_samples(self, times: np.ndarray, rot_usd: np.ndarray, trans: np.ndarray, tokens: dict) -> None:
         """Samples of this part's agents, into this layer or into the clip windows they fall in.
@@ -367,7 +392,7 @@ class _AgentPart:
         times = np.asarray(times, dtype=np.float64)
         # Tokens hold their value, so they are written only where they change.
         changed = {}
-        for key, _ in _TOKEN_SLOTS:
+        for key, _ in self._slots:
             values = tokens[key]
             changed[key] = np.ones_like(values, dtype=bool)
             changed[key][1:] = values[1:] != values[:-1]
@@ -405,7 +430,7 @@ class _AgentPart:
                 for t, k in frames:
                     set_sample(rpath, t, r_j[k])
                     set_sample(tpath, t, t_j[k])
-            for slot, (key, vocab) in enumerate(_TOKEN_SLOTS, start=2):
+            for slot, (key, vocab) in enumerate(self._slots, start=2):
                 values = tokens[key]
                 for k, j in zip(*np.nonzero(changed[key])):
                     set_sample(self._paths[j][slot], times[k], vocab[values[k, j]])
@@ -416,7 +441,7 @@ class _AgentPart:
 
         T = _types()
         layer = Sdf.Layer.CreateAnonymous(".usdc")
-        kinds = (T.QuatfArray, T.Float3Array, T.Token, T.Token, T.Token)
+        kinds = (T.QuatfArray, T.Float3Array, T.Token, T.Token, T.Token, T.Token)
         with Sdf.ChangeBlock():
             for paths in self._paths:
                 for path, kind in zip(paths, kinds):
@@ -460,7 +485,7 @@ def _agents_of(frames: model.CrowdFrames, rows: np.ndarray) -> model.CrowdFrames
 
     return replace(frames, **{f.name: np.ascontiguousarray(getattr(frames, f.name)[..., rows] if f.name == "path_method"
                                                            else getattr(frames, f.name)[:, rows])
-                              for f in fields(frames) if f.name != "times"})
+                              for f in fields(frames) if f.name != "times" and getattr(frames, f.name) is not None})
 
 
 # A pipe whose other end (a part writer) has gone.
