@@ -261,3 +261,27 @@ def test_a_scout_takes_a_group_only_when_it_sees_a_good_part_of_it():
     assert all(glimpse.tracked)
     pos, times, events, walls, cams = _group_behind_a_wall((-1.1, 1.3))         # x = -1, 0 and 1
     assert all(film(pos, times, FPS, cams, events, walls, params=CameraParams(**still), seed=9)[0].tracked)
+
+
+def test_cameras_take_no_one_before_they_come_into_the_scene():
+    """A replay's people come and go (NaN positions where absent): a scout looking at where a pair will
+    walk in does not take their event before they are there, takes it within a second once they are, and
+    the overview's crowd centre is that of the people present."""
+    from usdcrowd.cameras.overview import crowd_summary
+
+    t, come = 24 * 8, 24 * 3
+    times = np.arange(1, t + 1, dtype=np.float64)
+    pos = np.zeros((t, 3, 3))
+    pos[:, 0, :2] = [-6.0, 4.0]                                   # a bystander, there all along
+    pos[:, 1, 0] = pos[:, 2, 0] = np.arange(t) * 1.2 / FPS
+    pos[:, 1, 1], pos[:, 2, 1] = -0.4, 0.4
+    pos[:come, 1:] = np.nan
+    held = np.where(np.isfinite(pos), pos, pos[come])             # where they stand for the event's centre
+    ev = make_event("/E/Pair", INTERACTION, held, [1, 2], 0, t - 1, times)
+    cams = _one_camera([0.0, -10.0, 2.0], [0.0, 0.0, 1.0], [1.5, 4.0])
+    tr = film(pos, times, FPS, cams, model.EventTable([ev]), seed=1)[0]
+    assert not any(tr.tracked[:come]), [k for k in range(come) if tr.tracked[k]][:3]
+    assert all(e == "/E/Pair" for e in tr.tracked[come + int(FPS):]), tr.tracked[come:come + 5]
+    centre, _ = crowd_summary(pos, np.ones(3, bool))
+    np.testing.assert_allclose(centre[:come], pos[:come, 0])
+    np.testing.assert_allclose(centre[come:], pos[come:].mean(axis=1))

@@ -124,8 +124,10 @@ def read_tracks(path: str | os.PathLike, fmt: str | None = None, fps: float | No
         frame, ids, xy, head, said = _read_pedpy(path)
     else:
         frame, ids, xy, head, said = _read_ethucy(path)
+    frame, ids, xy, head = _sorted_rows(path, frame, ids, xy, head)
     rate = _frame_rate(path, fmt, frame, ids, said, fps)
-    return _tracks(path, fmt, rate, frame, ids, xy, head)
+    unique, person = np.unique(ids, return_inverse=True)
+    return Tracks(unique, rate, frame, person.astype(np.int64), xy, head, fmt, path)
 
 
 def _read_jupedsim(path: str):
@@ -223,8 +225,9 @@ def _frame_rate(path: str, fmt: str, frame: np.ndarray, ids: np.ndarray, said: f
     return float(rate)
 
 
-def _tracks(path, fmt, rate, frame, ids, xy, head) -> Tracks:
-    """Rows sorted by person then frame; whole-number ids; one row per (person, frame)."""
+def _sorted_rows(path, frame, ids, xy, head):
+    """The rows sorted by person then frame, whole-number ids; refused unless finite and one per
+    (person, frame)."""
     if len(frame) == 0:
         raise UsdcrowdError("no trajectory rows", file=path)
     if not (np.isfinite(frame).all() and np.isfinite(xy).all()):
@@ -239,5 +242,4 @@ def _tracks(path, fmt, rate, frame, ids, xy, head) -> Tracks:
     if same.any():
         k = int(np.flatnonzero(same)[0])
         raise UsdcrowdError(f"person {ids[k]} has two rows at frame {frame[k]:g}", file=path)
-    unique, person = np.unique(ids, return_inverse=True)
-    return Tracks(unique, rate, frame, person.astype(np.int64), xy, head, fmt, path)
+    return frame, ids, xy, head

@@ -8,8 +8,8 @@ Text (``.txt``), the Pedestrian Dynamics Data Archive's layout that
 ``pedpy.load_trajectory`` reads: ``ID FR X Y Z`` separated by white space,
 ``#`` comment lines first. Its header carries the frame rate (a line with
 ``framerate``) and the unit (``x/m`` in the column line), so PedPy needs no
-extra arguments. Z is the head's height (world Z), as the Jülich
-experiments' head markers give it.
+extra arguments. Z is the top of the head (world Z), as the Jülich
+experiments' markers on the head give it: on flat ground, the body's height.
 
 SQLite (``.sqlite``), JuPedSim's trajectory database (version 2, what
 ``jupedsim.SqliteTrajectoryWriter`` writes and ``jupedsim.Recording`` and
@@ -51,7 +51,7 @@ class Trajectories:
     facing : (k, n, 2) float
         Unit facing direction on the ground.
     head : (k, n) float
-        Head height (world Z), metres.
+        Top of the head (world Z), metres.
     walkable_wkt : str or None
         The walkable area as WKT (the scenario's bounds less its scenery).
     """
@@ -74,8 +74,8 @@ def read_trajectories(scene, times, progress: bool = False) -> Trajectories:
     """A shot's paths over ``times`` ((k,) time codes, evenly spaced), read from its skeletons.
 
     The ground position is the hips' joint dropped to the ground, the
-    facing the hips' forward axis, the head the rig's head point
-    (:func:`usdcrowd.cameras.features.head_and_facing`).
+    facing the hips' forward axis, the head the rig's head top
+    (:func:`usdcrowd.character.rig.keypoints`).
 
     Raises
     ------
@@ -84,7 +84,7 @@ def read_trajectories(scene, times, progress: bool = False) -> Trajectories:
     """
     from tqdm import tqdm
 
-    from ..cameras.features import head_and_facing
+    from ..character.rig import KEYPOINT_NAMES, keypoints
     from ..core.errors import UsdcrowdError
 
     times = np.asarray(times, dtype=np.float64)
@@ -103,7 +103,7 @@ def read_trajectories(scene, times, progress: bool = False) -> Trajectories:
         ids = poses.agent_ids
         hips = poses.joints_world[:, 0]
         forward = hips[:, 0, :2] / np.maximum(np.linalg.norm(hips[:, 0, :2], axis=1, keepdims=True), 1e-12)
-        top, _ = head_and_facing(poses.joints_world)
+        top = keypoints(poses.joints_world)[:, KEYPOINT_NAMES.index("headTop")]
         on = poses.visible
         xy[k, on] = hips[on, 3, :2]
         facing[k] = forward
@@ -149,7 +149,7 @@ def _write_text(traj: Trajectories, path, shot_name: str) -> int:
     header = [f"usdcrowd trajectories{': ' + shot_name if shot_name else ''}",
               f"framerate: {traj.fps:g} fps",
               f"frame 0 is time code {first:g}, one frame every {step:g} time code(s)",
-              "Z: the head's height (world Z)",
+              "Z: the top of the head (world Z)",
               "ID\tFR\tX/m\tY/m\tZ/m"]
     with open(path, "w", encoding="utf-8") as f:
         f.write("".join(f"# {line}\n" for line in header))

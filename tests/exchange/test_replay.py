@@ -1,0 +1,274 @@
+"""`usdcrowd replay TRAJ -o SHOT/`: recorded or peer trajectories walked by usdcrowd's people.
+
+The trajectories come from JuPedSim itself (run in its own venv inside the
+test, writing its SQLite database) and from an ETH/UCY text file written
+here; the shot is read back with plain usd-core (UsdSkel, no usdcrowd
+imported) and with PedPy (own venv) after `export --trajectories`.
+"""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from usdcrowd.cli import main
+
+from tests.helpers.venvs import tool_python
+
+JUPEDSIM = ["jupedsim==1.4.2"]
+PEDPY = ["pedpy==1.5.1"]
+
+# JuPedSim: a 24 x 4 m corridor walked to an exit at its far end; four people start, two more come in
+# after 2 s and two after 4 s; each is removed as they reach the exit. 100 steps a second, every fourth
+# written: 25 frames per second.
+CORRIDOR_RUN = """
+    import pathlib, sys
+    import jupedsim as jps
+    import shapely
+    area = shapely.Polygon([(0, 0), (24, 0), (24, 4), (0, 4)])
+    writer = jps.SqliteTrajectoryWriter(output_file=pathlib.Path(sys.argv[1]), every_nth_frame=4)
+    sim = jps.Simulation(model=jps.CollisionFreeSpeedModel(), geometry=area, dt=0.01, trajectory_writer=writer)
+    exit_ = sim.add_exit_stage(shapely.Polygon([(22.5, 0), (24, 0), (24, 4), (22.5, 4)]))
+    journey = sim.add_journey(jps.JourneyDescription([exit_]))
+    def add(x, y, v):
+        sim.add_agent(jps.CollisionFreeSpeedModelAgentParameters(journey_id=journey, stage_id=exit_,
+                      position=(x, y), desired_speed=v, radius=0.2))
+    for k, (x, y) in enumerate([(1, 1), (2, 2), (1, 3), (3, 1.2)]):
+        add(x, y, 1.0 + 0.15 * k)
+    while sim.agent_count() > 0 and sim.iteration_count() < 4000:
+        if sim.iteration_count() in (200, 400):
+            add(1, 2, 1.3)
+            add(2.2, 3, 1.1)
+        sim.iterate()
+"""
+
+# Plain usd-core: per agent id, per time code, (shown, hips x, hips y, hips' forward x, y, head's forward x, y).
+PLAIN_USD_READ = """
+    import json, sys
+    from pxr import Usd, UsdGeom, UsdSkel
+    stage = Usd.Stage.Open(sys.argv[1])
+    cache = UsdSkel.Cache()
+    codes = range(int(stage.GetStartTimeCode()), int(stage.GetEndTimeCode()) + 1)
+    out = {"fps": stage.GetTimeCodesPerSecond(), "first": stage.GetStartTimeCode(), "people": {}}
+    for prim in stage.Traverse():
+        if not prim.IsA(UsdSkel.Root) or not prim.HasAttribute("crowd:agentId"):
+            continue
+        cache.Populate(UsdSkel.Root(prim), Usd.PrimDefaultPredicate)
+        skel = UsdSkel.Skeleton(prim.GetChild("Skel"))
+        query = cache.GetSkelQuery(skel)
+        rows = []
+        for t in codes:
+            m = query.ComputeJointWorldTransforms(UsdGeom.XformCache(t))
+            shown = UsdGeom.Imageable(prim).ComputeVisibility(t) != UsdGeom.Tokens.invisible
+            rows.append([shown, m[0][3][0], m[0][3][1], m[0][0][0], m[0][0][1], m[2][0][0], m[2][0][1]])
+        out["people"][int(prim.GetAttribute("crowd:agentId").Get())] = {
+            "rows": rows, "height": prim.GetAttribute("crowd:height").Get()}
+    print(json.dumps(out))
+"""
+
+
+def _run(python: str, script: str, *args) -> dict | None:
+    out = subprocess.run([python, "-c", textwrap.dedent(script), *map(str, args)], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr[-3000:]
+    lines = out.stdout.strip().splitlines()
+    return json.loads(lines[-1]) if lines else None
+
+
+def _plain_usd(shot) -> dict:
+    read = _run(sys.executable, PLAIN_USD_READ, shot)
+    read["people"] = {int(k): {"rows": np.array(v["rows"], dtype=np.float64), "height": v["height"]}
+                      for k, v in read["people"].items()}
+    return read
+
+
+def _file_rows(db) -> dict:
+    """{(id, frame): (x, y)} as the database holds them (sqlite3, no usdcrowd)."""
+    with sqlite3.connect(db) as con:
+        return {(int(i), int(f)): (x, y) for i, f, x, y in con.execute(
+            "SELECT id, frame, pos_x, pos_y FROM trajectory_data")}
+
+
+@pytest.fixture(scope="module")
+def corridor_database(tmp_path_factory):
+    """JuPedSim's own trajectory database of the corridor run (CORRIDOR_RUN)."""
+    python = tool_python("jupedsim", JUPEDSIM, "USDCROWD_JUPEDSIM_VENV")
+    db = tmp_path_factory.mktemp("jupedsim") / "corridor.sqlite"
+    _run(python, CORRIDOR_RUN, db)
+    return db
+
+
+@pytest.fixture(scope="module")
+def replayed_corridor(corridor_database, tmp_path_factory):
+    """The corridor run replayed into a shot, two camera agents."""
+    out = tmp_path_factory.mktemp("replayed") / "shot"
+    assert main(["replay", str(corridor_database), "-o", str(out), "--cameras", "2", "--no-progress"]) == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def corridor_as_plain_usd_sees_it(replayed_corridor):
+    return _plain_usd(replayed_corridor / "shot.usda")
+
+
+def test_every_row_jupedsim_wrote_is_where_the_replayed_person_stands(corridor_database,
+                                                                        corridor_as_plain_usd_sees_it):
+    """Point for point: each (id, frame) row of JuPedSim's database is that person's hips at time code
+    frame + 1, to a millimetre, shown; at every time code without a row the person is hidden."""
+    rows = _file_rows(corridor_database)
+    read = corridor_as_plain_usd_sees_it
+    assert read["fps"] == 25.0 and read["first"] == 1.0
+    people = read["people"]
+    assert sorted(people) == sorted({i for i, _ in rows}) and len(people) == 8
+    checked = hidden = 0
+    for person, got in people.items():
+        for k, (shown, x, y, *_rest) in enumerate(got["rows"]):
+            want = rows.get((person, k))
+            if want is None:
+                assert not shown, (person, k)
+                hidden += 1
+                continue
+            assert shown and np.hypot(x - want[0], y - want[1]) < 1e-3, (person, k, (x, y), want)
+            checked += 1
+    assert checked == len(rows) == 3380 and hidden > 300
+
+
+def test_replayed_people_face_and_look_the_way_they_walk(corridor_database, corridor_as_plain_usd_sees_it):
+    """The hips face the direction of travel (taken here from the database's own positions, over 0.2 s)
+    within 10 degrees while people walk, and the head looks within 20 degrees of it."""
+    rows = _file_rows(corridor_database)
+    hips_off, head_off = [], []
+    for person, got in corridor_as_plain_usd_sees_it["people"].items():
+        for k, (shown, x, y, fx, fy, hx, hy) in enumerate(got["rows"]):
+            a, b = rows.get((person, k - 5)), rows.get((person, k + 5))
+            if not shown or a is None or b is None:
+                continue
+            travel = np.subtract(b, a)
+            if np.linalg.norm(travel) < 0.4 * 0.4:         # under 0.4 m/s: standing, not walking
+                continue
+            hips_off.append(_angle_between(travel, (fx, fy)))
+            head_off.append(_angle_between(travel, (hx, hy)))
+    assert len(hips_off) > 2000
+    assert np.percentile(hips_off, 99) < 10.0, np.percentile(hips_off, 99)
+    assert np.percentile(head_off, 99) < 20.0, np.percentile(head_off, 99)
+
+
+def _angle_between(u, v) -> float:
+    """Unsigned angle between two ground directions, degrees."""
+    return abs(np.degrees(np.arctan2(u[0] * v[1] - u[1] * v[0], u[0] * v[0] + u[1] * v[1])))
+
+
+ETH_ROWS = """\
+0\t1\t0.00\t0.00
+10\t1\t0.50\t0.10
+20\t1\t1.00\t0.30
+30\t1\t1.50\t0.30
+10\t2\t5.00\t5.00
+20\t2\t5.00\t4.40
+170\t2\t5.00\t2.00
+180\t2\t5.00\t1.40
+40\t3\t-2.00\t1.00
+70\t3\t-1.00\t1.00
+80\t3\t-0.60\t1.00
+"""
+
+
+def test_eth_ucy_rows_are_interpolated_and_a_long_gap_is_leaving_and_coming_back(tmp_path):
+    """An ETH/UCY file (frame id x y, a row every 10 video frames at 25 per second): the shot runs at 25
+    fps from the file's first frame; between rows people walk the straight line between them (here
+    np.interp), a 1.2 s gap is walked through, a 6 s gap (over --max-gap 2 s) is leaving and coming back;
+    before the first row and after the last the person is hidden."""
+    traj = tmp_path / "students.txt"
+    traj.write_text(ETH_ROWS)
+    assert main(["replay", str(traj), "-o", str(tmp_path / "shot"), "--cameras", "0", "--no-progress"]) == 0
+    read = _plain_usd(tmp_path / "shot" / "shot.usda")
+    assert read["fps"] == 25.0
+    table = np.array([[float(v) for v in line.split()] for line in ETH_ROWS.splitlines()])
+    for person, got in read["people"].items():
+        mine = table[table[:, 1] == person]
+        frames = np.arange(len(got["rows"]))
+        shown = got["rows"][:, 0].astype(bool)
+        inside = (frames >= mine[0, 0]) & (frames <= mine[-1, 0])
+        gaps = [(a, b) for a, b in zip(mine[:-1, 0], mine[1:, 0]) if b - a > 2.0 * 25]
+        for a, b in gaps:
+            inside &= ~((frames > a) & (frames < b))
+        np.testing.assert_array_equal(shown, inside, err_msg=f"person {person}")
+        want = np.stack([np.interp(frames, mine[:, 0], mine[:, 2]), np.interp(frames, mine[:, 0], mine[:, 3])], 1)
+        np.testing.assert_allclose(got["rows"][shown, 1:3], want[shown], atol=1e-3, err_msg=f"person {person}")
+    assert not read["people"][2]["rows"][100, 0] and read["people"][3]["rows"][55, 0]
+
+
+def test_a_replayed_shot_exports_the_rows_it_was_replayed_from(corridor_database, replayed_corridor, tmp_path):
+    """`export --trajectories` of the replayed corridor, read by PedPy (own venv, no extra argument), holds
+    JuPedSim's rows (same ids and frames, positions to a millimetre, 25 fps); replaying that export again
+    takes each person's height from its Z column (the top of the head) to 2 cm."""
+    out = tmp_path / "back.txt"
+    assert main(["export", str(replayed_corridor / "shot.usda"), "--trajectories", str(out), "--no-progress"]) == 0
+    read = _run(tool_python("pedpy", PEDPY, "USDCROWD_PEDPY_VENV"), f"""
+        import json, pathlib
+        import pedpy
+        t = pedpy.load_trajectory(trajectory_file=pathlib.Path({str(out)!r}))
+        print(json.dumps({{"fps": t.frame_rate, "rows": t.data[["id", "frame", "x", "y"]].values.tolist()}}))
+    """)
+    assert read["fps"] == 25.0
+    back = {(int(i), int(f)): (x, y) for i, f, x, y in read["rows"]}
+    rows = _file_rows(corridor_database)
+    assert set(back) == set(rows)
+    assert max(np.hypot(back[k][0] - rows[k][0], back[k][1] - rows[k][1]) for k in rows) < 1e-3
+    assert main(["replay", str(out), "-o", str(tmp_path / "again"), "--cameras", "0", "--no-progress"]) == 0
+    first = _plain_usd(replayed_corridor / "shot.usda")["people"]
+    again = _plain_usd(tmp_path / "again" / "shot.usda")["people"]
+    for person in first:
+        assert abs(again[person]["height"] - first[person]["height"]) < 0.02, person
+
+
+def test_events_cameras_and_ground_truth_leave_out_people_not_there(corridor_database, replayed_corridor, tmp_path):
+    """On the replayed corridor the MOT ground truth of a final render lists, at each frame, exactly the ids
+    JuPedSim has at that frame; `usdcrowd cameras` films the shot again; every detected event's people
+    were in the corridor whenever the event counts them."""
+    from usdcrowd.scenario import open_stage
+    from usdcrowd.scenario.events import read_events
+    from usdcrowd.scenario.stageio import time_range
+
+    rows = _file_rows(corridor_database)
+    assert main(["render", str(replayed_corridor / "shot.usda"), "-o", str(tmp_path / "render"), "--frames",
+                 "1:401x100", "--resolution", "160x90", "--spp", "1", "--no-progress"]) == 0
+    gt = np.loadtxt(tmp_path / "render" / "mot" / "gt" / "gt.txt", delimiter=",", ndmin=2)
+    for k, code in enumerate((1, 101, 201, 301, 401), start=1):
+        want = sorted(i for i, f in rows if f == code - 1)
+        assert sorted(gt[gt[:, 0] == k, 1].astype(int)) == want, code
+    assert main(["cameras", str(replayed_corridor / "shot.usda"), "--no-progress"]) == 0
+    stage = open_stage(str(replayed_corridor / "shot.usda"))
+    paths = {int(p.GetAttribute("crowd:agentId").Get()): str(p.GetPath()) for p in stage.Traverse()
+             if p.HasAttribute("crowd:agentId")}
+    ids = sorted(paths)
+    events = read_events(stage, {paths[i]: r for r, i in enumerate(ids)}, time_range(stage))
+    assert len(events) > 0
+    for e in events:
+        for t, active in zip(e.times, e.active):
+            for member in e.members[active]:
+                assert (ids[member], int(t) - 1) in rows, (e.path, t, ids[member])
+
+
+@pytest.mark.parametrize("content, extra, words", [
+    ("", [], "empty"),
+    ("0 1 0.0 0.0\n10 1 x 0.5\n", [], "line 2"),
+    ("# ID FR X Y Z\n1 0 0 0 1.7\n1 1 0.1 0 1.7\n", [], "--fps"),
+    ("# framerate: 25 fps\n1 0 0 0 1.7\n1 1 0.1 0 1.7\n", ["--fps", "10"], "leave --fps out"),
+    ("0 1 0.0 0.0\n0 1 0.5 0.5\n", [], "two rows at frame 0"),
+    ("0 1.5 0.0 0.0\n10 1.5 0.5 0.5\n", [], "not a whole number"),
+])
+def test_a_careless_replay_is_one_line_and_writes_no_shot(tmp_path, capsys, content, extra, words):
+    """A bad trajectory file (empty, a word for a number, no frame rate, a rate the file contradicts, two
+    rows for one person at one frame, a fractional id): one line naming the file, exit 2, no shot."""
+    traj = tmp_path / "walks.txt"
+    traj.write_text(content)
+    assert main(["replay", str(traj), "-o", str(tmp_path / "shot"), *extra, "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and words in err and "walks.txt" in err, err
+    assert not (tmp_path / "shot" / "shot.usda").exists()
