@@ -11,7 +11,6 @@ from __future__ import annotations
 import json
 import sqlite3
 import subprocess
-import sys
 import textwrap
 
 import numpy as np
@@ -19,6 +18,7 @@ import pytest
 
 from usdcrowd.cli import main
 
+from tests.helpers.plain_usd import people_as_plain_usd_sees_them
 from tests.helpers.venvs import tool_python
 
 JUPEDSIM = ["jupedsim==1.4.2"]
@@ -48,31 +48,6 @@ CORRIDOR_RUN = """
         sim.iterate()
 """
 
-# Plain usd-core: per agent id, per time code, (shown, hips x, hips y, hips' forward x, y, head's forward x, y).
-PLAIN_USD_READ = """
-    import json, sys
-    from pxr import Usd, UsdGeom, UsdSkel
-    stage = Usd.Stage.Open(sys.argv[1])
-    cache = UsdSkel.Cache()
-    codes = range(int(stage.GetStartTimeCode()), int(stage.GetEndTimeCode()) + 1)
-    out = {"fps": stage.GetTimeCodesPerSecond(), "first": stage.GetStartTimeCode(), "people": {}}
-    for prim in stage.Traverse():
-        if not prim.IsA(UsdSkel.Root) or not prim.HasAttribute("crowd:agentId"):
-            continue
-        cache.Populate(UsdSkel.Root(prim), Usd.PrimDefaultPredicate)
-        skel = UsdSkel.Skeleton(prim.GetChild("Skel"))
-        query = cache.GetSkelQuery(skel)
-        rows = []
-        for t in codes:
-            m = query.ComputeJointWorldTransforms(UsdGeom.XformCache(t))
-            shown = UsdGeom.Imageable(prim).ComputeVisibility(t) != UsdGeom.Tokens.invisible
-            rows.append([shown, m[0][3][0], m[0][3][1], m[0][0][0], m[0][0][1], m[2][0][0], m[2][0][1]])
-        out["people"][int(prim.GetAttribute("crowd:agentId").Get())] = {
-            "rows": rows, "height": prim.GetAttribute("crowd:height").Get()}
-    print(json.dumps(out))
-"""
-
-
 def _run(python: str, script: str, *args) -> dict | None:
     out = subprocess.run([python, "-c", textwrap.dedent(script), *map(str, args)], capture_output=True, text=True)
     assert out.returncode == 0, out.stderr[-3000:]
@@ -81,10 +56,7 @@ def _run(python: str, script: str, *args) -> dict | None:
 
 
 def _plain_usd(shot) -> dict:
-    read = _run(sys.executable, PLAIN_USD_READ, shot)
-    read["people"] = {int(k): {"rows": np.array(v["rows"], dtype=np.float64), "height": v["height"]}
-                      for k, v in read["people"].items()}
-    return read
+    return people_as_plain_usd_sees_them(shot)
 
 
 def _file_rows(db) -> dict:

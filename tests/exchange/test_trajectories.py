@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 import textwrap
 
 import numpy as np
@@ -18,6 +17,7 @@ import pytest
 
 from usdcrowd.cli import main
 
+from tests.helpers.plain_usd import people_as_plain_usd_sees_them
 from tests.helpers.venvs import tool_python
 
 PEDPY = ["pedpy==1.5.1"]
@@ -50,27 +50,8 @@ def _run(python: str, script: str) -> dict:
 
 def _hips_as_plain_usd_sees_them(shot) -> dict:
     """{agent id: [[visible, x, y] per SAMPLES time code]}: the hips' joint in the world, by UsdSkel."""
-    return _run(sys.executable, f"""
-        import json
-        from pxr import Usd, UsdGeom, UsdSkel
-        stage = Usd.Stage.Open({str(shot)!r})
-        cache = UsdSkel.Cache()
-        out = {{}}
-        for prim in stage.Traverse():
-            if not prim.IsA(UsdSkel.Root) or not prim.HasAttribute("crowd:agentId"):
-                continue
-            cache.Populate(UsdSkel.Root(prim), Usd.PrimDefaultPredicate)
-            skel = UsdSkel.Skeleton(prim.GetChild("Skel"))
-            query = cache.GetSkelQuery(skel)
-            hips = list(skel.GetJointsAttr().Get()).index("legs")
-            rows = []
-            for t in {list(SAMPLES)!r}:
-                m = query.ComputeJointWorldTransforms(UsdGeom.XformCache(t))[hips]
-                seen = UsdGeom.Imageable(prim).ComputeVisibility(t) != UsdGeom.Tokens.invisible
-                rows.append([bool(seen), m[3][0], m[3][1]])
-            out[int(prim.GetAttribute("crowd:agentId").Get())] = rows
-        print(json.dumps(out))
-    """)
+    people = people_as_plain_usd_sees_them(shot, SAMPLES)["people"]
+    return {i: [[bool(r[0]), r[1], r[2]] for r in p["rows"]] for i, p in people.items()}
 
 
 def _as_pedpy_reads_them(python: str, folder) -> dict:
