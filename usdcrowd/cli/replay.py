@@ -1,5 +1,5 @@
-"""usdcrowd replay TRAJ -o OUT/ [--format F] [--fps F] [--shot-fps F] [--scenery S] [--height-from H]
-[--cameras N] [--seed S]"""
+"""usdcrowd replay TRAJ -o OUT/ [--format F] [--fps F] [--shot-fps F] [--scenery S | --scenario STAGE]
+[--height-from H] [--cameras N] [--seed S]"""
 
 from __future__ import annotations
 
@@ -27,11 +27,16 @@ def add_parser(sub):
     p.add_argument("--shot-fps", type=finite_float(lo=1.0, hi=240.0, what="a frame rate"),
                    help="frames per second of the shot (default: the file's, if 10 to 60, else 25)")
     p.add_argument("--scenery", help="a USD file from a DCC tool to walk in (default: a flat ground)")
+    p.add_argument("--scenario", dest="companion", metavar="STAGE",
+                   help="a companion scenario (Z up, metres): its scenery, lights, camera agents and events, and "
+                        "the attributes of the people whose crowd:agentId is a track id; its clones and other "
+                        "agents are switched off")
     p.add_argument("--height-from", choices=HEIGHT_SOURCES, default="auto",
                    help="body heights from the file's Z column (head heights), drawn from the seed, or "
                         "(auto) the file's where every Z is a plausible height")
-    p.add_argument("--cameras", type=int_at_least(0), default=4,
-                   help="camera agents scouting and tracking the shot's events (default 4)")
+    p.add_argument("--cameras", type=int_at_least(0),
+                   help="camera agents scouting and tracking the shot's events (default: the companion "
+                        "scenario's, else 4)")
     p.add_argument("--max-gap", type=finite_float(lo=0.0, what="seconds"), default=2.0,
                    help="longest gap in a person's rows filled in, seconds (longer: they leave and come back)")
     p.add_argument("--no-events", dest="events", action="store_false", help="do not detect events")
@@ -39,7 +44,7 @@ def add_parser(sub):
     add_limits(p)
     add_force(p)
     add_progress(p)
-    p.set_defaults(run=run, inputs=("trajectories", "scenery"), output_folders=("output",))
+    p.set_defaults(run=run, inputs=("trajectories", "scenery", "companion"), output_folders=("output",))
 
 
 def run(args) -> int:
@@ -48,7 +53,7 @@ def run(args) -> int:
     r = replay_shot(args.trajectories, args.output, fmt=args.fmt, fps=args.fps, shot_fps=args.shot_fps,
                     scenery=args.scenery, height_from=args.height_from, seed=args.seed or 0,
                     cameras=args.cameras, max_gap_s=args.max_gap, events=args.events, progress=args.progress,
-                    limits=limits_of(args))
+                    limits=limits_of(args), companion=args.companion)
     print(f"wrote {r.shot}: {r.n_agents} people x {r.n_frames} frames, {r.n_events} events")
     print(f"  crowd   {r.crowd}")
     print(f"  cameras {r.cameras}")

@@ -26,6 +26,8 @@ GROUND_MARGIN = 3.0
 # Head heights (PedPy's Z) read as body heights only in this range; other Z columns are not heights.
 BODY_HEIGHT_RANGE = (1.2, 2.3)
 HEIGHT_SOURCES = ("auto", "file", "drawn")
+# Camera agents of a replay without a companion scenario (besides the overview camera).
+DEFAULT_CAMERAS = 4
 
 
 def shot_rate(file_fps: float) -> float:
@@ -58,8 +60,14 @@ def body_heights(tracks, height_from: str) -> np.ndarray | None:
 
 
 def write_scenario(path: Path, tracks, xy: np.ndarray, fps: float, heights: np.ndarray | None, seed: int,
-                   scenery: str | None) -> str:
-    """The scenario stage of a replay (see the module's docstring); returns its path."""
+                   scenery: str | None = None, companion: str | None = None) -> str:
+    """The scenario stage of a replay (see the module's docstring); returns its path.
+
+    With ``companion`` (a scenario stage) the replay sublayers it: its scenery, lights, camera agents and
+    events come along, a person whose id one of its agents has is that agent (its group, attributes and
+    clothes), the others join a group of their own; its clones and the agents the file does not have are
+    switched off.
+    """
     from pxr import Sdf
 
     from .. import schema
@@ -67,26 +75,47 @@ def write_scenario(path: Path, tracks, xy: np.ndarray, fps: float, heights: np.n
     from .templates import replace_scenery
 
     layer = Sdf.Layer.CreateAnonymous(".usda")
-    layer.defaultPrim = "World"
+    stage = _companion_stage(companion) if companion else None
+    root = stage.GetDefaultPrim().GetName() if stage else "World"
+    layer.defaultPrim = root
     layer.startTimeCode, layer.endTimeCode = 1.0, float(len(xy))
     layer.timeCodesPerSecond = layer.framesPerSecond = fps
     layer.pseudoRoot.SetInfo("upAxis", "Z")
     layer.pseudoRoot.SetInfo("metersPerUnit", 1.0)
-    source = os.path.relpath(os.path.abspath(tracks.source), path.parent.resolve())
-    layer.customLayerData = {"usdcrowd": {"seed": int(seed), "replay": {
-        "source": source, "format": tracks.fmt, "fileFps": float(tracks.fps)}}}
+    relative = lambda f: os.path.relpath(os.path.abspath(f), path.parent.resolve())  # noqa: E731
+    about = {"source": relative(tracks.source), "format": tracks.fmt, "fileFps": float(tracks.fps)}
+    if companion:
+        about["companion"] = relative(companion)
+        layer.subLayerPaths = [relative(companion)]
+    layer.customLayerData = {"usdcrowd": {"seed": int(seed), "replay": about}}
     layer.comment = (f"People replayed from {os.path.basename(tracks.source)} ({tracks.fmt}); "
                      "Z up, metres. Written by usdcrowd replay.")
     schema.author_fallbacks(layer)
     with Sdf.ChangeBlock():
-        world = Sdf.CreatePrimInLayer(layer, "/World")
-        world.specifier, world.typeName, world.kind = Sdf.SpecifierDef, "Xform", "assembly"
-        _ground(layer, xy)
-        _people(layer, tracks, xy, heights)
+        if stage is None:
+            world = Sdf.CreatePrimInLayer(layer, "/World")
+            world.specifier, world.typeName, world.kind = Sdf.SpecifierDef, "Xform", "assembly"
+            _ground(layer, xy)
+        _people(layer, tracks, xy, heights, stage, root)
     if scenery is not None:
         replace_scenery(layer, scenery, path)
     export_layer(layer, path)
     return str(path)
+
+
+def _companion_stage(companion: str):
+    """The companion scenario, opened; refused unless Z up in metres with a default prim (the replay's
+    positions are the file's metres)."""
+    from pxr import UsdGeom
+
+    from ..scenario import open_stage
+
+    stage = open_stage(companion)
+    if not stage.GetDefaultPrim():
+        raise UsdcrowdError("a companion scenario needs a defaultPrim", file=companion)
+    if UsdGeom.GetStageUpAxis(stage) != "Z" or abs(UsdGeom.GetStageMetersPerUnit(stage) - 1.0) > 1e-9:
+        raise UsdcrowdError("a companion scenario must be Z up in metres, as the trajectories are", file=companion)
+    return stage
 
 
 def _ground(layer, xy: np.ndarray) -> None:
@@ -111,28 +140,79 @@ def _ground(layer, xy: np.ndarray) -> None:
     Sdf.AttributeSpec(mesh, "subdivisionScheme", T.Token, Sdf.VariabilityUniform).default = "none"
 
 
-def _people(layer, tracks, xy: np.ndarray, heights: np.ndarray | None) -> None:
-    """One walking CrowdGroup, a person per track id, standing where they are first seen."""
+def _people(layer, tracks, xy: np.ndarray, heights: np.ndarray | None, companion=None, root: str = "World") -> None:
+    """A person per track id, standing where they are first seen: the companion's agent of that id, or one
+    of a walking CrowdGroup ``People``."""
     from pxr import Gf, Sdf
 
     T, U = Sdf.ValueTypeNames, Sdf.VariabilityUniform
-    for path, kind in (("/World/Crowd", "Scope"), ("/World/Crowd/People", "CrowdGroup")):
-        spec = Sdf.CreatePrimInLayer(layer, path)
-        spec.specifier, spec.typeName = Sdf.SpecifierDef, kind
-    group = layer.GetPrimAtPath("/World/Crowd/People")
-    for name, value in (("characterType", "human"), ("personality", "civilian"), ("behavior", "walk"),
-                        ("condition", "isolated")):
-        Sdf.AttributeSpec(group, f"crowd:{name}", T.Token, U).default = value
+    known = _companion_agents(companion)
     first = np.argmax(np.isfinite(xy[..., 0]), axis=0)
+    used = []
     for i, person in enumerate(tracks.ids):
-        spec = Sdf.CreatePrimInLayer(layer, f"/World/Crowd/People/{person_name(person)}")
-        spec.specifier, spec.typeName = Sdf.SpecifierDef, "SkelRoot"
-        spec.SetInfo("apiSchemas", Sdf.TokenListOp.Create(prependedItems=["CrowdAgentAPI"]))
-        Sdf.AttributeSpec(spec, "crowd:agentId", T.Int, U).default = int(person)
+        path = known.pop(int(person), None)
+        if path is None:
+            path = f"{_people_group(layer, companion, root)}/{person_name(person)}"
+            spec = Sdf.CreatePrimInLayer(layer, path)
+            spec.specifier, spec.typeName = Sdf.SpecifierDef, "SkelRoot"
+            spec.SetInfo("apiSchemas", Sdf.TokenListOp.Create(prependedItems=["CrowdAgentAPI"]))
+            Sdf.AttributeSpec(spec, "crowd:agentId", T.Int, U).default = int(person)
+        used.append(path)
+        spec = Sdf.CreatePrimInLayer(layer, path)
         x, y = xy[first[i], i]
         Sdf.AttributeSpec(spec, "crowd:startPosition", T.Point3f, U).default = Gf.Vec3f(float(x), float(y), 0.0)
         if heights is not None:
             Sdf.AttributeSpec(spec, "crowd:height", T.Float, U).default = float(heights[i])
+    _switch_off(layer, companion, set(known.values()), used)
+
+
+def _people_group(layer, companion, root: str) -> str:
+    """The group of the people a companion does not have (made on first use)."""
+    from pxr import Sdf
+
+    T, U = Sdf.ValueTypeNames, Sdf.VariabilityUniform
+    path = f"/{root}/Crowd/People"
+    if layer.GetPrimAtPath(path):
+        return path
+    for where, kind in ((f"/{root}/Crowd", "Scope"), (path, "CrowdGroup")):
+        if companion is None or not companion.GetPrimAtPath(where):
+            spec = Sdf.CreatePrimInLayer(layer, where)
+            spec.specifier, spec.typeName = Sdf.SpecifierDef, kind
+    group = layer.GetPrimAtPath(path)
+    for name, value in (("characterType", "human"), ("personality", "civilian"), ("behavior", "walk"),
+                        ("condition", "isolated")):
+        Sdf.AttributeSpec(group, f"crowd:{name}", T.Token, U).default = value
+    return path
+
+
+def _companion_agents(companion) -> dict[int, str]:
+    """{crowd:agentId: prim path} of the companion's authored agents."""
+    from .. import schema
+
+    if companion is None:
+        return {}
+    return {int(p.GetAttribute("crowd:agentId").Get()): str(p.GetPath()) for p in companion.Traverse()
+            if schema.is_agent(p) and p.GetAttribute("crowd:agentId").HasAuthoredValue()}
+
+
+def _switch_off(layer, companion, unused: set[str], used: list[str]) -> None:
+    """The companion's clones and the agents the file does not have (``unused``), off; then its groups
+    that hold none of the ``used`` agents."""
+    from pxr import Sdf
+
+    if companion is None:
+        return
+    T, U = Sdf.ValueTypeNames, Sdf.VariabilityUniform
+    for path in unused:
+        Sdf.CreatePrimInLayer(layer, path).active = False
+    groups = [p for p in companion.Traverse() if p.GetTypeName() == "CrowdGroup"]
+    for g in groups:
+        spec = Sdf.CreatePrimInLayer(layer, g.GetPath())
+        Sdf.AttributeSpec(spec, "crowd:clones", T.Int, U).default = 0
+    for g in groups:
+        inside = f"{g.GetPath()}/"
+        if not any(p.startswith(inside) for p in used):
+            Sdf.CreatePrimInLayer(layer, g.GetPath()).active = False
 
 
 def person_name(person: int) -> str:
@@ -142,8 +222,8 @@ def person_name(person: int) -> str:
 
 def replay_shot(trajectories: str | os.PathLike, out_dir: str | os.PathLike, fmt: str | None = None,
                 fps: float | None = None, shot_fps: float | None = None, scenery: str | None = None,
-                height_from: str = "auto", seed: int = 0, cameras: int = 4, max_gap_s: float = 2.0,
-                events: bool = True, progress: bool = True, limits=None):
+                height_from: str = "auto", seed: int = 0, cameras: int | None = None, max_gap_s: float = 2.0,
+                events: bool = True, progress: bool = True, limits=None, companion: str | None = None):
     """Write a shot whose people follow ``trajectories``: ``replay.usda`` (its scenario), then the shot.
 
     Parameters
@@ -155,10 +235,14 @@ def replay_shot(trajectories: str | os.PathLike, out_dir: str | os.PathLike, fmt
         A USD file from a DCC tool for the people to walk in (placed as ``usdcrowd new --scenery`` places it).
     height_from : str
         One of HEIGHT_SOURCES: the file's Z (head heights), drawn from the seed, or the file's where usable.
-    cameras : int
-        Camera agents that scout and track the shot's events (the overview camera comes besides).
+    cameras : int, optional
+        Camera agents that scout and track the shot's events (the overview camera comes besides);
+        default: the companion's, else DEFAULT_CAMERAS.
     max_gap_s : float
         Longest gap in a person's rows interpolated across; longer, they leave and come back.
+    companion : str, optional
+        A scenario stage giving scenery, lights, camera agents, events and the attributes of the people
+        whose ids its agents have (see :func:`write_scenario`).
 
     Returns
     -------
@@ -170,6 +254,8 @@ def replay_shot(trajectories: str | os.PathLike, out_dir: str | os.PathLike, fmt
     from ..exchange.replay_motion import sample_tracks
     from .pipeline import author_shot
 
+    if scenery is not None and companion is not None:
+        raise UsdcrowdError("give --scenery or --scenario, not both: the companion scenario brings its scenery")
     if height_from not in HEIGHT_SOURCES:
         raise UsdcrowdError(f"--height-from is one of {', '.join(HEIGHT_SOURCES)}, got {height_from!r}")
     tracks = read_tracks(trajectories, fmt, fps)
@@ -190,7 +276,9 @@ def replay_shot(trajectories: str | os.PathLike, out_dir: str | os.PathLike, fmt
     scenario = out / SCENARIO
     output_dir(out, "shot")
     with restored_on_failure([scenario]):
-        write_scenario(scenario, tracks, xy, rate, heights, seed, scenery)
+        write_scenario(scenario, tracks, xy, rate, heights, seed, scenery, companion)
+        if cameras is None and companion is None:
+            cameras = DEFAULT_CAMERAS
         return author_shot(scenario, out, _source(tracks, xy, rate), seed=seed, progress=progress,
                            camera_count=cameras, events=events, limits=limits)
 
