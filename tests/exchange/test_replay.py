@@ -271,29 +271,32 @@ def test_replayed_people_walk_in_a_dcc_tools_scenery(corridor_database, tmp_path
 
 
 def test_a_companion_scenario_gives_its_people_scenery_and_cameras(tmp_path):
-    """--scenario: the dialogue template's A and B (ids 1, 2) walk the file's rows as themselves (their
-    prims, colours and heights), id 7, whom the template lacks, joins a group of its own; the template's
-    walkers (ids 3, 4), absent from the file, are switched off, and its two-shot camera and dialogue event
-    come into the shot."""
+    """--scenario: the dialogue template's A and C (ids 1, 3) walk the file's rows as themselves (their
+    prims, colours and heights); id 7, whom the template lacks, joins a group of its own; the template's B
+    and D (ids 2, 4), absent from the file, are switched off (D's group with it), and its two-shot camera
+    and dialogue event come into the shot."""
     from usdcrowd.scenario import load_scenario, open_stage
 
     companion = tmp_path / "dialogue.usda"
     assert main(["new", "dialogue", "-o", str(companion)]) == 0
     traj = tmp_path / "talk.txt"
     traj.write_text("".join(f"{k}\t{i}\t{x:.3f}\t{y:.3f}\n" for k in range(0, 200, 10) for i, x, y in (
-        (1, -0.75 + 0.002 * k, 2.0), (2, 0.75, 2.0), (7, -6.0 + 0.05 * k, -3.0))))
+        (1, -0.75 + 0.002 * k, 2.0), (3, -8.0 + 0.04 * k, 5.0), (7, -6.0 + 0.05 * k, -3.0))))
     shot = tmp_path / "shot"
     assert main(["replay", str(traj), "-o", str(shot), "--scenario", str(companion), "--no-progress"]) == 0
     sc = load_scenario(shot / "replay.usda")
     by_id = {int(i): p for i, p in zip(sc.agents.agent_id, sc.agents.path)}
-    assert by_id == {1: "/World/Crowd/Pair/A", 2: "/World/Crowd/Pair/B", 7: "/World/Crowd/People/Person_7"}
+    assert by_id == {1: "/World/Crowd/Pair/A", 3: "/World/Crowd/Walkers/Left/C",
+                     7: "/World/Crowd/People/Person_7"}
     template = open_stage(str(companion))
     stage = open_stage(str(shot / "shot.usda"))
-    for path in (by_id[1], by_id[2]):
+    for path in (by_id[1], by_id[3]):
         for name in ("crowd:color", "crowd:height"):
             assert stage.GetPrimAtPath(path).GetAttribute(name).Get() == \
                 template.GetPrimAtPath(path).GetAttribute(name).Get(), (path, name)
+    assert not stage.GetPrimAtPath("/World/Crowd/Pair/B").IsActive()
+    assert not stage.GetPrimAtPath("/World/Crowd/Walkers/Right").IsActive()
     people = _plain_usd(shot / "shot.usda")["people"]
-    assert sorted(people) == [1, 2, 7]
+    assert sorted(people) == [1, 3, 7]
     np.testing.assert_allclose(people[7]["rows"][100, 1:3], (-6.0 + 0.05 * 100, -3.0), atol=1e-3)
     assert stage.GetPrimAtPath("/World/Cameras/TwoShot") and stage.GetPrimAtPath("/World/Events/Dialogue")
