@@ -300,3 +300,20 @@ def test_a_companion_scenario_gives_its_people_scenery_and_cameras(tmp_path):
     assert sorted(people) == [1, 3, 7]
     np.testing.assert_allclose(people[7]["rows"][100, 1:3], (-6.0 + 0.05 * 100, -3.0), atol=1e-3)
     assert stage.GetPrimAtPath("/World/Cameras/TwoShot") and stage.GetPrimAtPath("/World/Events/Dialogue")
+
+
+def test_replayed_motion_does_not_depend_on_the_window_it_is_made_in(tmp_path):
+    """The frames are made a window at a time: windows of 7 frames give what one window of the whole
+    recording gives (positions, headings, velocities, the walk cycle, gaze, who is present)."""
+    from usdcrowd.exchange.recorded_tracks import read_tracks
+    from usdcrowd.exchange.replay_motion import ReplayMotion, TrackSampler
+
+    traj = tmp_path / "students.txt"
+    traj.write_text(ETH_ROWS)
+    sampler = TrackSampler(read_tracks(traj), 25.0)
+    height = np.array([1.7, 1.8, 1.6])
+    whole = next(ReplayMotion(sampler, 1.0, height).chunks(sampler.n_frames))
+    parts = list(ReplayMotion(sampler, 1.0, height).chunks(7))
+    for name in ("times", "position", "heading", "velocity", "anim_class", "anim_phase", "look_at", "present"):
+        joined = np.concatenate([getattr(p, name) for p in parts])
+        np.testing.assert_allclose(joined, getattr(whole, name), atol=1e-5, err_msg=name)

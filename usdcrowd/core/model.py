@@ -390,6 +390,17 @@ class CrowdFrames:
     def n_agents(self) -> int:
         return self.position.shape[1]
 
+    def agents(self, rows: np.ndarray) -> "CrowdFrames":
+        """The frames of the agents ``rows`` ((m,) int), in that order (contiguous copies)."""
+        from dataclasses import fields, replace
+
+        def pick(name):
+            a = getattr(self, name)
+            return np.ascontiguousarray(a[rows] if name == "path_method" else a[:, rows])
+
+        return replace(self, **{f.name: pick(f.name) for f in fields(self)
+                                if f.name != "times" and getattr(self, f.name) is not None})
+
     def frames(self, key: slice) -> "CrowdFrames":
         """The frames ``key`` selects (a slice of the time axis), every agent."""
         from dataclasses import fields, replace

@@ -1,10 +1,12 @@
 """Recorded tracks turned into a crowd's frames: what ``usdcrowd replay`` animates.
 
 The tracks (:class:`~usdcrowd.exchange.recorded_tracks.Tracks`) are sampled at
-the shot's frame rate: linearly between the rows a person has (a gap longer
-than ``max_gap_s`` is a person leaving and coming back), absent before the
-first row and after the last. Positions are the file's where a frame falls on
-a row, so a replayed shot reproduces the file point for point.
+the shot's frame rate (:class:`TrackSampler`): linearly between the rows a
+person has (a gap longer than ``max_gap_s`` is a person leaving and coming
+back), absent before the first row and after the last. Positions are the
+file's where a frame falls on a row, so a replayed shot reproduces the file
+point for point. The frames are made a window at a time
+(:class:`ReplayMotion`), so memory follows the window, not the recording.
 
 The rest is derived as the simulation derives it for its own walkers:
 velocity from the positions (a centred difference over about a fifth of a
@@ -36,8 +38,8 @@ GAZE_MIN_DISTANCE = 0.5
 EYE_SHARE = 1.63 / 1.75
 
 
-def sample_tracks(tracks: Tracks, fps: float, max_gap_s: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
-    """Every person's ground position at each frame of the shot.
+class TrackSampler:
+    """Every person's ground position at the shot's frames, a window of frames at a time.
 
     Parameters
     ----------
@@ -47,106 +49,180 @@ def sample_tracks(tracks: Tracks, fps: float, max_gap_s: float = 2.0) -> tuple[n
     max_gap_s : float
         Longest stretch without rows that is interpolated across.
 
-    Returns
-    -------
-    seconds : (t,) float64
-        Time of each shot frame after the file's first frame.
-    xy : (t, n, 2) float64
-        Positions, metres; NaN where the person is absent.
+    Attributes
+    ----------
+    n_frames : int
+    first, last : (n,) int
+        Each person's first and last frame.
+    first_xy, last_xy : (n, 2) float
+        Where they are at those frames.
+    first_heading : (n,) float
+        The way they first walk (toward their first position GAZE_MIN_DISTANCE
+        from the start), radians; 0 for someone who never moves that far.
     """
-    s = tracks.seconds
-    n_frames = int(np.floor(s.max() * fps + 1e-6)) + 1
-    seconds = np.arange(n_frames) / fps
-    xy = np.full((n_frames, len(tracks), 2), np.nan)
-    bounds = np.searchsorted(tracks.person, np.arange(len(tracks) + 1))
-    for i in range(len(tracks)):
-        rows = slice(bounds[i], bounds[i + 1])
-        si, pi = s[rows], tracks.xy[rows]
-        k = np.arange(int(np.ceil(si[0] * fps - 1e-6)), int(np.floor(si[-1] * fps + 1e-6)) + 1)
-        if len(k) == 0:
-            continue
-        at = np.clip(k / fps, si[0], si[-1])
-        xy[k, i, 0], xy[k, i, 1] = np.interp(at, si, pi[:, 0]), np.interp(at, si, pi[:, 1])
-        for g in np.flatnonzero(np.diff(si) > max_gap_s):
-            inside = (at > si[g] + 1e-9) & (at < si[g + 1] - 1e-9)
-            xy[k[inside], i] = np.nan
-    return seconds, xy
+
+    def __init__(self, tracks: Tracks, fps: float, max_gap_s: float = 2.0):
+        self.fps = float(fps)
+        self.n = len(tracks)
+        self._s, self._xy = tracks.seconds, tracks.xy
+        self._rows = np.searchsorted(tracks.person, np.arange(self.n + 1))
+        start, end = self._rows[:-1], self._rows[1:] - 1
+        self.n_frames = int(np.floor(self._s.max() * fps + 1e-6)) + 1
+        self.first = np.ceil(self._s[start] * fps - 1e-6).astype(np.int64)
+        self.last = np.floor(self._s[end] * fps + 1e-6).astype(np.int64)
+        self.first_xy, self.last_xy = self._xy[start], self._xy[end]
+        self.first_heading = self._first_headings()
+        # Rows in one ascending key (person, then time) to find anyone's last row before a time at once.
+        self._span = float(self._s.max()) + 1.0
+        self._key = tracks.person + self._s / self._span
+        gap = np.flatnonzero((np.diff(self._s) > max_gap_s) & (tracks.person[1:] == tracks.person[:-1]))
+        self._gaps = tracks.person[gap], self._s[gap], self._s[gap + 1]
+
+    def _first_headings(self) -> np.ndarray:
+        out = np.zeros(self.n)
+        for i in range(self.n):
+            xy = self._xy[self._rows[i]:self._rows[i + 1]]
+            away = np.flatnonzero(np.linalg.norm(xy - xy[0], axis=1) >= GAZE_MIN_DISTANCE)
+            if len(away):
+                d = xy[away[0]] - xy[0]
+                out[i] = np.arctan2(d[1], d[0])
+        return out
+
+    def window(self, a: int, b: int) -> np.ndarray:
+        """(b - a, n, 2) positions at frames ``a`` to ``b - 1``, metres; NaN where a person is absent."""
+        xy = np.full((b - a, self.n, 2), np.nan)
+        for i in np.flatnonzero((self.first < b) & (self.last >= a)):
+            rows = slice(self._rows[i], self._rows[i + 1])
+            si, pi = self._s[rows], self._xy[rows]
+            k = np.arange(max(a, self.first[i]), min(b, self.last[i] + 1))
+            at = np.clip(k / self.fps, si[0], si[-1])
+            xy[k - a, i, 0], xy[k - a, i, 1] = np.interp(at, si, pi[:, 0]), np.interp(at, si, pi[:, 1])
+        person, s0, s1 = self._gaps
+        on = (s0 < b / self.fps) & (s1 > a / self.fps)
+        k = np.arange(a, b) / self.fps
+        for i, g0, g1 in zip(person[on], s0[on], s1[on]):
+            xy[(k > g0 + 1e-9) & (k < g1 - 1e-9), i] = np.nan
+        return xy
+
+    def resting(self, a: int) -> np.ndarray:
+        """(n, 2) where someone absent at frame ``a`` stands: where they were last seen, or where they will
+        come in."""
+        row = np.searchsorted(self._key, np.arange(self.n) + (a / self.fps) / self._span, side="right") - 1
+        seen = row >= self._rows[:-1]
+        return np.where(seen[:, None], self._xy[np.maximum(row, 0)], self.first_xy)
 
 
-def _held(values: np.ndarray, present: np.ndarray) -> np.ndarray:
-    """``values`` (t, n, ...) with every absent frame given the nearest present one before it (or after it,
-    before a person's first frame); a person never present keeps zeros."""
+def _held(values: np.ndarray, present: np.ndarray, fallback: np.ndarray) -> np.ndarray:
+    """``values`` (t, n, ...) with every absent frame given the last present one before it, or ``fallback``
+    (n, ...) before a person's first present frame."""
     t = len(values)
-    idx = np.where(present, np.arange(t)[:, None], -1)
-    before = np.maximum.accumulate(idx, axis=0)
-    after = np.where(present, np.arange(t)[:, None], t)
-    after = np.minimum.accumulate(after[::-1], axis=0)[::-1]
-    pick = np.where(before >= 0, before, np.where(after < t, after, 0))
-    out = np.take_along_axis(values, pick.reshape(pick.shape + (1,) * (values.ndim - 2)), axis=0)
-    return np.where(present.any(axis=0).reshape((1, -1) + (1,) * (values.ndim - 2)), out, 0)
+    before = np.maximum.accumulate(np.where(present, np.arange(t)[:, None], -1), axis=0)
+    extra = (1,) * (values.ndim - 2)
+    out = np.take_along_axis(values, np.maximum(before, 0).reshape(before.shape + extra), axis=0)
+    return np.where((before >= 0).reshape(before.shape + extra), out, fallback[None])
 
 
-def crowd_frames(xy: np.ndarray, fps: float, first_code: float, height: np.ndarray,
-                 ground=None) -> model.CrowdFrames:
-    """The crowd's frames for positions sampled by :func:`sample_tracks`.
+class ReplayMotion:
+    """The crowd's frames for a :class:`TrackSampler`, window by window.
 
     Parameters
     ----------
-    xy : (t, n, 2) float
-        Positions, NaN where absent.
-    fps : float
+    sampler : TrackSampler
     first_code : float
         Time code of frame 0.
     height : (n,) float
         Body heights, metres (the gaze is at eye height).
     ground : callable((m,) x, (m,) y) -> (m,) z, optional
         Ground height; flat at 0 if None.
-
-    Returns
-    -------
-    CrowdFrames
-        With ``present``; an absent person stands, idle, where they enter or
-        leave (hidden there by the shot's visibility).
     """
-    from ..character.animation import advance_phase, classify
 
-    t, n = xy.shape[:2]
-    present = np.isfinite(xy[..., 0])
-    pos2 = _held(np.nan_to_num(xy), present)
-    h = max(1, int(round(VELOCITY_HALF_WINDOW_S * fps)))
-    ahead, behind = np.minimum(np.arange(t) + h, t - 1), np.maximum(np.arange(t) - h, 0)
-    span = np.maximum(ahead - behind, 1)[:, None, None] / fps
-    velocity = np.where(present[..., None], (pos2[ahead] - pos2[behind]) / span, 0.0)
-    speed = np.hypot(velocity[..., 0], velocity[..., 1])
-    walking = speed >= STANDING_SPEED
-    heading = _held(np.arctan2(velocity[..., 1], velocity[..., 0]), walking)
-    cls = classify(velocity, heading)
-    phase = advance_phase(speed, cls, 1.0 / fps)
-    z = np.zeros((t, n)) if ground is None else ground(pos2[..., 0].ravel(), pos2[..., 1].ravel()).reshape(t, n)
-    position = np.concatenate([pos2, z[..., None]], axis=2)
-    look = _gaze(position, present, fps, np.asarray(height, np.float64))
-    return model.CrowdFrames(
-        times=first_code + np.arange(t, dtype=np.float64), position=position.astype(np.float32),
-        heading=heading.astype(np.float32), velocity=velocity.astype(np.float32),
-        behavior=np.full((t, n), model.BEHAVIORS.index("walk"), np.int8), anim_class=cls.astype(np.int8),
-        anim_phase=phase, health=np.zeros((t, n), np.int8), look_at=look.astype(np.float32),
-        path_method=np.zeros(n, np.int8), present=present)
+    def __init__(self, sampler: TrackSampler, first_code: float, height: np.ndarray, ground=None):
+        self.sampler = sampler
+        self.first_code = float(first_code)
+        self.height = np.asarray(height, np.float64)
+        self.ground = ground
+        fps = sampler.fps
+        self._half = max(1, int(round(VELOCITY_HALF_WINDOW_S * fps)))
+        self._ahead = int(round(GAZE_AHEAD_S * fps))
+        self._heading = sampler.first_heading.copy()      # held while standing, from one window to the next
+        self._anim_prev = None
+
+    def chunks(self, size: int):
+        """Consecutive :class:`CrowdFrames` of at most ``size`` frames over the whole recording."""
+        for a in range(0, self.sampler.n_frames, size):
+            yield self.frames(a, min(a + size, self.sampler.n_frames))
+
+    def frames(self, a: int, b: int) -> model.CrowdFrames:
+        """Frames ``a`` to ``b - 1`` (call in order: headings and the walk cycle carry over), with
+        ``present``; an absent person stands, idle, where they come in or left (hidden by the shot's
+        visibility)."""
+        from ..character.animation import classify
+
+        pad = max(self._half, self._ahead)
+        lo, hi = max(0, a - pad), min(self.sampler.n_frames, b + pad)
+        xy = self.sampler.window(lo, hi)
+        present = np.isfinite(xy[..., 0])
+        pos2 = _held(np.nan_to_num(xy), present, self.sampler.resting(lo))
+        position = self._on_ground(pos2)
+        look = _gaze(position, present, self._ahead, self.height)
+        keep = slice(a - lo, b - lo)
+        velocity = np.where(present[keep, :, None], self._velocity(pos2)[keep], 0.0)
+        speed = np.hypot(velocity[..., 0], velocity[..., 1])
+        heading = self._headings(velocity, speed >= STANDING_SPEED)
+        cls = classify(velocity, heading)
+        phase = self._phase(speed, cls)
+        t, n = b - a, self.sampler.n
+        return model.CrowdFrames(
+            times=self.first_code + np.arange(a, b, dtype=np.float64), position=position[keep].astype(np.float32),
+            heading=heading.astype(np.float32), velocity=velocity.astype(np.float32),
+            behavior=np.full((t, n), model.BEHAVIORS.index("walk"), np.int8), anim_class=cls.astype(np.int8),
+            anim_phase=phase, health=np.zeros((t, n), np.int8), look_at=look[keep].astype(np.float32),
+            path_method=np.zeros(n, np.int8), present=present[keep])
+
+    def _on_ground(self, pos2: np.ndarray) -> np.ndarray:
+        t, n = pos2.shape[:2]
+        z = np.zeros((t, n)) if self.ground is None else self.ground(pos2[..., 0].ravel(),
+                                                                     pos2[..., 1].ravel()).reshape(t, n)
+        return np.concatenate([pos2, z[..., None]], axis=2)
+
+    def _velocity(self, pos2: np.ndarray) -> np.ndarray:
+        """(t, n, 2) centred differences over ``_half`` frames each side (one-sided at the window's ends,
+        which are the recording's: windows are padded)."""
+        t = len(pos2)
+        ahead, behind = np.minimum(np.arange(t) + self._half, t - 1), np.maximum(np.arange(t) - self._half, 0)
+        span = np.maximum(ahead - behind, 1)[:, None, None] / self.sampler.fps
+        return (pos2[ahead] - pos2[behind]) / span
+
+    def _headings(self, velocity: np.ndarray, walking: np.ndarray) -> np.ndarray:
+        raw = np.arctan2(velocity[..., 1], velocity[..., 0])
+        idx = np.maximum.accumulate(np.where(walking, np.arange(len(raw))[:, None], -1), axis=0)
+        held = np.take_along_axis(raw, np.maximum(idx, 0), axis=0)
+        heading = np.where(idx >= 0, held, self._heading[None])
+        self._heading = heading[-1].copy()
+        return heading
+
+    def _phase(self, speed: np.ndarray, cls: np.ndarray) -> np.ndarray:
+        """The walk cycle advanced by the distance walked, continued from the previous window."""
+        from ..character.animation import advance_phase
+
+        dt = 1.0 / self.sampler.fps
+        if self._anim_prev is None:
+            phase = advance_phase(speed, cls, dt)
+        else:
+            ps, pc, pp = self._anim_prev
+            phase = advance_phase(np.concatenate([ps[None], speed]), np.concatenate([pc[None], cls]), dt, pp)[1:]
+        self._anim_prev = (speed[-1], cls[-1], phase[-1])
+        return phase.astype(np.float32)
 
 
-def _gaze(position: np.ndarray, present: np.ndarray, fps: float, height: np.ndarray) -> np.ndarray:
-    """(t, n, 3) where each person will be ``GAZE_AHEAD_S`` later (their last frame, near the end), at eye
+def _gaze(position: np.ndarray, present: np.ndarray, ahead: int, height: np.ndarray) -> np.ndarray:
+    """(t, n, 3) where each person will be ``ahead`` frames later (their last frame, near the end), at eye
     height; NaN while that is nearer than ``GAZE_MIN_DISTANCE`` or they are absent."""
     t = len(position)
     k = np.arange(t)[:, None]
     last = np.where(present, k, -1).max(axis=0)
-    later = np.minimum(k + int(round(GAZE_AHEAD_S * fps)), np.maximum(last, 0)[None, :])
+    later = np.minimum(k + ahead, np.maximum(last, 0)[None, :])
     target = np.take_along_axis(position, np.broadcast_to(later, present.shape)[..., None], axis=0).copy()
     far = np.linalg.norm(target[..., :2] - position[..., :2], axis=2) >= GAZE_MIN_DISTANCE
     target[..., 2] += EYE_SHARE * height[None, :]
     return np.where((far & present)[..., None], target, np.nan)
-
-
-def chunks(frames: model.CrowdFrames, size: int):
-    """``frames`` as consecutive chunks of at most ``size`` frames."""
-    for a in range(0, len(frames.times), size):
-        yield frames.frames(slice(a, a + size))

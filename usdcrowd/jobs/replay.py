@@ -26,6 +26,8 @@ GROUND_MARGIN = 3.0
 # Head heights (PedPy's Z) read as body heights only in this range; other Z columns are not heights.
 BODY_HEIGHT_RANGE = (1.2, 2.3)
 HEIGHT_SOURCES = ("auto", "file", "drawn")
+# Frames made at a time (memory follows this, not the recording's length).
+CHUNK_FRAMES = 128
 # Camera agents of a replay without a companion scenario (besides the overview camera).
 DEFAULT_CAMERAS = 4
 
@@ -59,7 +61,7 @@ def body_heights(tracks, height_from: str) -> np.ndarray | None:
     return heights if usable else None
 
 
-def write_scenario(path: Path, tracks, xy: np.ndarray, fps: float, heights: np.ndarray | None, seed: int,
+def write_scenario(path: Path, tracks, sampler, heights: np.ndarray | None, seed: int,
                    scenery: str | None = None, companion: str | None = None) -> str:
     """The scenario stage of a replay (see the module's docstring); returns its path.
 
@@ -78,8 +80,8 @@ def write_scenario(path: Path, tracks, xy: np.ndarray, fps: float, heights: np.n
     stage = _companion_stage(companion) if companion else None
     root = stage.GetDefaultPrim().GetName() if stage else "World"
     layer.defaultPrim = root
-    layer.startTimeCode, layer.endTimeCode = 1.0, float(len(xy))
-    layer.timeCodesPerSecond = layer.framesPerSecond = fps
+    layer.startTimeCode, layer.endTimeCode = 1.0, float(sampler.n_frames)
+    layer.timeCodesPerSecond = layer.framesPerSecond = sampler.fps
     layer.pseudoRoot.SetInfo("upAxis", "Z")
     layer.pseudoRoot.SetInfo("metersPerUnit", 1.0)
     relative = lambda f: os.path.relpath(os.path.abspath(f), path.parent.resolve())  # noqa: E731
@@ -95,8 +97,8 @@ def write_scenario(path: Path, tracks, xy: np.ndarray, fps: float, heights: np.n
         if stage is None:
             world = Sdf.CreatePrimInLayer(layer, "/World")
             world.specifier, world.typeName, world.kind = Sdf.SpecifierDef, "Xform", "assembly"
-            _ground(layer, xy)
-        _people(layer, tracks, xy, heights, stage, root)
+            _ground(layer, tracks.xy.min(axis=0), tracks.xy.max(axis=0))
+        _people(layer, tracks, sampler.first_xy, heights, stage, root)
     if scenery is not None:
         replace_scenery(layer, scenery, path)
     export_layer(layer, path)
@@ -118,12 +120,12 @@ def _companion_stage(companion: str):
     return stage
 
 
-def _ground(layer, xy: np.ndarray) -> None:
-    """A flat floor under everywhere the people walk, GROUND_MARGIN wider."""
+def _ground(layer, lo: np.ndarray, hi: np.ndarray) -> None:
+    """A flat floor under everywhere the people walk (``lo``, ``hi``: (2,) corners), GROUND_MARGIN wider."""
     from pxr import Gf, Sdf, Vt
 
     T = Sdf.ValueTypeNames
-    lo, hi = np.nanmin(xy, axis=(0, 1)) - GROUND_MARGIN, np.nanmax(xy, axis=(0, 1)) + GROUND_MARGIN
+    lo, hi = lo - GROUND_MARGIN, hi + GROUND_MARGIN
     scope = Sdf.CreatePrimInLayer(layer, "/World/Scenery")
     scope.specifier, scope.typeName = Sdf.SpecifierDef, "Scope"
     mesh = Sdf.CreatePrimInLayer(layer, "/World/Scenery/Ground")
@@ -140,14 +142,14 @@ def _ground(layer, xy: np.ndarray) -> None:
     Sdf.AttributeSpec(mesh, "subdivisionScheme", T.Token, Sdf.VariabilityUniform).default = "none"
 
 
-def _people(layer, tracks, xy: np.ndarray, heights: np.ndarray | None, companion=None, root: str = "World") -> None:
+def _people(layer, tracks, start: np.ndarray, heights: np.ndarray | None, companion=None,
+            root: str = "World") -> None:
     """A person per track id, standing where they are first seen: the companion's agent of that id, or one
     of a walking CrowdGroup ``People``."""
     from pxr import Gf, Sdf
 
     T, U = Sdf.ValueTypeNames, Sdf.VariabilityUniform
     known = _companion_agents(companion)
-    first = np.argmax(np.isfinite(xy[..., 0]), axis=0)
     used = []
     for i, person in enumerate(tracks.ids):
         path = known.pop(int(person), None)
@@ -159,7 +161,7 @@ def _people(layer, tracks, xy: np.ndarray, heights: np.ndarray | None, companion
             Sdf.AttributeSpec(spec, "crowd:agentId", T.Int, U).default = int(person)
         used.append(path)
         spec = Sdf.CreatePrimInLayer(layer, path)
-        x, y = xy[first[i], i]
+        x, y = start[i]
         Sdf.AttributeSpec(spec, "crowd:startPosition", T.Point3f, U).default = Gf.Vec3f(float(x), float(y), 0.0)
         if heights is not None:
             Sdf.AttributeSpec(spec, "crowd:height", T.Float, U).default = float(heights[i])
@@ -251,7 +253,7 @@ def replay_shot(trajectories: str | os.PathLike, out_dir: str | os.PathLike, fmt
     from ..atomic import output_dir, restored_on_failure
     from ..core.limits import DEFAULT
     from ..exchange.recorded_tracks import read_tracks
-    from ..exchange.replay_motion import sample_tracks
+    from ..exchange.replay_motion import TrackSampler
     from .pipeline import author_shot
 
     if scenery is not None and companion is not None:
@@ -268,25 +270,25 @@ def replay_shot(trajectories: str | os.PathLike, out_dir: str | os.PathLike, fmt
     if duration * rate + 1 > limits.max_frames:
         raise UsdcrowdError(f"{duration:.0f} s at {rate:g} fps is more than the {limits.max_frames:,} frames "
                             f"accepted (raise it with --max-frames)", file=tracks.source)
-    seconds, xy = sample_tracks(tracks, rate, max_gap_s)
-    if len(seconds) < 2:
+    sampler = TrackSampler(tracks, rate, max_gap_s)
+    if sampler.n_frames < 2:
         raise UsdcrowdError("the file spans a single frame: nothing moves", file=tracks.source)
     heights = body_heights(tracks, height_from)
     out = Path(out_dir)
     scenario = out / SCENARIO
     output_dir(out, "shot")
     with restored_on_failure([scenario]):
-        write_scenario(scenario, tracks, xy, rate, heights, seed, scenery, companion)
+        write_scenario(scenario, tracks, sampler, heights, seed, scenery, companion)
         if cameras is None and companion is None:
             cameras = DEFAULT_CAMERAS
-        return author_shot(scenario, out, _source(tracks, xy, rate), seed=seed, progress=progress,
+        return author_shot(scenario, out, _source(tracks, sampler), seed=seed, progress=progress,
                            camera_count=cameras, events=events, limits=limits)
 
 
-def _source(tracks, xy: np.ndarray, fps: float):
-    """The replay's crowd source for :func:`~usdcrowd.jobs.pipeline.author_shot`: chunks of frames in the
-    scenario's agent rows."""
-    from ..exchange.replay_motion import chunks, crowd_frames
+def _source(tracks, sampler):
+    """The replay's crowd source for :func:`~usdcrowd.jobs.pipeline.author_shot`: chunks of CHUNK_FRAMES
+    frames, columns in the scenario's agent rows."""
+    from ..exchange.replay_motion import ReplayMotion
 
     def source(scenario: model.Scenario):
         from ..sim.paths import Terrain
@@ -294,8 +296,10 @@ def _source(tracks, xy: np.ndarray, fps: float):
         column = {int(p): i for i, p in enumerate(tracks.ids)}
         order = np.array([column[int(a)] for a in scenario.agents.agent_id])
         terrain = Terrain(scenario.field("height"))
-        ground = None if terrain.flat else terrain.height
-        frames = crowd_frames(xy[:, order], fps, scenario.time.start, scenario.agents.height, ground)
-        return chunks(frames, 64)
+        height = np.empty(len(order))
+        height[order] = scenario.agents.height
+        motion = ReplayMotion(sampler, scenario.time.start, height, None if terrain.flat else terrain.height)
+        for frames in motion.chunks(CHUNK_FRAMES):
+            yield frames.agents(order)
 
     return source

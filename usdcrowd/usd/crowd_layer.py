@@ -481,11 +481,7 @@ class _AgentPart:
 
 def _agents_of(frames: model.CrowdFrames, rows: np.ndarray) -> model.CrowdFrames:
     """The chunk restricted to some agents (contiguous copies: they are pickled)."""
-    from dataclasses import fields, replace
-
-    return replace(frames, **{f.name: np.ascontiguousarray(getattr(frames, f.name)[..., rows] if f.name == "path_method"
-                                                           else getattr(frames, f.name)[:, rows])
-                              for f in fields(frames) if f.name != "times" and getattr(frames, f.name) is not None})
+    return frames.agents(rows)
 
 
 # A pipe whose other end (a part writer) has gone.
