@@ -317,3 +317,17 @@ def test_replayed_motion_does_not_depend_on_the_window_it_is_made_in(tmp_path):
     for name in ("times", "position", "heading", "velocity", "anim_class", "anim_phase", "look_at", "present"):
         joined = np.concatenate([getattr(p, name) for p in parts])
         np.testing.assert_allclose(joined, getattr(whole, name), atol=1e-5, err_msg=name)
+
+
+def test_ids_from_zero_are_shifted_to_start_at_one_and_the_shift_is_recorded(tmp_path, capsys):
+    """USD agent ids and MOT ids start at 1: a file counting people from 0 is replayed with every id + 1,
+    said on the command line and recorded in the replay's scenario (idOffset)."""
+    traj = tmp_path / "zero.txt"
+    traj.write_text("0 0 0.0 0.0\n10 0 0.5 0.0\n0 4 1.0 1.0\n10 4 1.5 1.0\n")
+    assert main(["replay", str(traj), "-o", str(tmp_path / "shot"), "--cameras", "0", "--no-progress"]) == 0
+    assert "ids shifted by +1" in capsys.readouterr().out
+    assert sorted(_plain_usd(tmp_path / "shot" / "shot.usda")["people"]) == [1, 5]
+    from pxr import Sdf
+
+    data = Sdf.Layer.FindOrOpen(str(tmp_path / "shot" / "replay.usda")).customLayerData
+    assert data["usdcrowd"]["replay"]["idOffset"] == 1

@@ -50,10 +50,13 @@ def add_parser(sub):
 def run(args) -> int:
     from ..jobs.replay import replay_shot
 
-    r = replay_shot(args.trajectories, args.output, fmt=args.fmt, fps=args.fps, shot_fps=args.shot_fps,
-                    scenery=args.scenery, height_from=args.height_from, seed=args.seed or 0,
-                    cameras=args.cameras, max_gap_s=args.max_gap, events=args.events, progress=args.progress,
-                    limits=limits_of(args), companion=args.companion)
+    done = replay_shot(args.trajectories, args.output, fmt=args.fmt, fps=args.fps, shot_fps=args.shot_fps,
+                       scenery=args.scenery, height_from=args.height_from, seed=args.seed or 0,
+                       cameras=args.cameras, max_gap_s=args.max_gap, events=args.events, progress=args.progress,
+                       limits=limits_of(args), companion=args.companion)
+    r = done.shot
+    print(f"read {args.trajectories}: {done.fmt}, {done.rows:,} rows at {done.file_fps:g} frames per second"
+          + (f"; ids shifted by +{done.id_offset} (usdcrowd's and MOT's ids start at 1)" if done.id_offset else ""))
     print(f"wrote {r.shot}: {r.n_agents} people x {r.n_frames} frames, {r.n_events} events")
     print(f"  crowd   {r.crowd}")
     print(f"  cameras {r.cameras}")

@@ -13,6 +13,7 @@ heights) are drawn from the seed as for a template's clones.
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -62,7 +63,7 @@ def body_heights(tracks, height_from: str) -> np.ndarray | None:
 
 
 def write_scenario(path: Path, tracks, sampler, heights: np.ndarray | None, seed: int,
-                   scenery: str | None = None, companion: str | None = None) -> str:
+                   scenery: str | None = None, companion: str | None = None, id_offset: int = 0) -> str:
     """The scenario stage of a replay (see the module's docstring); returns its path.
 
     With ``companion`` (a scenario stage) the replay sublayers it: its scenery, lights, camera agents and
@@ -86,6 +87,8 @@ def write_scenario(path: Path, tracks, sampler, heights: np.ndarray | None, seed
     layer.pseudoRoot.SetInfo("metersPerUnit", 1.0)
     relative = lambda f: os.path.relpath(os.path.abspath(f), path.parent.resolve())  # noqa: E731
     about = {"source": relative(tracks.source), "format": tracks.fmt, "fileFps": float(tracks.fps)}
+    if id_offset:
+        about["idOffset"] = int(id_offset)          # agent id = the file's id + idOffset
     if companion:
         about["companion"] = relative(companion)
         layer.subLayerPaths = [relative(companion)]
@@ -248,7 +251,7 @@ def replay_shot(trajectories: str | os.PathLike, out_dir: str | os.PathLike, fmt
 
     Returns
     -------
-    ShotResult
+    ReplayResult
     """
     from ..atomic import output_dir, restored_on_failure
     from ..core.limits import DEFAULT
@@ -261,6 +264,8 @@ def replay_shot(trajectories: str | os.PathLike, out_dir: str | os.PathLike, fmt
     if height_from not in HEIGHT_SOURCES:
         raise UsdcrowdError(f"--height-from is one of {', '.join(HEIGHT_SOURCES)}, got {height_from!r}")
     tracks = read_tracks(trajectories, fmt, fps)
+    offset = _id_offset(tracks)
+    tracks.ids = tracks.ids + offset
     rate = shot_fps or shot_rate(tracks.fps)
     limits = limits or DEFAULT
     if len(tracks) > limits.max_agents:
@@ -278,11 +283,36 @@ def replay_shot(trajectories: str | os.PathLike, out_dir: str | os.PathLike, fmt
     scenario = out / SCENARIO
     output_dir(out, "shot")
     with restored_on_failure([scenario]):
-        write_scenario(scenario, tracks, sampler, heights, seed, scenery, companion)
+        write_scenario(scenario, tracks, sampler, heights, seed, scenery, companion, offset)
         if cameras is None and companion is None:
             cameras = DEFAULT_CAMERAS
-        return author_shot(scenario, out, _source(tracks, sampler), seed=seed, progress=progress,
+        shot = author_shot(scenario, out, _source(tracks, sampler), seed=seed, progress=progress,
                            camera_count=cameras, events=events, limits=limits)
+    return ReplayResult(shot, tracks.fmt, tracks.fps, len(tracks.frame), offset)
+
+
+@dataclass
+class ReplayResult:
+    """What ``replay`` read and wrote: the shot, the file's layout and frame rate, its rows, and what was
+    added to its ids (USD's and MOT's ids start at 1)."""
+
+    shot: object
+    fmt: str
+    file_fps: float
+    rows: int
+    id_offset: int
+
+
+def _id_offset(tracks) -> int:
+    """What to add to the file's ids so the smallest is at least 1; refused where the largest would pass
+    the largest agent id."""
+    from ..scenario.ranges import MAX_AGENT_ID
+
+    offset = max(0, 1 - int(tracks.ids.min()))
+    if int(tracks.ids.max()) + offset > MAX_AGENT_ID:
+        raise UsdcrowdError(f"person ids {int(tracks.ids.min())} to {int(tracks.ids.max())} do not fit usdcrowd's "
+                            f"1 to {MAX_AGENT_ID:,}", file=tracks.source)
+    return offset
 
 
 def _source(tracks, sampler):
