@@ -88,8 +88,9 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
                 crowd_source: Callable[[model.Scenario], Iterable[model.CrowdFrames]],
                 seed: int | None = None, frames: tuple[float, float] | None = None,
                 progress: bool = True, camera_count: int | None = None, events: bool = True,
-                limits=None, clip_frames: int | None = None) -> ShotResult:
-    """Read a scenario, take its crowd from ``crowd_source`` and write the shot.
+                limits=None, clip_frames: int | None = None, label: str = "simulate") -> ShotResult:
+    """Read a scenario, take its crowd from ``crowd_source`` and write the shot (``label`` names the
+    crowd's progress bar).
 
     ``crowd_source(scenario)`` yields consecutive :class:`CrowdFrames` chunks
     covering the scenario's time range: the simulation, or any other source
@@ -135,7 +136,7 @@ def author_shot(scenario_path: str | os.PathLike, out_dir: str | os.PathLike,
     with restored_on_failure(previous):
         try:
             _author_frames(writer, crowd_source(scenario), scenario, plotted, stride, progress,
-                           collected, detector if events else None)
+                           collected, detector if events else None, label)
             positions = collected.positions
             shot_events = _shot_events(scenario, detector, positions, events)
             with Sdf.ChangeBlock():
@@ -301,12 +302,13 @@ def film_cameras(scenario: model.Scenario, positions, events: model.EventTable, 
     return tracks
 
 
-def _author_frames(writer, chunks, scenario, plotted, stride, progress, collected, detector) -> None:
+def _author_frames(writer, chunks, scenario, plotted, stride, progress, collected, detector,
+                   label: str = "simulate") -> None:
     """Author (and animate) every chunk; collect what the cameras, the events and the picture need."""
     from ..cameras.overview import crowd_summary
 
     done = 0
-    with frame_progress(scenario.time.n_frames, "simulate", progress) as bar:
+    with frame_progress(scenario.time.n_frames, label, progress) as bar:
         for chunk in chunks:
             writer.write_chunk(chunk)
             if detector is not None:

@@ -287,7 +287,7 @@ def replay_shot(trajectories: str | os.PathLike, out_dir: str | os.PathLike, fmt
         if cameras is None and companion is None:
             cameras = DEFAULT_CAMERAS
         shot = author_shot(scenario, out, _source(tracks, sampler), seed=seed, progress=progress,
-                           camera_count=cameras, events=events, limits=limits)
+                           camera_count=cameras, events=events, limits=limits, label="replay")
     return ReplayResult(shot, tracks.fmt, tracks.fps, len(tracks.frame), offset)
 
 
