@@ -82,6 +82,12 @@ WALL_PROJECT_MARGIN = 0.6  # m
 CONTAIN_LOOKAHEAD = 1.0  # s
 CONTAIN_GAIN = 4.0  # 1/s^2
 
+# --- walking by sight (Moussaid, Helbing & Theraulaz 2011) ----------------
+VISION_FIELD_DEG = 75.0  # half the field of view a walker picks its direction in
+VISION_DIRECTIONS = 11  # directions tried across it
+VISION_HORIZON = NEIGHBOR_RADIUS  # m, farthest a collision is looked for (the neighbour range)
+VISION_TAU = 0.5  # s, time gap kept to the first person ahead
+
 # --- flocking, velocity matching, leaders (seed 003, E_F, E_V, E_L) -------
 FLOCK_RADIUS = 4.0  # m, group-mates closer than this are "visible"
 COHESION_GAIN = 0.4  # 1/s^2, attraction to the mates' centre of mass

@@ -47,10 +47,12 @@ from .paths import BEZIER, GRADIENT, BezierPaths, SlopeSteering, Terrain, choose
 from .steering import arrive, clip_norm, containment, separation, steer, unit, wander
 from .trade import Trading, top_groups
 from .validate import validate
+from .vision import heuristic_velocity
 
 _B = {b: np.int8(code(BEHAVIORS, b)) for b in BEHAVIORS}
 _DEAD = np.int8(code(HEALTH_STATES, "dead"))
 _WOUNDED = np.int8(code(HEALTH_STATES, "wounded"))
+_HUMAN = code(CHARACTER_TYPES, "human")
 LOOK_HEIGHT = 1.5  # m above the ground: eye level of a point looked at without a height
 MAX_GOAL_FIELDS = 64  # distinct goals with their own distance map (others: straight seek)
 
@@ -394,6 +396,16 @@ class Simulation:
         it.behavior[dead] = _B["rest"]
         return it
 
+    def _walk_by_sight(self, it: Intent) -> None:
+        """People walking somewhere pick their way and pace by what they see ahead (:mod:`.vision`)."""
+        v = it.v
+        speed = np.sqrt(v[0] * v[0] + v[1] * v[1])
+        rows = np.flatnonzero((it.behavior == _B["walk"]) & (self.ctype == _HUMAN) & (speed > 1e-3))
+        if len(rows):
+            walls = (lambda x, y: self.grid.clearance(x, y)[0]) if self.grid.has_solid else None
+            v[:, rows] = heuristic_velocity(self.pos, self.vel, v[:, rows] / speed[rows], speed[rows],
+                                            self.nl.idx, self.radius, rows, walls=walls)
+
     def _look_at_exhibits(self, it, rows, dom):
         ip = self.interest
         has = dom >= 0
@@ -433,6 +445,7 @@ class Simulation:
             if self.grid.has_solid:
                 self._occlude_mates()
         it = self._intent()
+        self._walk_by_sight(it)
 
         # Forces (accelerations): steering toward the desired velocity, then
         # the seed's field components.

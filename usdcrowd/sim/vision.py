@@ -1,0 +1,118 @@
+"""Walking by sight: Moussaïd, Helbing and Theraulaz's two heuristics (PNAS 2011).
+
+A walker heading for a goal looks over its field of view and
+
+1. takes the direction that brings it nearest its goal, given how far it
+   can walk each way before it would bump into someone (others walking on as
+   they do now): it goes round a slower walker ahead when there is room
+   beside them, and follows when there is not;
+2. walks no faster than keeps a time gap ``tau`` to the first person in that
+   direction: ``v = min(v0, d_h / tau)``, which gives the crowd its
+   speed-density relation (the fundamental diagram) without it being put in.
+
+Here the people seen are the neighbour list's (``NEIGHBOR_K`` nearest within
+``NEIGHBOR_RADIUS``); walls are left to the wall forces and constraints.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import params as P
+
+
+def _ray_hit(ox, oy, ux, uy, speed, rel_vx, rel_vy, reach):
+    """Distance walked along unit ``u`` at ``speed`` before touching discs of radius ``reach`` at relative
+    positions ``o`` moving at relative velocities ``rel_v``: inf where never, 0 where already touching and
+    closing in. All broadcastable arrays."""
+    wx, wy = rel_vx - speed * ux, rel_vy - speed * uy        # the disc's motion seen from the walker
+    a = wx * wx + wy * wy
+    b = ox * wx + oy * wy                                     # < 0: closing in
+    c = ox * ox + oy * oy - reach * reach                     # < 0: touching now
+    disc = b * b - a * c
+    t = (-b - np.sqrt(np.maximum(disc, 0.0))) / np.maximum(a, 1e-9)
+    dist = np.where((disc > 0.0) & (b < 0.0) & (a > 1e-9), np.maximum(t, 0.0) * speed, np.inf)
+    return np.where(c <= 0.0, np.where(b < 0.0, 0.0, np.inf), dist)
+
+
+# Distances along a direction at which walls are looked for, metres (to the horizon).
+_WALL_SAMPLES = np.array([0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0])
+# Nearer a wall than now by this much is getting nearer (not walking along it), metres.
+_WALL_APPROACH = 0.05
+
+
+def _wall_hit(walls, p: np.ndarray, ux: np.ndarray, uy: np.ndarray, radius: np.ndarray,
+              horizon: float) -> np.ndarray:
+    """(m, d) how far walkers at ``p`` (2, m) can walk along each direction ``u`` (m, d) before a wall
+    comes within their ``radius`` (the first sample that does; ``horizon`` if none). One already that near
+    a wall is stopped only where it would get nearer still: it may walk along the wall or away."""
+    s = _WALL_SAMPLES[_WALL_SAMPLES <= horizon]
+    x = p[0][:, None, None] + ux[..., None] * s
+    y = p[1][:, None, None] + uy[..., None] * s
+    limit = np.minimum(radius, walls(p[0], p[1]) - _WALL_APPROACH)[:, None, None]
+    near = walls(x.ravel(), y.ravel()).reshape(x.shape) < limit
+    first = np.argmax(near, axis=2)
+    return np.where(near.any(axis=2), s[first] - 0.25, horizon)
+
+
+def heuristic_velocity(pos: np.ndarray, vel: np.ndarray, goal_dir: np.ndarray, v0: np.ndarray,
+                       idx: np.ndarray, radius: np.ndarray, rows: np.ndarray, fov_deg: float | None = None,
+                       directions: int | None = None, horizon: float | None = None,
+                       tau: float | None = None, walls=None) -> np.ndarray:
+    """The heuristics' desired velocity of the walkers ``rows``.
+
+    Parameters
+    ----------
+    pos, vel : (2, N) float32
+        Everyone's positions and velocities.
+    goal_dir : (2, m) float
+        Unit direction toward each walker's goal.
+    v0 : (m,) float
+        Their desired speeds, m/s.
+    idx : (n, k) int
+        Neighbour list (ghost rows beyond the agents are far away).
+    radius : (N,) float
+        Body radii, m.
+    rows : (m,) int
+        The walkers.
+    walls : callable((p,) x, (p,) y) -> (p,) float, optional
+        Distance from points to the nearest wall, metres (negative inside).
+
+    Returns
+    -------
+    (2, m) float32 desired velocity.
+    """
+    fov_deg = P.VISION_FIELD_DEG if fov_deg is None else fov_deg
+    directions = P.VISION_DIRECTIONS if directions is None else directions
+    horizon = P.VISION_HORIZON if horizon is None else horizon
+    tau = P.VISION_TAU if tau is None else tau
+    m = len(rows)
+    if m == 0:
+        return np.zeros((2, 0), np.float32)
+    nb = idx[rows]                                            # (m, k)
+    ox = (pos[0, nb] - pos[0, rows, None])[:, None, :]       # (m, 1, k)
+    oy = (pos[1, nb] - pos[1, rows, None])[:, None, :]
+    rvx, rvy = vel[0, nb][:, None, :], vel[1, nb][:, None, :]
+    reach = (radius[rows, None] + radius[nb])[:, None, :]
+    base = np.arctan2(goal_dir[1], goal_dir[0])[:, None]
+    offsets = np.radians(np.linspace(-fov_deg, fov_deg, directions))[None, :]
+    ang = base + offsets                                       # (m, d)
+    ux, uy = np.cos(ang)[..., None], np.sin(ang)[..., None]   # (m, d, 1)
+    speed = np.asarray(v0, np.float64)[:, None, None]
+    f = _ray_hit(ox, oy, ux, uy, speed, rvx, rvy, reach).min(axis=2)
+    f = np.minimum(f, horizon)                                 # (m, d)
+    if walls is not None:
+        f_wall = _wall_hit(walls, pos[:, rows], ux[..., 0], uy[..., 0], radius[rows], horizon)
+        f = np.minimum(f, f_wall)
+    # Distance left to the goal (at the horizon) after walking f along each direction.
+    left = horizon * horizon + f * f - 2.0 * horizon * f * np.cos(offsets)
+    best = np.argmin(left, axis=1)
+    pick = np.arange(m)
+    ux, uy = ux[pick, best, 0], uy[pick, best, 0]
+    # The time gap to whoever stands in the chosen direction now (they might stop).
+    still = _ray_hit(ox[:, 0], oy[:, 0], ux[:, None], uy[:, None], np.ones((m, 1)), 0.0, 0.0, reach[:, 0])
+    gap = np.minimum(still.min(axis=1), horizon)
+    if walls is not None:
+        gap = np.minimum(gap, f_wall[pick, best])
+    v = np.minimum(np.asarray(v0, np.float64), np.maximum(gap, 0.0) / tau)
+    return np.stack([ux * v, uy * v]).astype(np.float32)
