@@ -87,6 +87,7 @@ VISION_FIELD_DEG = 75.0  # half the field of view a walker picks its direction i
 VISION_DIRECTIONS = 11  # directions tried across it
 VISION_HORIZON = NEIGHBOR_RADIUS  # m, farthest a collision is looked for (the neighbour range)
 VISION_TAU = 0.5  # s, time gap kept to the first person ahead
+VISION_INTERVAL = 0.1  # s between a walker's looks (about a reaction time); kept in between
 
 # --- flocking, velocity matching, leaders (seed 003, E_F, E_V, E_L) -------
 FLOCK_RADIUS = 4.0  # m, group-mates closer than this are "visible"

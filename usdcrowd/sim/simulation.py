@@ -152,6 +152,7 @@ class Simulation:
         self.reactions = Reactions(scenario, self.dmaps, lambda tc: (tc - t0) / self.fps, r_maps)
         self._anim = _animation_module()
         self._anim_prev = None
+        self._sight = None          # (2, n) each walker's last choice by sight (NaN: none yet)
         self._dom_of = np.full(n, -1, np.int64)  # dominant exhibit of each visitor
 
     # -- set-up helpers ---------------------------------------------------------
@@ -397,14 +398,25 @@ class Simulation:
         return it
 
     def _walk_by_sight(self, it: Intent) -> None:
-        """People walking somewhere pick their way and pace by what they see ahead (:mod:`.vision`)."""
+        """People walking somewhere pick their way and pace by what they see ahead (:mod:`.vision`), each
+        every VISION_INTERVAL seconds (in turn, so the cost is spread over the steps), keeping the
+        choice in between."""
         v = it.v
         speed = np.sqrt(v[0] * v[0] + v[1] * v[1])
-        rows = np.flatnonzero((it.behavior == _B["walk"]) & (self.ctype == _HUMAN) & (speed > 1e-3))
-        if len(rows):
+        walking = (it.behavior == _B["walk"]) & (self.ctype == _HUMAN) & (speed > 1e-3)
+        if self._sight is None:
+            self._sight = np.full((2, self.n), np.nan, np.float32)
+        self._sight[:, ~walking] = np.nan
+        rows = np.flatnonzero(walking)
+        if len(rows) == 0:
+            return
+        every = max(1, int(round(P.VISION_INTERVAL / self.dt)))
+        due = rows[((self.steps + rows) % every == 0) | ~np.isfinite(self._sight[0, rows])]
+        if len(due):
             walls = (lambda x, y: self.grid.clearance(x, y)[0]) if self.grid.has_solid else None
-            v[:, rows] = heuristic_velocity(self.pos, self.vel, v[:, rows] / speed[rows], speed[rows],
-                                            self.nl.idx, self.radius, rows, walls=walls)
+            self._sight[:, due] = heuristic_velocity(self.pos, self.vel, v[:, due] / speed[due], speed[due],
+                                                     self.nl.idx, self.radius, due, walls=walls)
+        v[:, rows] = self._sight[:, rows]
 
     def _look_at_exhibits(self, it, rows, dom):
         ip = self.interest

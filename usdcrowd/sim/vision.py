@@ -30,13 +30,13 @@ def _ray_hit(ox, oy, ux, uy, speed, rel_vx, rel_vy, reach):
     b = ox * wx + oy * wy                                     # < 0: closing in
     c = ox * ox + oy * oy - reach * reach                     # < 0: touching now
     disc = b * b - a * c
-    t = (-b - np.sqrt(np.maximum(disc, 0.0))) / np.maximum(a, 1e-9)
-    dist = np.where((disc > 0.0) & (b < 0.0) & (a > 1e-9), np.maximum(t, 0.0) * speed, np.inf)
-    return np.where(c <= 0.0, np.where(b < 0.0, 0.0, np.inf), dist)
+    t = (-b - np.sqrt(np.maximum(disc, 0.0))) / np.maximum(a, np.float32(1e-9))
+    dist = np.where((disc > 0.0) & (b < 0.0) & (a > 1e-9), np.maximum(t, 0.0) * speed, np.float32(np.inf))
+    return np.where(c <= 0.0, np.where(b < 0.0, np.float32(0.0), np.float32(np.inf)), dist)
 
 
 # Distances along a direction at which walls are looked for, metres (to the horizon).
-_WALL_SAMPLES = np.array([0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0])
+_WALL_SAMPLES = np.array([0.25, 0.5, 1.0, 2.0, 4.0], np.float32)
 # Nearer a wall than now by this much is getting nearer (not walking along it), metres.
 _WALL_APPROACH = 0.05
 
@@ -94,25 +94,25 @@ def heuristic_velocity(pos: np.ndarray, vel: np.ndarray, goal_dir: np.ndarray, v
     oy = (pos[1, nb] - pos[1, rows, None])[:, None, :]
     rvx, rvy = vel[0, nb][:, None, :], vel[1, nb][:, None, :]
     reach = (radius[rows, None] + radius[nb])[:, None, :]
-    base = np.arctan2(goal_dir[1], goal_dir[0])[:, None]
-    offsets = np.radians(np.linspace(-fov_deg, fov_deg, directions))[None, :]
+    base = np.arctan2(goal_dir[1], goal_dir[0]).astype(np.float32)[:, None]
+    offsets = np.radians(np.linspace(-fov_deg, fov_deg, directions)).astype(np.float32)[None, :]
     ang = base + offsets                                       # (m, d)
     ux, uy = np.cos(ang)[..., None], np.sin(ang)[..., None]   # (m, d, 1)
-    speed = np.asarray(v0, np.float64)[:, None, None]
+    speed = np.asarray(v0, np.float32)[:, None, None]
     f = _ray_hit(ox, oy, ux, uy, speed, rvx, rvy, reach).min(axis=2)
     f = np.minimum(f, horizon)                                 # (m, d)
     if walls is not None:
         f_wall = _wall_hit(walls, pos[:, rows], ux[..., 0], uy[..., 0], radius[rows], horizon)
         f = np.minimum(f, f_wall)
     # Distance left to the goal (at the horizon) after walking f along each direction.
-    left = horizon * horizon + f * f - 2.0 * horizon * f * np.cos(offsets)
+    left = f * f - np.float32(2.0 * horizon) * f * np.cos(offsets)        # + horizon^2, the same for all
     best = np.argmin(left, axis=1)
     pick = np.arange(m)
     ux, uy = ux[pick, best, 0], uy[pick, best, 0]
     # The time gap to whoever stands in the chosen direction now (they might stop).
-    still = _ray_hit(ox[:, 0], oy[:, 0], ux[:, None], uy[:, None], np.ones((m, 1)), 0.0, 0.0, reach[:, 0])
+    still = _ray_hit(ox[:, 0], oy[:, 0], ux[:, None], uy[:, None], np.float32(1.0), 0.0, 0.0, reach[:, 0])
     gap = np.minimum(still.min(axis=1), horizon)
     if walls is not None:
         gap = np.minimum(gap, f_wall[pick, best])
-    v = np.minimum(np.asarray(v0, np.float64), np.maximum(gap, 0.0) / tau)
+    v = np.minimum(np.asarray(v0, np.float32), np.maximum(gap, 0.0) / np.float32(tau))
     return np.stack([ux * v, uy * v]).astype(np.float32)
