@@ -21,8 +21,9 @@ def _sight(others, others_vel=None, v0=1.3, **kw):
     vel = np.zeros_like(pos) if others_vel is None else np.concatenate([[[v0, 0.0]], others_vel]).T.astype(
         np.float32)
     idx = np.arange(1, k + 1)[None, :]
-    return heuristic_velocity(pos, vel, np.array([[1.0], [0.0]]), np.array([v0]), idx,
-                              np.full(k + 1, RADIUS), np.array([0]), **kw)[:, 0]
+    v, _ = heuristic_velocity(pos, vel, np.array([[1.0], [0.0]]), np.array([v0]), idx,
+                              np.full(k + 1, RADIUS), np.array([0]), **kw)
+    return v[:, 0]
 
 
 def test_a_walker_slows_to_keep_its_time_gap_to_the_person_ahead():

@@ -406,6 +406,7 @@ class Simulation:
         walking = (it.behavior == _B["walk"]) & (self.ctype == _HUMAN) & (speed > 1e-3)
         if self._sight is None:
             self._sight = np.full((2, self.n), np.nan, np.float32)
+            self._sight_free = np.zeros(self.n, bool)
         self._sight[:, ~walking] = np.nan
         rows = np.flatnonzero(walking)
         if len(rows) == 0:
@@ -414,9 +415,11 @@ class Simulation:
         due = rows[((self.steps + rows) % every == 0) | ~np.isfinite(self._sight[0, rows])]
         if len(due):
             walls = (lambda x, y: self.grid.clearance(x, y)[0]) if self.grid.has_solid else None
-            self._sight[:, due] = heuristic_velocity(self.pos, self.vel, v[:, due] / speed[due], speed[due],
-                                                     self.nl.idx, self.radius, due, walls=walls)
-        v[:, rows] = self._sight[:, rows]
+            self._sight[:, due], self._sight_free[due] = heuristic_velocity(
+                self.pos, self.vel, v[:, due] / speed[due], speed[due], self.nl.idx, self.radius, due, walls=walls)
+        # Nothing in their way at their last look: they walk as they meant to, to the bit.
+        held = rows[~self._sight_free[rows]]
+        v[:, held] = self._sight[:, held]
 
     def _look_at_exhibits(self, it, rows, dom):
         ip = self.interest

@@ -80,7 +80,10 @@ def heuristic_velocity(pos: np.ndarray, vel: np.ndarray, goal_dir: np.ndarray, v
 
     Returns
     -------
-    (2, m) float32 desired velocity.
+    velocity : (2, m) float32
+        Desired velocity.
+    free : (m,) bool
+        Nothing in the way: straight toward the goal at the desired speed.
     """
     fov_deg = P.VISION_FIELD_DEG if fov_deg is None else fov_deg
     directions = P.VISION_DIRECTIONS if directions is None else directions
@@ -88,7 +91,7 @@ def heuristic_velocity(pos: np.ndarray, vel: np.ndarray, goal_dir: np.ndarray, v
     tau = P.VISION_TAU if tau is None else tau
     m = len(rows)
     if m == 0:
-        return np.zeros((2, 0), np.float32)
+        return np.zeros((2, 0), np.float32), np.zeros(0, bool)
     nb = idx[rows]                                            # (m, k)
     ox = (pos[0, nb] - pos[0, rows, None])[:, None, :]       # (m, 1, k)
     oy = (pos[1, nb] - pos[1, rows, None])[:, None, :]
@@ -114,5 +117,6 @@ def heuristic_velocity(pos: np.ndarray, vel: np.ndarray, goal_dir: np.ndarray, v
     gap = np.minimum(still.min(axis=1), horizon)
     if walls is not None:
         gap = np.minimum(gap, f_wall[pick, best])
-    v = np.minimum(np.asarray(v0, np.float32), np.maximum(gap, 0.0) / np.float32(tau))
-    return np.stack([ux * v, uy * v]).astype(np.float32)
+    v0 = np.asarray(v0, np.float32)
+    v = np.minimum(v0, np.maximum(gap, 0.0) / np.float32(tau))
+    return np.stack([ux * v, uy * v]).astype(np.float32), (best == directions // 2) & (v >= v0)
