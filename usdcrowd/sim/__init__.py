@@ -3,7 +3,9 @@
 Pure numpy/scipy, no USD. Seeds: co-field dynamics, time-to-impact
 collision avoidance, flocking, invisible leaders with memory and interest
 fields (seed 003); behavior maps, attribute-dependent reactions and
-Bezier / gradient paths (seed 004).
+Bezier / gradient paths (seed 004); walkers' way and pace by sight
+(Moussaïd, Helbing & Theraulaz 2011), which gives the crowd its
+speed-density relation.
 
 Public API
 ----------
@@ -18,8 +20,8 @@ Simulation
     The stepping object (``step()``, ``frames(k, t0)``, ``run_chunks()``).
 
 Module map: ``params`` (constants with units), ``steering`` (Reynolds'
-behaviours), ``collision`` (time-to-impact avoidance, overlap and wall
-constraints), ``neighbors`` (kd-tree Verlet lists), ``groups`` (leaders,
+behaviours), ``vision`` (way and pace by sight), ``collision``
+(time-to-impact avoidance, overlap and wall constraints), ``neighbors`` (kd-tree Verlet lists), ``groups`` (leaders,
 memory, flocking), ``interest`` (interest fields), ``behavior_maps``
 (generated layers, reactions, health), ``paths`` (Bezier, slope, rule),
 ``grid`` (walkable grid), ``distance_maps`` (Dijkstra / Algorithm 1),
