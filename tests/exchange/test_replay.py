@@ -331,3 +331,23 @@ def test_ids_from_zero_are_shifted_to_start_at_one_and_the_shift_is_recorded(tmp
 
     data = Sdf.Layer.FindOrOpen(str(tmp_path / "shot" / "replay.usda")).customLayerData
     assert data["usdcrowd"]["replay"]["idOffset"] == 1
+
+
+def test_a_pedpy_file_in_centimetres_is_read_in_metres_at_its_frame_rate_or_the_one_asked(tmp_path):
+    """PedPy's text with its header ('# framerate: 16', 'x/cm'): positions read in metres, the shot at the
+    file's 16 fps; with --shot-fps 32 every other frame lies halfway between two rows."""
+    traj = tmp_path / "julich.txt"
+    traj.write_text("# framerate: 16 fps\n# ID\tFR\tX/cm\tY/cm\tZ/cm\n"
+                    + "".join(f"3\t{k}\t{100 + 10 * k}\t{-50 + 5 * k}\t175\n" for k in range(40)))
+    assert main(["replay", str(traj), "-o", str(tmp_path / "a"), "--cameras", "0", "--no-progress"]) == 0
+    a = _plain_usd(tmp_path / "a" / "shot.usda")
+    assert a["fps"] == 16.0 and len(a["people"][3]["rows"]) == 40
+    np.testing.assert_allclose(a["people"][3]["rows"][:, 1:3], np.stack([1.0 + 0.1 * np.arange(40),
+                                                                          -0.5 + 0.05 * np.arange(40)], 1),
+                               atol=1e-3)
+    assert abs(a["people"][3]["height"] - 1.75) < 1e-6
+    assert main(["replay", str(traj), "-o", str(tmp_path / "b"), "--shot-fps", "32", "--cameras", "0",
+                 "--no-progress"]) == 0
+    b = _plain_usd(tmp_path / "b" / "shot.usda")
+    assert b["fps"] == 32.0 and len(b["people"][3]["rows"]) == 79
+    np.testing.assert_allclose(b["people"][3]["rows"][1::2, 1], 1.05 + 0.1 * np.arange(39), atol=1e-3)
