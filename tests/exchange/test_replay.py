@@ -351,3 +351,24 @@ def test_a_pedpy_file_in_centimetres_is_read_in_metres_at_its_frame_rate_or_the_
     b = _plain_usd(tmp_path / "b" / "shot.usda")
     assert b["fps"] == 32.0 and len(b["people"][3]["rows"]) == 79
     np.testing.assert_allclose(b["people"][3]["rows"][1::2, 1], 1.05 + 0.1 * np.arange(39), atol=1e-3)
+
+
+def test_people_standing_face_the_way_a_jupedsim_database_says(tmp_path):
+    """JuPedSim's rows carry an orientation (ori_x, ori_y): someone standing faces it (here +Y, then
+    turning to -X half-way), where walking people face their way of walking; without one (0, 0) they
+    keep facing the way they last walked, +X."""
+
+    db = tmp_path / "waiting.sqlite"
+    with sqlite3.connect(db) as con:
+        con.execute("CREATE TABLE trajectory_data (frame INTEGER, id INTEGER, pos_x REAL, pos_y REAL, "
+                    "ori_x REAL, ori_y REAL)")
+        con.execute("CREATE TABLE metadata (key TEXT, value TEXT)")
+        con.executemany("INSERT INTO metadata VALUES (?, ?)", [("version", "2"), ("fps", "25")])
+        rows = [(k, 1, 0.0, 0.0, *((0.0, 1.0) if k < 50 else (-1.0, 0.0))) for k in range(100)]
+        rows += [(k, 2, 2.0 + 0.05 * min(k, 30), 3.0, 0.0, 0.0) for k in range(100)]
+        con.executemany("INSERT INTO trajectory_data VALUES (?, ?, ?, ?, ?, ?)", rows)
+    assert main(["replay", str(db), "-o", str(tmp_path / "shot"), "--cameras", "0", "--no-progress"]) == 0
+    people = _plain_usd(tmp_path / "shot" / "shot.usda")["people"]
+    facing = lambda person, k: np.degrees(np.arctan2(people[person]["rows"][k, 4], people[person]["rows"][k, 3]))  # noqa: E731
+    assert abs(facing(1, 20) - 90.0) < 2.0 and abs(abs(facing(1, 80)) - 180.0) < 2.0
+    assert abs(facing(2, 10)) < 8.0 and abs(facing(2, 80)) < 2.0        # walking: the hips sway with the stride

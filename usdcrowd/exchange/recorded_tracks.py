@@ -58,6 +58,9 @@ class Tracks:
         One of FORMATS.
     source : str
         The file read.
+    facing : (m,) float64 or None
+        The way the person faces, radians (JuPedSim's orientation); NaN where
+        the file gives none.
     """
 
     ids: np.ndarray
@@ -68,6 +71,7 @@ class Tracks:
     head: np.ndarray
     fmt: str
     source: str
+    facing: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -119,22 +123,27 @@ def read_tracks(path: str | os.PathLike, fmt: str | None = None, fps: float | No
     if fmt not in FORMATS:
         raise UsdcrowdError(f"unknown trajectory format {fmt!r}; choose one of: {', '.join(FORMATS)}", file=path)
     if fmt == "jupedsim":
-        frame, ids, xy, head, said = _read_jupedsim(path)
+        frame, ids, xy, head, said, facing = _read_jupedsim(path)
     elif fmt == "pedpy":
         frame, ids, xy, head, said = _read_pedpy(path)
+        facing = np.full(len(frame), np.nan)
     else:
         frame, ids, xy, head, said = _read_ethucy(path)
-    frame, ids, xy, head = _sorted_rows(path, frame, ids, xy, head)
+        facing = np.full(len(frame), np.nan)
+    frame, ids, xy, head, facing = _sorted_rows(path, frame, ids, xy, head, facing)
     rate = _frame_rate(path, fmt, frame, ids, said, fps)
     unique, person = np.unique(ids, return_inverse=True)
-    return Tracks(unique, rate, frame, person.astype(np.int64), xy, head, fmt, path)
+    return Tracks(unique, rate, frame, person.astype(np.int64), xy, head, fmt, path, facing)
 
 
 def _read_jupedsim(path: str):
     try:
         with sqlite3.connect(f"file:{path}?mode=ro", uri=True) as con:
-            rows = np.array(con.execute("SELECT frame, id, pos_x, pos_y FROM trajectory_data").fetchall(),
-                            dtype=np.float64).reshape(-1, 4)
+            columns = {c[1] for c in con.execute("PRAGMA table_info(trajectory_data)")}
+            oriented = {"ori_x", "ori_y"} <= columns
+            rows = np.array(con.execute("SELECT frame, id, pos_x, pos_y" + (", ori_x, ori_y" if oriented else "")
+                                        + " FROM trajectory_data").fetchall(),
+                            dtype=np.float64).reshape(-1, 6 if oriented else 4)
             meta = con.execute("SELECT value FROM metadata WHERE key = 'fps'").fetchone()
     except sqlite3.DatabaseError as exc:
         raise UsdcrowdError(f"not a JuPedSim trajectory database ({exc}): it needs the tables trajectory_data "
@@ -145,7 +154,10 @@ def _read_jupedsim(path: str):
             said = float(meta[0])
         except (TypeError, ValueError):
             raise UsdcrowdError(f"metadata fps is {meta[0]!r}, not a number", file=path) from None
-    return rows[:, 0], rows[:, 1], rows[:, 2:4], np.full(len(rows), np.nan), said
+    facing = np.arctan2(rows[:, 5], rows[:, 4]) if rows.shape[1] == 6 else np.full(len(rows), np.nan)
+    if rows.shape[1] == 6:
+        facing[np.hypot(rows[:, 4], rows[:, 5]) < 1e-9] = np.nan
+    return rows[:, 0], rows[:, 1], rows[:, 2:4], np.full(len(rows), np.nan), said, facing
 
 
 def _header(path: str) -> tuple[list[str], int]:
@@ -225,7 +237,7 @@ def _frame_rate(path: str, fmt: str, frame: np.ndarray, ids: np.ndarray, said: f
     return float(rate)
 
 
-def _sorted_rows(path, frame, ids, xy, head):
+def _sorted_rows(path, frame, ids, xy, head, facing):
     """The rows sorted by person then frame, whole-number ids; refused unless finite and one per
     (person, frame)."""
     if len(frame) == 0:
@@ -237,9 +249,9 @@ def _sorted_rows(path, frame, ids, xy, head):
         raise UsdcrowdError(f"person id {bad:g} is not a whole number", file=path)
     ids = np.round(ids).astype(np.int64)
     order = np.lexsort((frame, ids))
-    frame, ids, xy, head = frame[order], ids[order], xy[order], head[order]
+    frame, ids, xy, head, facing = frame[order], ids[order], xy[order], head[order], facing[order]
     same = (ids[1:] == ids[:-1]) & np.isclose(frame[1:], frame[:-1])
     if same.any():
         k = int(np.flatnonzero(same)[0])
         raise UsdcrowdError(f"person {ids[k]} has two rows at frame {frame[k]:g}", file=path)
-    return frame, ids, xy, head
+    return frame, ids, xy, head, facing

@@ -58,13 +58,16 @@ class TrackSampler:
         Where they are at those frames.
     first_heading : (n,) float
         The way they first walk (toward their first position GAZE_MIN_DISTANCE
-        from the start), radians; 0 for someone who never moves that far.
+        from the start), radians; for someone who never moves that far, the
+        way the file says they face, else 0.
     """
 
     def __init__(self, tracks: Tracks, fps: float, max_gap_s: float = 2.0):
         self.fps = float(fps)
         self.n = len(tracks)
         self._s, self._xy = tracks.seconds, tracks.xy
+        facing = tracks.facing if tracks.facing is not None else np.full(len(tracks.frame), np.nan)
+        self._facing = facing if np.isfinite(facing).any() else None
         self._rows = np.searchsorted(tracks.person, np.arange(self.n + 1))
         start, end = self._rows[:-1], self._rows[1:] - 1
         self.n_frames = int(np.floor(self._s.max() * fps + 1e-6)) + 1
@@ -86,6 +89,25 @@ class TrackSampler:
             if len(away):
                 d = xy[away[0]] - xy[0]
                 out[i] = np.arctan2(d[1], d[0])
+            elif self._facing is not None and np.isfinite(self._facing[self._rows[i]]):
+                out[i] = self._facing[self._rows[i]]
+        return out
+
+    def facing(self, a: int, b: int) -> np.ndarray | None:
+        """(b - a, n) the way each person faces at frames ``a`` to ``b - 1`` as the file says (between
+        rows, turned the short way), radians; NaN where it does not say; None for a file without facings."""
+        if self._facing is None:
+            return None
+        out = np.full((b - a, self.n), np.nan)
+        for i in np.flatnonzero((self.first < b) & (self.last >= a)):
+            rows = slice(self._rows[i], self._rows[i + 1])
+            si, fi = self._s[rows], self._facing[rows]
+            ok = np.isfinite(fi)
+            if not ok.any():
+                continue
+            k = np.arange(max(a, self.first[i]), min(b, self.last[i] + 1))
+            at = np.clip(k / self.fps, si[0], si[-1])
+            out[k - a, i] = np.arctan2(np.interp(at, si[ok], np.sin(fi[ok])), np.interp(at, si[ok], np.cos(fi[ok])))
         return out
 
     def window(self, a: int, b: int) -> np.ndarray:
@@ -168,7 +190,7 @@ class ReplayMotion:
         keep = slice(a - lo, b - lo)
         velocity = np.where(present[keep, :, None], self._velocity(pos2)[keep], 0.0)
         speed = np.hypot(velocity[..., 0], velocity[..., 1])
-        heading = self._headings(velocity, speed >= STANDING_SPEED)
+        heading = self._headings(velocity, speed >= STANDING_SPEED, self.sampler.facing(a, b))
         cls = classify(velocity, heading)
         phase = self._phase(speed, cls)
         t, n = b - a, self.sampler.n
@@ -193,9 +215,14 @@ class ReplayMotion:
         span = np.maximum(ahead - behind, 1)[:, None, None] / self.sampler.fps
         return (pos2[ahead] - pos2[behind]) / span
 
-    def _headings(self, velocity: np.ndarray, walking: np.ndarray) -> np.ndarray:
+    def _headings(self, velocity: np.ndarray, walking: np.ndarray, facing: np.ndarray | None) -> np.ndarray:
+        """(t, n) the way of walking; standing, the way the file says they face, else the last one."""
         raw = np.arctan2(velocity[..., 1], velocity[..., 0])
-        idx = np.maximum.accumulate(np.where(walking, np.arange(len(raw))[:, None], -1), axis=0)
+        known = walking
+        if facing is not None:
+            told = ~walking & np.isfinite(facing)
+            raw, known = np.where(told, facing, raw), walking | told
+        idx = np.maximum.accumulate(np.where(known, np.arange(len(raw))[:, None], -1), axis=0)
         held = np.take_along_axis(raw, np.maximum(idx, 0), axis=0)
         heading = np.where(idx >= 0, held, self._heading[None])
         self._heading = heading[-1].copy()
