@@ -236,10 +236,12 @@ def test_events_cameras_and_ground_truth_leave_out_people_not_there(corridor_dat
     ("# framerate: 25 fps\n1 0 0 0 1.7\n1 1 0.1 0 1.7\n", ["--fps", "10"], "leave --fps out"),
     ("0 1 0.0 0.0\n0 1 0.5 0.5\n", [], "two rows at frame 0"),
     ("0 1.5 0.0 0.0\n10 1.5 0.5 0.5\n", [], "not a whole number"),
+    ("0 1 0.0 0.0\n10 1 0.5 0.5\n", ["--height-from", "file"], "needs every person's Z"),
 ])
 def test_a_careless_replay_is_one_line_and_writes_no_shot(tmp_path, capsys, content, extra, words):
     """A bad trajectory file (empty, a word for a number, no frame rate, a rate the file contradicts, two
-    rows for one person at one frame, a fractional id): one line naming the file, exit 2, no shot."""
+    rows for one person at one frame, a fractional id, heights asked of a file without them): one line
+    naming the file, exit 2, no shot."""
     traj = tmp_path / "walks.txt"
     traj.write_text(content)
     assert main(["replay", str(traj), "-o", str(tmp_path / "shot"), *extra, "--no-progress"]) == 2

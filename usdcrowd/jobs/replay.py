@@ -49,14 +49,15 @@ def body_heights(tracks, height_from: str) -> np.ndarray | None:
     if height_from == "drawn":
         return None
     z = tracks.head
-    known = np.isfinite(z)
     heights = np.full(len(tracks), np.nan)
-    if known.any():
-        for i in np.unique(tracks.person[known]):
-            heights[i] = np.median(z[known & (tracks.person == i)])
-    usable = np.isfinite(heights).all() and ((heights >= BODY_HEIGHT_RANGE[0]) & (heights <= BODY_HEIGHT_RANGE[1])).all()
+    if np.isfinite(z).any():
+        bounds = np.searchsorted(tracks.person, np.arange(len(tracks) + 1))     # rows run person by person
+        for i, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):
+            mine = z[a:b][np.isfinite(z[a:b])]
+            heights[i] = np.median(mine) if len(mine) else np.nan
+    lo, hi = BODY_HEIGHT_RANGE
+    usable = bool(np.isfinite(heights).all() and ((heights >= lo) & (heights <= hi)).all())
     if height_from == "file" and not usable:
-        lo, hi = BODY_HEIGHT_RANGE
         raise UsdcrowdError(f"--height-from file needs every person's Z (head height) between {lo} and {hi} m",
                             file=tracks.source)
     return heights if usable else None
