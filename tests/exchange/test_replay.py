@@ -374,3 +374,33 @@ def test_people_standing_face_the_way_a_jupedsim_database_says(tmp_path):
     facing = lambda person, k: np.degrees(np.arctan2(people[person]["rows"][k, 4], people[person]["rows"][k, 3]))  # noqa: E731
     assert abs(facing(1, 20) - 90.0) < 2.0 and abs(abs(facing(1, 80)) - 180.0) < 2.0
     assert abs(facing(2, 10)) < 8.0 and abs(facing(2, 80)) < 2.0        # walking: the hips sway with the stride
+
+
+def test_someone_coming_back_after_a_gap_walks_at_their_pace_from_the_first_frame(tmp_path):
+    """Person 2 of ETH_ROWS leaves at (5, 4.4) and comes back 6 s later at (5, 2.0), walking -Y at 1.5 m/s:
+    the replay's velocity on their first frames back is that, not the jump from where they left."""
+    from usdcrowd.exchange.recorded_tracks import read_tracks
+    from usdcrowd.exchange.replay_motion import ReplayMotion, TrackSampler
+
+    traj = tmp_path / "students.txt"
+    traj.write_text(ETH_ROWS)
+    sampler = TrackSampler(read_tracks(traj), 25.0)
+    frames = next(ReplayMotion(sampler, 1.0, np.full(3, 1.7)).chunks(sampler.n_frames))
+    back = 170
+    assert not frames.present[back - 1, 1] and frames.present[back, 1]
+    np.testing.assert_allclose(frames.velocity[back:back + 5, 1], [[0.0, -1.5]] * 5, atol=1e-3)
+
+
+def test_a_track_with_the_id_of_a_companions_invisible_leader_is_refused_in_one_line(tmp_path, capsys):
+    """The harbour's gang is led by an invisible leader (id 2): a track with that id would walk unseen, so
+    the replay refuses it in one line naming the prim, exit 2, and writes no shot."""
+    companion = tmp_path / "harbour.usda"
+    assert main(["new", "harbour", "-o", str(companion)]) == 0
+    capsys.readouterr()
+    traj = tmp_path / "walks.txt"
+    traj.write_text("0 2 0.0 0.0\n10 2 0.5 0.0\n")
+    assert main(["replay", str(traj), "-o", str(tmp_path / "shot"), "--scenario", str(companion),
+                 "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "invisible leader" in err and "Tally" in err, err
+    assert not (tmp_path / "shot" / "shot.usda").exists()

@@ -21,11 +21,14 @@ V_APERTURE = 20.25
 ELEVATION_DEG = 35.0
 
 
-def crowd_summary(positions, visible: np.ndarray, block: int = 256) -> tuple[np.ndarray, np.ndarray]:
+def crowd_summary(positions, visible: np.ndarray, block: int = 256,
+                  fill: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """(t, 3) centroid and (t,) largest distance from it of the visible crowd per frame (everyone if nobody is).
 
     ``positions`` is a (t, n, 3) array or a :class:`usdcrowd.core.framestore.FrameStore`,
-    read ``block`` frames at a time.
+    read ``block`` frames at a time. NaN positions are people not in the scene (a replay); a frame
+    with nobody takes the nearest frame's values (:func:`filled`), or stays NaN without ``fill`` (a
+    chunk of a shot: fill once the whole shot is known).
     """
     vis = np.asarray(visible, bool)
     vis = vis if vis.any() else np.ones_like(vis)
@@ -47,10 +50,11 @@ def crowd_summary(positions, visible: np.ndarray, block: int = 256) -> tuple[np.
         spreads.append(np.where(count > 0, d.max(axis=1, initial=0.0), np.nan))
     if not centres:
         return np.zeros((0, 3)), np.zeros(0)
-    return _filled(np.concatenate(centres)), _filled(np.concatenate(spreads))
+    centres, spreads = np.concatenate(centres), np.concatenate(spreads)
+    return (filled(centres), filled(spreads)) if fill else (centres, spreads)
 
 
-def _filled(values: np.ndarray) -> np.ndarray:
+def filled(values: np.ndarray) -> np.ndarray:
     """``values`` (t, ...) with NaN frames (nobody in the scene) given the nearest frame's values."""
     bad = ~np.isfinite(values.reshape(len(values), -1)).all(axis=1)
     if not bad.any() or bad.all():

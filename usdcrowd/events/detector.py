@@ -56,6 +56,7 @@ class EventDetector:
         self.frames_fed = 0
         self._last_time = -np.inf
         self._last_position = None
+        self._last_present = None       # who was in the scene at the last frame fed (replays)
         self._finished = False
 
     @property
@@ -88,6 +89,12 @@ class EventDetector:
         if len(times) and (times[0] <= self._last_time or np.any(np.diff(times) <= 0)):
             raise ValueError("chunks must arrive in time order")
         velocity = self._velocity(np.asarray(chunk.position, np.float64)[..., :2])
+        if chunk.present is not None and len(times):
+            # Someone coming (back) into the scene moved from where they were held: no speed known yet.
+            before = np.vstack([self._last_present[None] if self._last_present is not None
+                                else np.zeros((1, chunk.present.shape[1]), bool), chunk.present[:-1]])
+            velocity[chunk.present & ~before] = np.nan
+            self._last_present = chunk.present[-1].copy()
         for i in range(len(times)):
             pos = chunk.position[i]
             vel = velocity[i]

@@ -188,7 +188,7 @@ class ReplayMotion:
         position = self._on_ground(pos2)
         look = _gaze(position, present, self._ahead, self.height)
         keep = slice(a - lo, b - lo)
-        velocity = np.where(present[keep, :, None], self._velocity(pos2)[keep], 0.0)
+        velocity = np.where(present[keep, :, None], self._velocity(pos2, present)[keep], 0.0)
         speed = np.hypot(velocity[..., 0], velocity[..., 1])
         heading = self._headings(velocity, speed >= STANDING_SPEED, self.sampler.facing(a, b))
         cls = classify(velocity, heading)
@@ -207,13 +207,24 @@ class ReplayMotion:
                                                                      pos2[..., 1].ravel()).reshape(t, n)
         return np.concatenate([pos2, z[..., None]], axis=2)
 
-    def _velocity(self, pos2: np.ndarray) -> np.ndarray:
-        """(t, n, 2) centred differences over ``_half`` frames each side (one-sided at the window's ends,
-        which are the recording's: windows are padded)."""
+    def _velocity(self, pos2: np.ndarray, present: np.ndarray) -> np.ndarray:
+        """(t, n, 2) centred differences over ``_half`` frames each side, within each stretch of frames a
+        person is present (one-sided where a stretch begins or ends, and at the window's ends, which are
+        the recording's: windows are padded); zero for a stretch of one frame."""
         t = len(pos2)
-        ahead, behind = np.minimum(np.arange(t) + self._half, t - 1), np.maximum(np.arange(t) - self._half, 0)
-        span = np.maximum(ahead - behind, 1)[:, None, None] / self.sampler.fps
-        return (pos2[ahead] - pos2[behind]) / span
+        k = np.arange(t)[:, None]
+        stretch = np.cumsum(present & ~np.vstack([np.zeros((1, present.shape[1]), bool), present[:-1]]), axis=0)
+        ahead = np.minimum(k + self._half, t - 1) + np.zeros_like(stretch)
+        behind = np.maximum(k - self._half, 0) + np.zeros_like(stretch)
+        for _ in range(self._half):                    # step back inside the stretch (at most _half frames)
+            out = ~present[ahead, np.arange(present.shape[1])] | (stretch[ahead, np.arange(present.shape[1])] != stretch)
+            ahead = np.where(out, ahead - 1, ahead)
+            out = ~present[behind, np.arange(present.shape[1])] | (stretch[behind, np.arange(present.shape[1])] != stretch)
+            behind = np.where(out, behind + 1, behind)
+        ahead, behind = np.maximum(ahead, k), np.minimum(behind, k)
+        cols = np.arange(pos2.shape[1])
+        span = (ahead - behind)[..., None] / self.sampler.fps
+        return np.where(span > 0, (pos2[ahead, cols] - pos2[behind, cols]) / np.maximum(span, 1e-9), 0.0)
 
     def _headings(self, velocity: np.ndarray, walking: np.ndarray, facing: np.ndarray | None) -> np.ndarray:
         """(t, n) the way of walking; standing, the way the file says they face, else the last one."""

@@ -245,7 +245,9 @@ class _Collected:
     tracks: list = field(default_factory=list)
 
     def summary(self) -> tuple[np.ndarray, np.ndarray]:
-        return np.concatenate(self.centres), np.concatenate(self.spreads)
+        from ..cameras.overview import filled
+
+        return filled(np.concatenate(self.centres)), filled(np.concatenate(self.spreads))
 
 
 def film_cameras(scenario: model.Scenario, positions, events: model.EventTable, default_prim: str,
@@ -317,7 +319,7 @@ def _author_frames(writer, chunks, scenario, plotted, stride, progress, collecte
             if chunk.present is not None:                      # NaN where someone is not in the scene
                 position[~chunk.present] = np.nan
             collected.positions.append(position)
-            centre, spread = crowd_summary(position, scenario.agents.visible)
+            centre, spread = crowd_summary(position, scenario.agents.visible, fill=False)
             collected.centres.append(centre)
             collected.spreads.append(spread)
             keep = (done + np.arange(len(chunk.times))) % stride == 0

@@ -157,6 +157,10 @@ def _people(layer, tracks, start: np.ndarray, heights: np.ndarray | None, compan
     used = []
     for i, person in enumerate(tracks.ids):
         path = known.pop(int(person), None)
+        if path is not None and str(companion.GetPrimAtPath(path).GetAttribute("crowd:role").Get()) == "invisibleLeader":
+            raise UsdcrowdError(f"track {int(person)} is the companion's invisible leader: it would walk unseen; "
+                                "give the track another id or the agent another role", file=tracks.source,
+                                prim=path, attribute="crowd:role")
         if path is None:
             path = f"{_people_group(layer, companion, root)}/{person_name(person)}"
             spec = Sdf.CreatePrimInLayer(layer, path)
@@ -184,7 +188,7 @@ def _people_group(layer, companion, root: str) -> str:
         if companion is None or not companion.GetPrimAtPath(where):
             spec = Sdf.CreatePrimInLayer(layer, where)
             spec.specifier, spec.typeName = Sdf.SpecifierDef, kind
-    group = layer.GetPrimAtPath(path)
+    group = Sdf.CreatePrimInLayer(layer, path)      # an over where the companion has the group already
     for name, value in (("characterType", "human"), ("personality", "civilian"), ("behavior", "walk"),
                         ("condition", "isolated")):
         Sdf.AttributeSpec(group, f"crowd:{name}", T.Token, U).default = value
@@ -325,6 +329,11 @@ def _source(tracks, sampler):
         from ..sim.paths import Terrain
 
         column = {int(p): i for i, p in enumerate(tracks.ids)}
+        lost = [k for k, a in enumerate(scenario.agents.agent_id) if int(a) not in column]
+        if lost:
+            raise UsdcrowdError("a companion scenario's agent without a crowd:agentId of the file's tracks stays "
+                                "on: give it a track's id, or deactivate it", file=scenario.source,
+                                prim=scenario.agents.path[lost[0]], attribute="crowd:agentId")
         order = np.array([column[int(a)] for a in scenario.agents.agent_id])
         terrain = Terrain(scenario.field("height"))
         height = np.empty(len(order))

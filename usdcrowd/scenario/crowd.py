@@ -300,8 +300,10 @@ def _presence(agents, codes: np.ndarray) -> np.ndarray | None:
     None where no agent's visibility changes over time."""
     from pxr import UsdGeom
 
+    # One sample is enough to count (someone never present has a single "invisible" one).
     varying = [(a, UsdGeom.Imageable(p)) for a, (p, _) in enumerate(agents)
-               if UsdGeom.Imageable(p).GetVisibilityAttr().ValueMightBeTimeVarying()]
+               if UsdGeom.Imageable(p).GetVisibilityAttr().GetNumTimeSamples() > 0
+               or UsdGeom.Imageable(p).GetVisibilityAttr().ValueMightBeTimeVarying()]
     if not varying:
         return None
     present = np.ones((len(codes), len(agents)), bool)
