@@ -213,16 +213,18 @@ class ReplayMotion:
         the recording's: windows are padded); zero for a stretch of one frame."""
         t = len(pos2)
         k = np.arange(t)[:, None]
-        stretch = np.cumsum(present & ~np.vstack([np.zeros((1, present.shape[1]), bool), present[:-1]]), axis=0)
+        cols = np.arange(pos2.shape[1])
+        stretch = np.cumsum(present & ~np.vstack([np.zeros((1, len(cols)), bool), present[:-1]]), axis=0)
         ahead = np.minimum(k + self._half, t - 1) + np.zeros_like(stretch)
         behind = np.maximum(k - self._half, 0) + np.zeros_like(stretch)
+
+        def outside(rows):
+            return ~present[rows, cols] | (stretch[rows, cols] != stretch)
+
         for _ in range(self._half):                    # step back inside the stretch (at most _half frames)
-            out = ~present[ahead, np.arange(present.shape[1])] | (stretch[ahead, np.arange(present.shape[1])] != stretch)
-            ahead = np.where(out, ahead - 1, ahead)
-            out = ~present[behind, np.arange(present.shape[1])] | (stretch[behind, np.arange(present.shape[1])] != stretch)
-            behind = np.where(out, behind + 1, behind)
+            ahead = np.where(outside(ahead), ahead - 1, ahead)
+            behind = np.where(outside(behind), behind + 1, behind)
         ahead, behind = np.maximum(ahead, k), np.minimum(behind, k)
-        cols = np.arange(pos2.shape[1])
         span = (ahead - behind)[..., None] / self.sampler.fps
         return np.where(span > 0, (pos2[ahead, cols] - pos2[behind, cols]) / np.maximum(span, 1e-9), 0.0)
 

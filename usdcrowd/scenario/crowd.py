@@ -300,10 +300,11 @@ def _presence(agents, codes: np.ndarray) -> np.ndarray | None:
     None where no agent's visibility changes over time."""
     from pxr import UsdGeom
 
-    # One sample is enough to count (someone never present has a single "invisible" one).
-    varying = [(a, UsdGeom.Imageable(p)) for a, (p, _) in enumerate(agents)
-               if UsdGeom.Imageable(p).GetVisibilityAttr().GetNumTimeSamples() > 0
-               or UsdGeom.Imageable(p).GetVisibilityAttr().ValueMightBeTimeVarying()]
+    def sampled(img) -> bool:      # one sample counts: someone never present has a single "invisible" one
+        attr = img.GetVisibilityAttr()
+        return attr.GetNumTimeSamples() > 0 or attr.ValueMightBeTimeVarying()
+
+    varying = [(a, img) for a, img in enumerate(UsdGeom.Imageable(p) for p, _ in agents) if sampled(img)]
     if not varying:
         return None
     present = np.ones((len(codes), len(agents)), bool)

@@ -44,7 +44,8 @@ _WALL_APPROACH = 0.05
 def _wall_hit(walls, p: np.ndarray, ux: np.ndarray, uy: np.ndarray, radius: np.ndarray,
               horizon: float) -> np.ndarray:
     """(m, d) how far walkers at ``p`` (2, m) can walk along each direction ``u`` (m, d) before a wall
-    comes within their ``radius`` (the first sample that does; ``horizon`` if none). One already that near
+    comes within their ``radius``: the first sample that does, less 0.25 m, taken as where the wall
+    begins (``horizon`` if none does). One already that near
     a wall is stopped only where it would get nearer still: it may walk along the wall or away."""
     s = _WALL_SAMPLES[_WALL_SAMPLES <= horizon]
     x = p[0][:, None, None] + ux[..., None] * s

@@ -479,11 +479,6 @@ class _AgentPart:
             export_layer(self._clip_layer(), os.path.join(self._clips.folder, self._clips.manifest_name(self._stem)))
 
 
-def _agents_of(frames: model.CrowdFrames, rows: np.ndarray) -> model.CrowdFrames:
-    """The chunk restricted to some agents (contiguous copies: they are pickled)."""
-    return frames.agents(rows)
-
-
 # A pipe whose other end (a part writer) has gone.
 _LOST = (BrokenPipeError, ConnectionResetError, EOFError)
 
@@ -531,7 +526,7 @@ def _part_work(conn, layer_paths, scenario, frame, row_sets, authored, default_p
         try:
             if cmd == "frames":
                 for part, lo, hi in zip(parts, bounds[:-1], bounds[1:]):
-                    part.write_frames(_agents_of(payload, np.arange(lo, hi)) if len(parts) > 1 else payload)
+                    part.write_frames(payload.agents(np.arange(lo, hi)) if len(parts) > 1 else payload)
                 conn.send(("ok", None))
             elif cmd == "finish":
                 for part, path, lo, hi in zip(parts, layer_paths, bounds[:-1], bounds[1:]):
@@ -712,7 +707,7 @@ class CrowdLayerWriter:
         # No waiting here: the workers animate and author this chunk while the
         # caller simulates the next one.
         for (proc, conn), rows in zip(self._workers, self._splits):
-            self._send(proc, conn, ("frames", _agents_of(frames, rows)))
+            self._send(proc, conn, ("frames", frames.agents(rows)))
 
     def start_saving(self) -> None:
         """Hand the part writers their extents and let them save, without waiting.
