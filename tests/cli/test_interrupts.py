@@ -103,7 +103,10 @@ def test_render_stops_its_workers_at_once_and_resumes(small_shot, tmp_path, sig,
     assert took < PROMPT_S, f"took {took:.1f} s to stop"
     assert not alive, f"orphans: {alive}"
     assert not partials(out)
-    done = sorted(out.glob("exr/*.exr"))
+    kinds = ["png"] + (["json"] if (out / "json").is_dir() else [])      # ground truth is on or off
+    done = [exr for exr in sorted(out.glob("exr/*.exr"))
+            if all((out / kind / f"{exr.stem}.{kind}").is_file() for kind in kinds)]
+    assert done == sorted(out.glob("exr/*.exr")), "a frame's EXR is written after its other files"
     assert 2 <= len(done) < 48
     # Every finished frame is whole: the run again renders only the rest.
     again = subprocess.run(USDCROWD + _render_argv(small_shot, out), capture_output=True, text=True, timeout=600)

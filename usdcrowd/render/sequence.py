@@ -112,17 +112,18 @@ def render_frame_to_disk(renderer, metadata, t: float, out_dir, settings: Render
     channels = channels_of(beauty, result.gt, raw)
     keep = set(expected_channels(settings))
     channels = {k: v for k, v in channels.items() if k in keep}
+    write_png(beauty, out / files["png"], settings.working_space, settings.exposure)
+    if settings.ground_truth:
+        record = annotate_frame(result, metadata)
+        record["files"] = {k: v for k, v in files.items() if k != "json"}
+        frame_json.write(record, out / files["json"])
+    # The EXR goes last, so a frame whose EXR is on disk has all its files.
     write_frame_exr(out / files["exr"], channels, result.id_paths,
                     {"usdcrowd:camera": result.camera.path, "usdcrowd:time": result.time,
                      "usdcrowd:workingSpace": settings.working_space,
                      SETTINGS_ATTRIBUTE: settings_json(settings),
                      "usdcrowd:depthConvention": "depth.z: along the view axis; depth.distance: to the camera "
                                                  "centre; metres; +inf where no surface"})
-    write_png(beauty, out / files["png"], settings.working_space, settings.exposure)
-    if settings.ground_truth:
-        record = annotate_frame(result, metadata)
-        record["files"] = {k: v for k, v in files.items() if k != "json"}
-        frame_json.write(record, out / files["json"])
     seconds = dict(result.seconds, write=_time.perf_counter() - w0)
     return {"time": float(t), "files": {rel: _file_record(out, rel) for rel in files.values()}, "seconds": seconds}
 
