@@ -1,7 +1,7 @@
 """usdcrowd benchmarks: each section prints sizes, rates and ratios.
 
     python tools/bench.py                 # every section
-    python tools/bench.py author          # authoring 10,000 agents x 300 frames
+    python tools/bench.py author          # authoring 10,000 agents x 300 frames, against plain Sdf
     python tools/bench.py author --agents 2000 --frames 300
     python tools/bench.py sim             # crowd simulation steps/s (and JuPedSim)
     python tools/bench.py preview         # OpenGL preview fps, 1,000 and 10,000 characters
@@ -38,74 +38,6 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "tools")]      # the tests package (its helpers) and the tools
-
-AUTHOR_TARGET_S = 20.0
-AUTHOR_TARGET_GIB = 4.0
-
-
-def _peak_mib() -> float:
-    """Peak resident memory of this process plus the largest of its finished children."""
-    own = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    children = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-    return (own + children) / 1024.0
-
-
-def author_once(agents: int, frames: int, events: bool = False) -> dict:
-    """Author ``agents`` x ``frames`` of walking crowd as a shot; returns timings."""
-    import usdcrowd  # noqa: F401
-    from tests.helpers.frames import straight_walk
-
-    from usdcrowd.core import model
-    from usdcrowd.jobs.pipeline import author_shot
-    from usdcrowd.jobs.templates import new_scenario
-
-    with tempfile.TemporaryDirectory() as tmp:
-        scenario = Path(tmp) / "scenario.usda"
-        new_scenario("museum", scenario, agents=agents, seed=1)
-        chunk = 50
-
-        def source(sc: model.Scenario):
-            whole = straight_walk(sc.agents, sc.time)
-            for s in range(0, len(whole.times), chunk):
-                sl = slice(s, s + chunk)
-                yield model.CrowdFrames(whole.times[sl], whole.position[sl], whole.heading[sl], whole.velocity[sl],
-                                        whole.behavior[sl], whole.anim_class[sl], whole.anim_phase[sl],
-                                        whole.health[sl], whole.look_at[sl], whole.path_method)
-
-        t0 = time.perf_counter()
-        result = author_shot(scenario, Path(tmp) / "shot", source, frames=(1, frames), progress=False,
-                             events=events)
-        seconds = time.perf_counter() - t0
-        size = sum(f.stat().st_size for f in (Path(tmp) / "shot").iterdir())
-        samples = 2 * result.n_agents * result.n_frames
-        return {"agents": result.n_agents, "frames": result.n_frames, "seconds": round(seconds, 2),
-                "samples_per_s": round(samples / seconds), "agent_frames_per_s": round(result.n_agents * result.n_frames / seconds),
-                "size_mib": round(size / 2**20, 1), "peak_mib": round(_peak_mib())}
-
-
-def _child(section: str, **kw) -> dict:
-    """Run one measurement in a fresh interpreter and return its JSON line."""
-    code = (f"import sys, json; sys.path.insert(0, {str(ROOT / 'tools')!r}); import bench; "
-            f"print(json.dumps(bench.{section}_once(**{kw!r})))")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
-    if out.returncode != 0:
-        raise RuntimeError(out.stderr[-2000:])
-    return json.loads(out.stdout.strip().splitlines()[-1])
-
-
-def bench_author(agents: int, frames: int) -> dict:
-    print(f"== author: {agents} agents x {frames} frames (two UsdSkel samples per agent and frame)")
-    r = _child("author", agents=agents, frames=frames)
-    print(f"   {r['seconds']:.2f} s, {r['samples_per_s']:,} samples/s, {r['agent_frames_per_s']:,} agent-frames/s, "
-          f"files {r['size_mib']} MiB, peak {r['peak_mib']:,} MiB")
-    if agents == 10_000 and frames == 300:
-        print(f"   target <= {AUTHOR_TARGET_S:.0f} s: {r['seconds'] / AUTHOR_TARGET_S:.2f}x of budget; "
-              f"<= {AUTHOR_TARGET_GIB:.0f} GiB: {r['peak_mib'] / 1024 / AUTHOR_TARGET_GIB:.2f}x of budget")
-    e = _child("author", agents=agents, frames=frames, events=True)
-    print(f"   with event detection (simulate's default): {e['seconds']:.2f} s "
-          f"({e['seconds'] / r['seconds']:.2f}x), peak {e['peak_mib']:,} MiB")
-    return {"alone": r, "with_events": e}
-
 
 def load() -> str:
     """The machine's load averages over 1, 5 and 15 minutes ("n/a" where the system does not say)."""
@@ -272,7 +204,7 @@ def main(argv=None) -> int:
         print(f"   ({section}: load {before} before, {loads[section]['load_after']} after, {os.cpu_count()} cores)")
 
     if args.section in ("all", "author"):
-        measure("author", bench_author, args.agents, args.frames)
+        measure("author", bench_section, "author", agents=args.agents, frames=args.frames)
     if args.section in ("all", "sim"):
         measure("sim", bench_section, "sim", sizes=tuple(int(s) for s in args.sizes.split(",")), jupedsim=peers)
     for name in ("cameras", "moe", "preview", "render", "dataset", "realism"):
@@ -285,7 +217,7 @@ def main(argv=None) -> int:
 
         for section, result in found.items():
             if result:
-                source = "tools/bench.py" if section == "author" else f"tools/bench_{section}.py"
+                source = f"tools/bench_{section}.py"
                 figures, tables, images = figures_of(section, result)
                 figures = {**figures, "machine_load": loads[section]}
                 record(f"bench_{section}", source, figures=figures, tables=tables, images=images,

@@ -12,7 +12,6 @@ import functools
 from dataclasses import dataclass
 
 import numpy as np
-import trimesh
 
 from .rig import HEAD_TOP, NECK_HEIGHT, PELVIS_HEIGHT, WAIST_HEIGHT
 
@@ -75,12 +74,16 @@ def _smoothstep(x):
 
 def _capsule(bottom: float, top: float, radius: float, count, xy=(0.0, 0.0)):
     """Vertical capsule spanning z in [bottom, top]."""
+    import trimesh
+
     m = trimesh.creation.capsule(height=top - bottom - 2 * radius, radius=radius, count=count)
     m.apply_translation([xy[0], xy[1], 0.5 * (bottom + top)])
     return m
 
 
 def _ellipsoid(center, radii, subdivisions):
+    import trimesh
+
     m = trimesh.creation.icosphere(subdivisions=subdivisions)
     m.apply_scale(radii)
     m.apply_translation(center)
@@ -89,6 +92,8 @@ def _ellipsoid(center, radii, subdivisions):
 
 def _parts():
     """(mesh, kind, dress) triples; kind picks the weighting rule, dress the region (:func:`_regions`)."""
+    import trimesh
+
     parts = []
     for side in (1.0, -1.0):
         parts.append((_capsule(0.0, PELVIS_HEIGHT + 0.03, 0.075, [12, 8], (0.0, 0.1 * side)), "legs", "trousers"))
@@ -112,7 +117,7 @@ def _parts():
     return parts
 
 
-def _face(head: trimesh.Trimesh) -> list:
+def _face(head) -> list:
     """(mesh, dress) of the eyes (whites, irises in front) and the mouth: flat ellipsoids half sunk into the
     front of the head, an adult's proportions (eyes 6.6 cm apart, 3 cm above the nose's tip; the mouth 3.5 cm
     below it, 5 cm wide)."""
@@ -163,8 +168,10 @@ def build_body() -> Body:
     Returns
     -------
     Body
-        About 1,450 triangles, watertight, 1.75 m tall.
+        About 1,850 triangles, watertight, 1.75 m tall.
     """
+    import trimesh        # here, not at the top: the crowd layer's part writers import this module, never build
+
     parts = _parts()
     idx, wts = zip(*(_weights(m.vertices[:, 2], kind) for m, kind, _ in parts))
     # process=False: keep every part's vertices as they are, so the weights

@@ -261,6 +261,7 @@ class _AgentPart:
         # Samples go to time-window clip layers (saved as each window completes) when planned.
         self._clips, self._stem = clip_plan, stem
         self._windows: dict = {}
+        self._declared = None           # the attributes every clip layer declares (_clip_layer)
         from pxr import Sdf
 
         with Sdf.ChangeBlock():
@@ -436,17 +437,25 @@ class _AgentPart:
                     set_sample(self._paths[j][slot], times[k], vocab[values[k, j]])
 
     def _clip_layer(self):
-        """An empty layer declaring the attributes the clips provide (a window, or the manifest)."""
+        """An empty layer declaring the attributes the clips provide (a window, or the manifest).
+
+        Declared once per part and copied: every window declares the same attributes.
+        """
         from pxr import Sdf
 
-        T = _types()
+        if self._declared is None:
+            T = _types()
+            self._declared = Sdf.Layer.CreateAnonymous(".usdc")
+            kinds = (T.QuatfArray, T.Float3Array, T.Token, T.Token, T.Token, T.Token)
+            with Sdf.ChangeBlock():
+                for paths in self._paths:
+                    for path, kind in zip(paths, kinds):
+                        prim = (self._declared.GetPrimAtPath(path.GetPrimPath())
+                                or Sdf.CreatePrimInLayer(self._declared, path.GetPrimPath()))
+                        Sdf.AttributeSpec(prim, path.name, kind, Sdf.VariabilityVarying,
+                                          path.name.startswith("crowd:state"))
         layer = Sdf.Layer.CreateAnonymous(".usdc")
-        kinds = (T.QuatfArray, T.Float3Array, T.Token, T.Token, T.Token, T.Token)
-        with Sdf.ChangeBlock():
-            for paths in self._paths:
-                for path, kind in zip(paths, kinds):
-                    prim = layer.GetPrimAtPath(path.GetPrimPath()) or Sdf.CreatePrimInLayer(layer, path.GetPrimPath())
-                    Sdf.AttributeSpec(prim, path.name, kind, Sdf.VariabilityVarying, path.name.startswith("crowd:state"))
+        layer.TransferContent(self._declared)
         return layer
 
     def _window(self, k: int):
