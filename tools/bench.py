@@ -16,7 +16,8 @@
 Each measured run happens in a child process so that its peak memory is its own.
 Every section prints the machine's core count and load before and after it
 (recorded with ``--record`` as ``machine_load``). The sections measured
-against JuPedSim (sim, realism) stop in one line when it is not installed
+against JuPedSim (sim, realism, and cameras, which time its 10,000-agent
+step beside the 100-camera case to show the load) stop in one line when it is not installed
 (``make bench`` installs it); ``--allow-missing-peers`` measures usdcrowd alone.
 Targets (2-core machine): author 10,000 x 300 in <= 20 s and <= 4 GiB; 100
 camera agents with 10,000 characters (event detection included) >= 30 steps/s;
@@ -209,7 +210,7 @@ def main(argv=None) -> int:
         measure("sim", bench_section, "sim", sizes=tuple(int(s) for s in args.sizes.split(",")), jupedsim=peers)
     for name in ("cameras", "moe", "preview", "render", "dataset", "realism"):
         if args.section in ("all", name):
-            measure(name, bench_section, name, **({"jupedsim": peers} if name == "realism" else {}))
+            measure(name, bench_section, name, **({"jupedsim": peers} if name in ("realism", "cameras") else {}))
     if args.section in ("all", "memory"):
         measure("memory", bench_section, "memory", long=args.long)
     if args.record:

@@ -134,13 +134,33 @@ def sweep_plot(rows: list[dict], path) -> str:
     return str(path)
 
 
-def run(cases=SWEEP) -> list[dict]:
-    """Print and return one row per (cameras, characters) case."""
+# JuPedSim's 10,000-agent step (tools/bench_sim.py's scene), timed beside the 100 x 10,000 case, shows how
+# loaded the machine was: the same figure the crowd-step rows are measured against.
+PEER_STEPS = 30
+
+
+def _peer_rate() -> float:
+    from bench_sim import bench_jupedsim
+
+    return bench_jupedsim(10_000, PEER_STEPS)
+
+
+def run(cases=SWEEP, jupedsim: bool = True) -> list[dict]:
+    """Print and return one row per (cameras, characters) case; with ``jupedsim`` (an error when it is
+    missing), JuPedSim's 10,000-agent steps per second just before and after the 100 x 10,000 case."""
+    if jupedsim:
+        from bench_sim import require_jupedsim
+
+        require_jupedsim("cameras")
     rows = []
     print(f"   {'cameras':>7} {'characters':>10} {'steps/s':>8} {'events ms':>9} {'cameras ms':>10} "
           f"{'tracking':>8} {'events':>6}")
     for cams, n in cases:
+        peer = jupedsim and (cams, n) == (100, 10_000)
+        before = _peer_rate() if peer else None
         r = run_case(cams, n)
+        if peer:
+            r["jupedsim_10k_before"], r["jupedsim_10k_after"] = before, _peer_rate()
         rows.append(r)
         print(f"   {r['cameras']:>7} {r['characters']:>10,} {r['steps_per_s']:>8.1f} {r['events_ms']:>9.2f} "
               f"{r['cameras_ms']:>10.2f} {r['tracking_at_end']:>8.0%} {r['events']:>6}")
@@ -149,11 +169,16 @@ def run(cases=SWEEP) -> list[dict]:
                   f"included): {r['steps_per_s'] / PAPER[2]:.1f}x")
         if (cams, n) == (100, 10_000):
             print(f"   target >= {TARGET_STEPS:.0f} steps/s: {r['steps_per_s'] / TARGET_STEPS:.2f}x of target")
+            if peer:
+                print(f"   the machine's load: JuPedSim's 10,000-agent crowd step at "
+                      f"{r['jupedsim_10k_before']:.1f} steps/s just before, "
+                      f"{r['jupedsim_10k_after']:.1f} just after (tools/bench_sim.py's scene)")
     return rows
 
 
 if __name__ == "__main__":
     args = sys.argv[1:]
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))      # bench_sim, the peer's timing
     if args:
         run(tuple(tuple(int(x) for x in a.split(":")) for a in args))
     else:
