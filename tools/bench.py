@@ -105,7 +105,14 @@ def _section_figures(section: str, found) -> dict:
         out: dict = {}
         for (template, n, _camera, label), fps in found.items():
             out.setdefault(f"{template}_{n}", {}).setdefault(label.replace(", ", "_").replace(" ", "_"), []).append(fps)
-        return {scene: {label: _min_max(v) for label, v in labels.items()} for scene, labels in out.items()}
+        figures = {scene: {label: _min_max(v) for label, v in labels.items()} for scene, labels in out.items()}
+        # Each scene's worst camera: its frame with characters (level of detail, shadows) over the empty one's.
+        for (template, n, camera, label), fps in found.items():
+            if label == "lod" and (template, n, camera, "empty") in found:
+                over = found[(template, n, camera, "empty")] / fps
+                scene = figures[f"{template}_{n}"]
+                scene["over_empty"] = max(scene.get("over_empty", 0.0), over)
+        return figures
     return found
 
 

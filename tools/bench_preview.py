@@ -7,7 +7,9 @@ Builds shots with ``usdcrowd new TEMPLATE --agents N`` and
 of a few frames first (stage loading is not timed), then times drawing plus
 reading back colour, ids and depth, from both of the shot's cameras, with
 the default level of detail, with shadows off, and with every character at
-its full mesh for reference. Headless EGL; on a machine without a GPU that
+its full mesh for reference, and the same frames with no characters (the
+floor: the scenery, shadows and read-back alone), each setting's frame cost
+printed as a multiple of that empty frame's. Headless EGL; on a machine without a GPU that
 is Mesa's llvmpipe, whose speed depends on the cores it can use.
 """
 
@@ -18,7 +20,10 @@ import os
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
+
+import numpy as np
 
 
 SIZE = (1280, 720)
@@ -30,6 +35,7 @@ SIZE = (1280, 720)
 SCENES = (("museum", 1_000), ("museum", 10_000), ("volcano", 10_000))
 TARGET_AGENTS = 10_000
 TARGET_FPS = 24.0
+TARGET_OVER_EMPTY = 2.0     # a frame with 10,000 characters costs at most twice the frame without them
 
 
 def make_shot(n_agents: int, workdir: Path, frames: int, template: str = "museum") -> Path:
@@ -81,13 +87,19 @@ def run(frames: int = 8, workdir: str | os.PathLike | None = None, scenes=SCENES
         renderer_info = probe.ctx.info["GL_RENDERER"]
         for cam_path in scene.camera_paths:
             cams = {float(t): scene.camera(cam_path, t) for t in times}
+            nobody = {t: replace(p, visible=np.zeros(len(p), bool)) for t, p in poses.items()}
+            empty, _ = time_renderer(probe, nobody, cams)
+            results[(template, n, cam_path, "empty")] = empty
+            print(f"  {template:<8} {n:>6,} characters  {cam_path.rsplit('/', 1)[-1]:<10} {'no characters':<16} "
+                  f"{empty:6.2f} fps")
             for label, kwargs in (("lod", {}), ("lod, no shadows", {"shadows": False}),
                                   ("full meshes", {"lod_settings": LodSettings(enabled=False)})):
                 r = probe if label == "lod" else PreviewRenderer(scene, *SIZE, ctx=probe.ctx, **kwargs)
                 fps, stats = time_renderer(r, poses, cams)
                 results[(template, n, cam_path, label)] = fps
                 print(f"  {template:<8} {n:>6,} characters  {cam_path.rsplit('/', 1)[-1]:<10} {label:<16} "
-                      f"{fps:6.2f} fps  (full {stats['full']}, clustered {stats['coarse']}, "
+                      f"{fps:6.2f} fps, {empty / fps:5.2f}x the empty frame  (full {stats['full']}, "
+                      f"clustered {stats['coarse']}, "
                       f"impostors {stats.get('impostors', 0)}, points {stats['points']}, culled {stats['culled']})")
                 if r is not probe:
                     r.release()
@@ -101,6 +113,11 @@ def run(frames: int = 8, workdir: str | os.PathLike | None = None, scenes=SCENES
         verdict = "meets" if worst >= TARGET_FPS else "is under"
         print(f"target: >= {TARGET_FPS:g} fps for {n:,} characters with level of detail and shadows; "
               f"{template}: slowest camera {worst:.2f} fps {verdict} it")
+        over = max(results[(tp, m, cam, "empty")] / v for (tp, m, cam, lbl), v in results.items()
+                   if (tp, m) == (template, n) and lbl == "lod")
+        print(f"target: a frame with {n:,} characters (level of detail, shadows) at most {TARGET_OVER_EMPTY:g}x the "
+              f"same frame without them; {template}: {over:.2f}x at the worst camera "
+              f"({'met' if over <= TARGET_OVER_EMPTY else 'not met'})")
     return results
 
 
