@@ -98,7 +98,8 @@ def _section_figures(section: str, found) -> dict:
         except Exception:
             jps = None
         return {"usdcrowd": {str(r["agents"]): r["steps_per_s"] for r in found},
-                "jupedsim": {str(r["agents"]): r["jupedsim_steps_per_s"] for r in found}, "jupedsim_version": jps}
+                "jupedsim": {str(r["agents"]): r["jupedsim_steps_per_s"] for r in found},
+                "ratio": {str(r["agents"]): r["ratio"] for r in found}, "jupedsim_version": jps}
     if section == "cameras":
         return {f"{r['cameras']}x{r['characters']}": r for r in found}
     if section == "preview":

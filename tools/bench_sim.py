@@ -152,8 +152,8 @@ def bench_jupedsim(n: int, steps: int, warmup: int = 3) -> float | None:
     return steps / (time.perf_counter() - t0)
 
 
-def run(sizes=(1000, 10000, 100000), steps=None, jupedsim: bool = True) -> list[dict]:
-    """Benchmark usdcrowd.sim (and JuPedSim) at each size; print and return a table.
+def run(sizes=(1000, 10000, 100000), steps=None, jupedsim: bool = True, rounds: int = 3) -> list[dict]:
+    """Benchmark usdcrowd.sim (and JuPedSim) at each size in interleaved rounds; print and return a table.
 
     Parameters
     ----------
@@ -164,22 +164,34 @@ def run(sizes=(1000, 10000, 100000), steps=None, jupedsim: bool = True) -> list[
     jupedsim : bool
         Also time JuPedSim, the peer each row is measured against; missing, it is an error
         (:func:`require_jupedsim`), not a column of n/a.
+    rounds : int
+        usdcrowd then JuPedSim, this many times per size: the machine's speed drifts, so the
+        rates are medians and the ratio is the median of each round's ratio.
 
     Returns
     -------
     list of dict
-        Keys: agents, steps_per_s, setup_s, peak_mib, rebuilds, jupedsim_steps_per_s, ratio.
+        Keys: agents, steps_per_s, setup_s, peak_mib, rebuilds, jupedsim_steps_per_s, ratio, rounds
+        (each round's usdcrowd and JuPedSim rates).
     """
     if jupedsim:
         require_jupedsim("sim")
     rows = []
-    print(f"{'agents':>8} {'steps/s':>9} {'setup s':>8} {'peak MiB':>9} {'JuPedSim/s':>11} {'ratio':>7}")
+    print(f"{'agents':>8} {'steps/s':>9} {'setup s':>8} {'peak MiB':>9} {'JuPedSim/s':>11} {'ratio':>7}  "
+          f"(medians of {rounds} interleaved rounds)")
     for n in sizes:
         k = steps if isinstance(steps, int) else (steps or {}).get(n, 200 if n <= 2000 else 60 if n <= 20000 else 12)
-        r = bench_usdcrowd(n, k)
-        j = bench_jupedsim(n, max(3, k // 2 if n > 20000 else k)) if jupedsim else None
+        seen = []
+        for _ in range(rounds):
+            r = bench_usdcrowd(n, k)
+            j = bench_jupedsim(n, max(3, k // 2 if n > 20000 else k)) if jupedsim else None
+            seen.append((r, j))
+        r = dict(seen[-1][0])
+        r["steps_per_s"] = float(np.median([a["steps_per_s"] for a, _ in seen]))
+        r["rounds"] = [[a["steps_per_s"], b] for a, b in seen]
+        j = float(np.median([b for _, b in seen])) if jupedsim else None
         r["jupedsim_steps_per_s"] = j
-        r["ratio"] = (r["steps_per_s"] / j) if j else None
+        r["ratio"] = float(np.median([a["steps_per_s"] / b for a, b in seen])) if jupedsim else None
         rows.append(r)
         js = f"{j:11.1f}" if j else f"{'n/a':>11}"
         rt = f"{r['ratio']:7.2f}" if j else f"{'n/a':>7}"
