@@ -99,7 +99,8 @@ def _section_figures(section: str, found) -> dict:
             jps = None
         return {"usdcrowd": {str(r["agents"]): r["steps_per_s"] for r in found},
                 "jupedsim": {str(r["agents"]): r["jupedsim_steps_per_s"] for r in found},
-                "ratio": {str(r["agents"]): r["ratio"] for r in found}, "jupedsim_version": jps}
+                "ratio": {str(r["agents"]): r["ratio"] for r in found}, "jupedsim_version": jps,
+                **{"over_a_run": r["over_a_run"] for r in found if "over_a_run" in r}}
     if section == "cameras":
         return {f"{r['cameras']}x{r['characters']}": r for r in found}
     if section == "preview":

@@ -109,6 +109,30 @@ def bench_usdcrowd(n: int, steps: int, warmup: int = 3) -> dict:
             "rebuilds": sim.nl.rebuilds}
 
 
+def over_a_run(n: int = 1000, steps: int = 900, block: int = 100, jupedsim: bool = True) -> dict:
+    """Steps per second of each ``block`` of a ``steps``-long run of both simulators: a cost that grows
+    as a run goes on shows here. Returns ``usdcrowd`` and ``jupedsim`` lists, one rate per block."""
+    def blocks(step):
+        rates = []
+        for _ in range(steps // block):
+            t0 = time.perf_counter()
+            for _ in range(block):
+                step()
+            rates.append(block / (time.perf_counter() - t0))
+        return rates
+
+    sim = Simulation(scene(n), SimSettings(fps=1.0 / DT, substeps=1))
+    for _ in range(3):                  # warm-up, as the rate rows have
+        sim.step()
+    out = {"agents": n, "steps": steps, "block": block, "usdcrowd": blocks(sim.step)}
+    if jupedsim:
+        peer = _jupedsim_simulation(n)
+        for _ in range(3):
+            peer.iterate()
+        out["jupedsim"] = blocks(peer.iterate)
+    return out
+
+
 def require_jupedsim(section: str) -> None:
     """Stop with one line naming the missing peer and how to install it (a benchmark that compares with
     JuPedSim and prints n/a in its place says nothing)."""
@@ -121,13 +145,11 @@ def require_jupedsim(section: str) -> None:
                          "usdcrowd alone") from None
 
 
-def bench_jupedsim(n: int, steps: int, warmup: int = 3) -> float | None:
-    """Steps per second of JuPedSim's CollisionFreeSpeedModel on the same scene, or None."""
-    try:
-        import jupedsim as jps
-        import shapely
-    except ImportError:
-        return None
+def _jupedsim_simulation(n: int):
+    """JuPedSim's CollisionFreeSpeedModel set up on the scene (a journey shuttling between the waypoints)."""
+    import jupedsim as jps
+    import shapely
+
     h = SIDE / 2
     sim = jps.Simulation(model=jps.CollisionFreeSpeedModel(),
                          geometry=shapely.Polygon([(-h, -h), (h, -h), (h, h), (-h, h)]), dt=DT)
@@ -144,6 +166,15 @@ def bench_jupedsim(n: int, steps: int, warmup: int = 3) -> float | None:
         sim.add_agent(jps.CollisionFreeSpeedModelAgentParameters(
             journey_id=jid, stage_id=stage, position=(float(xy[i, 0]), float(xy[i, 1])), desired_speed=float(speed[i]),
             radius=0.25))
+    return sim
+
+
+def bench_jupedsim(n: int, steps: int, warmup: int = 3) -> float | None:
+    """Steps per second of JuPedSim's CollisionFreeSpeedModel on the same scene, or None."""
+    try:
+        sim = _jupedsim_simulation(n)
+    except ImportError:
+        return None
     for _ in range(warmup):
         sim.iterate()
     t0 = time.perf_counter()
@@ -196,6 +227,14 @@ def run(sizes=(1000, 10000, 100000), steps=None, jupedsim: bool = True, rounds: 
         js = f"{j:11.1f}" if j else f"{'n/a':>11}"
         rt = f"{r['ratio']:7.2f}" if j else f"{'n/a':>7}"
         print(f"{n:8d} {r['steps_per_s']:9.1f} {r['setup_s']:8.2f} {r['peak_mib']:9.1f} {js} {rt}", flush=True)
+    if 1000 in sizes:
+        long = over_a_run(1000, jupedsim=jupedsim)
+        rows[list(sizes).index(1000)]["over_a_run"] = long
+        for name in ("usdcrowd", "jupedsim"):
+            if name in long:
+                rates = long[name]
+                print(f"   {name}, 1,000 agents over {long['steps']} steps, steps/s per {long['block']}: "
+                      f"{' '.join(f'{x:.0f}' for x in rates)} (last / first {rates[-1] / rates[0]:.2f})")
     return rows
 
 

@@ -131,10 +131,14 @@ def _load(name: str, cache: dict) -> dict | None:
 
 
 def _lookup(tree, key: str):
+    """``key``'s value in ``tree``: dotted names, and indices into lists (``rates.0``, ``rates.-1``)."""
     for part in key.split("."):
-        if not isinstance(tree, dict) or part not in tree:
+        if isinstance(tree, list) and part.lstrip("-").isdigit() and -len(tree) <= int(part) < len(tree):
+            tree = tree[int(part)]
+        elif isinstance(tree, dict) and part in tree:
+            tree = tree[part]
+        else:
             raise KeyError(key)
-        tree = tree[part]
     return tree
 
 
