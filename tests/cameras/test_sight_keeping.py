@@ -285,3 +285,24 @@ def test_cameras_take_no_one_before_they_come_into_the_scene():
     centre, _ = crowd_summary(pos, np.ones(3, bool))
     np.testing.assert_allclose(centre[:come], pos[:come, 0])
     np.testing.assert_allclose(centre[come:], pos[come:].mean(axis=1))
+
+
+def test_someone_who_leaves_is_held_where_they_were_last_seen():
+    """The cameras' velocities need a position for people not in the scene: someone who leaves after a
+    stretch with everyone there is held where they left, not where they started."""
+    from usdcrowd.cameras.film import _Held
+
+    t = 6
+    pos = np.zeros((t, 2, 3))
+    pos[:, 0, 0] = np.arange(t)                   # there all along
+    pos[:, 1, 1] = 10.0 + np.arange(t)            # walks off and is gone from frame 3
+    pos[3:, 1] = np.nan
+    held = _Held(pos)
+    for k in range(3):
+        got, here = held(k)
+        assert here is None and np.array_equal(got, pos[k])
+    for k in range(3, t):
+        got, here = held(k)
+        assert here.tolist() == [True, False]
+        np.testing.assert_array_equal(got[1], pos[2, 1])        # where they left, not (0, 10, 0)
+        np.testing.assert_array_equal(got[0], pos[k, 0])

@@ -404,3 +404,46 @@ def test_a_track_with_the_id_of_a_companions_invisible_leader_is_refused_in_one_
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "invisible leader" in err and "Tally" in err, err
     assert not (tmp_path / "shot" / "shot.usda").exists()
+
+
+def test_a_window_of_a_long_track_reads_only_the_rows_around_it():
+    """A window's positions and facings come from the rows bracketing its frames, so making a window does not
+    cost more as a track grows; they are what interpolating the whole track gives."""
+    from usdcrowd.exchange.recorded_tracks import Tracks
+    from usdcrowd.exchange.replay_motion import TrackSampler
+
+    m = 5000                                           # one person, a row every 0.4 s, a wavy walk
+    frame = np.arange(m, dtype=np.float64) * 10
+    xy = np.column_stack([0.5 * np.arange(m), np.sin(np.arange(m) / 7.0)])
+    facing = np.linspace(-3.0, 3.0, m)
+    tracks = Tracks(np.array([1]), 25.0, frame, np.zeros(m, np.int64), xy, np.full(m, np.nan), "ethucy", "walk.txt",
+                    facing)
+    sampler = TrackSampler(tracks, 25.0)
+    a, b = 30_000, 30_040
+    rows = sampler._bracketing(0, np.arange(a, b))
+    assert rows.stop - rows.start <= 40 / 10 + 2
+    s = tracks.seconds
+    at = np.arange(a, b) / 25.0
+    np.testing.assert_allclose(sampler.window(a, b)[:, 0], np.column_stack([np.interp(at, s, xy[:, 0]),
+                                                                            np.interp(at, s, xy[:, 1])]))
+    expected = np.arctan2(np.interp(at, s, np.sin(facing)), np.interp(at, s, np.cos(facing)))
+    np.testing.assert_allclose(sampler.facing(a, b)[:, 0], expected, atol=1e-12)
+
+
+def test_who_is_present_reads_back_as_usd_computes_each_frames_visibility(tmp_path):
+    """read_crowd takes presence from the visibility samples (held between them): the same as plain
+    usd-core's ComputeVisibility at every frame."""
+    from pxr import Usd, UsdGeom
+
+    from usdcrowd.scenario.crowd import read_crowd
+
+    traj = tmp_path / "students.txt"
+    traj.write_text(ETH_ROWS)
+    shot = tmp_path / "shot"
+    assert main(["replay", str(traj), "-o", str(shot), "--cameras", "0", "--no-progress"]) == 0
+    frames, info = read_crowd(shot / "shot.usda")
+    stage = Usd.Stage.Open(str(shot / "shot.usda"))
+    expected = np.array([[UsdGeom.Imageable(stage.GetPrimAtPath(p)).ComputeVisibility(float(t)) != "invisible"
+                          for p in info.path] for t in frames.times])
+    assert expected.any() and not expected.all()
+    np.testing.assert_array_equal(frames.present, expected)

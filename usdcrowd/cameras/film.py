@@ -59,7 +59,9 @@ def film(positions: np.ndarray, times: np.ndarray, fps: float, cameras: model.Ca
         pos, here = held(k)
         if here is not None:                    # a replay: who is in the scene changes frame by frame
             agents.show(vis & here)
-        centre, radius = crowd_extent(pos[vis if here is None else vis & here])
+        shown = pos[vis if here is None else vis & here]
+        if len(shown) or k == 0:            # with nobody in the scene the crowd stays where it was last seen
+            centre, radius = crowd_extent(shown)
         agents.update_modes(float(times[k]), pos)
         if k > 0:               # the first frame shows the authored pose (levelled)
             for _ in range(params.substeps):
@@ -93,15 +95,19 @@ class _Held:
         self.positions = positions
         self.last = None
         self.first = None
+        self.previous = None        # the last frame while everyone was there (frames come in order)
 
     def __call__(self, k: int) -> tuple[np.ndarray, np.ndarray | None]:
         pos = np.asarray(self.positions[k], dtype=np.float64)
         here = np.isfinite(pos[:, 0])
         if self.first is None and here.all():
+            self.previous = pos
             return pos, None
         if self.first is None:
             self.first = _first_positions(self.positions)
-            self.last = self.first.copy()
+            # Someone leaving after a stretch with everyone there is held where they were last, not where
+            # they started.
+            self.last = self.first.copy() if self.previous is None else self.previous.copy()
         self.last[here] = pos[here]
         return np.where(here[:, None], pos, self.last), here
 

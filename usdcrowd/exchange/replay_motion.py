@@ -69,6 +69,9 @@ class TrackSampler:
         facing = tracks.facing if tracks.facing is not None else np.full(len(tracks.frame), np.nan)
         self._facing = facing if np.isfinite(facing).any() else None
         self._rows = np.searchsorted(tracks.person, np.arange(self.n + 1))
+        # Whether each person's every row says which way they face (persons are 0..n-1, each with rows).
+        self._facing_everywhere = (np.logical_and.reduceat(np.isfinite(facing), self._rows[:-1]) if len(facing)
+                                   else np.zeros(self.n, bool))
         start, end = self._rows[:-1], self._rows[1:] - 1
         self.n_frames = int(np.floor(self._s.max() * fps + 1e-6)) + 1
         self.first = np.ceil(self._s[start] * fps - 1e-6).astype(np.int64)
@@ -93,6 +96,15 @@ class TrackSampler:
                 out[i] = self._facing[self._rows[i]]
         return out
 
+    def _bracketing(self, i: int, k: np.ndarray) -> slice:
+        """Person ``i``'s rows from the last at or before frame ``k[0]`` to the first at or after ``k[-1]``:
+        all that interpolating at those frames needs (a window's cost then does not grow with the track)."""
+        start, end = self._rows[i], self._rows[i + 1]
+        s = self._s[start:end]
+        lo = max(int(np.searchsorted(s, k[0] / self.fps, side="right")) - 1, 0)
+        hi = min(int(np.searchsorted(s, k[-1] / self.fps, side="left")) + 1, end - start)
+        return slice(start + lo, start + hi)
+
     def facing(self, a: int, b: int) -> np.ndarray | None:
         """(b - a, n) the way each person faces at frames ``a`` to ``b - 1`` as the file says (between
         rows, turned the short way), radians; NaN where it does not say; None for a file without facings."""
@@ -100,12 +112,13 @@ class TrackSampler:
             return None
         out = np.full((b - a, self.n), np.nan)
         for i in np.flatnonzero((self.first < b) & (self.last >= a)):
-            rows = slice(self._rows[i], self._rows[i + 1])
+            k = np.arange(max(a, self.first[i]), min(b, self.last[i] + 1))
+            # Where some rows say no facing, the nearest that do may lie outside the window: the whole track.
+            rows = self._bracketing(i, k) if self._facing_everywhere[i] else slice(self._rows[i], self._rows[i + 1])
             si, fi = self._s[rows], self._facing[rows]
             ok = np.isfinite(fi)
             if not ok.any():
                 continue
-            k = np.arange(max(a, self.first[i]), min(b, self.last[i] + 1))
             at = np.clip(k / self.fps, si[0], si[-1])
             out[k - a, i] = np.arctan2(np.interp(at, si[ok], np.sin(fi[ok])), np.interp(at, si[ok], np.cos(fi[ok])))
         return out
@@ -114,9 +127,9 @@ class TrackSampler:
         """(b - a, n, 2) positions at frames ``a`` to ``b - 1``, metres; NaN where a person is absent."""
         xy = np.full((b - a, self.n, 2), np.nan)
         for i in np.flatnonzero((self.first < b) & (self.last >= a)):
-            rows = slice(self._rows[i], self._rows[i + 1])
-            si, pi = self._s[rows], self._xy[rows]
             k = np.arange(max(a, self.first[i]), min(b, self.last[i] + 1))
+            rows = self._bracketing(i, k)
+            si, pi = self._s[rows], self._xy[rows]
             at = np.clip(k / self.fps, si[0], si[-1])
             xy[k - a, i, 0], xy[k - a, i, 1] = np.interp(at, si, pi[:, 0]), np.interp(at, si, pi[:, 1])
         person, s0, s1 = self._gaps

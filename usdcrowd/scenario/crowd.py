@@ -308,8 +308,31 @@ def _presence(agents, codes: np.ndarray) -> np.ndarray | None:
     if not varying:
         return None
     present = np.ones((len(codes), len(agents)), bool)
+    shown = {}                  # parent path -> (t,) its computed visibility, each parent read once
+
+    def parent_shown(prim) -> np.ndarray:
+        parent = prim.GetParent()
+        key = parent.GetPath()
+        if key not in shown:
+            img = UsdGeom.Imageable(parent)
+            if not img:
+                shown[key] = np.ones(len(codes), bool)
+            elif img.GetVisibilityAttr().ValueMightBeTimeVarying():
+                shown[key] = np.array([img.ComputeVisibility(float(t)) != UsdGeom.Tokens.invisible for t in codes])
+            else:
+                shown[key] = np.full(len(codes), img.ComputeVisibility(float(codes[0])) != UsdGeom.Tokens.invisible)
+        return shown[key]
+
     for a, img in varying:
-        present[:, a] = [img.ComputeVisibility(float(t)) != UsdGeom.Tokens.invisible for t in codes]
+        # A token holds its value from one sample to the next: read the samples, not every frame.
+        attr = img.GetVisibilityAttr()
+        times = np.array(attr.GetTimeSamples(), dtype=np.float64)
+        if not len(times):
+            present[:, a] = [img.ComputeVisibility(float(t)) != UsdGeom.Tokens.invisible for t in codes]
+            continue
+        values = np.array([attr.Get(float(t)) != UsdGeom.Tokens.invisible for t in times])
+        own = values[np.maximum(np.searchsorted(times, np.asarray(codes, np.float64), side="right") - 1, 0)]
+        present[:, a] = own & parent_shown(img.GetPrim())
     return present
 
 
