@@ -103,12 +103,10 @@ def _section_figures(section: str, found) -> dict:
         for (template, n, _camera, label), fps in found.items():
             out.setdefault(f"{template}_{n}", {}).setdefault(label.replace(", ", "_").replace(" ", "_"), []).append(fps)
         figures = {scene: {label: _min_max(v) for label, v in labels.items()} for scene, labels in out.items()}
-        # Each scene's worst camera: its frame with characters (level of detail, shadows) over the empty one's.
-        for (template, n, camera, label), fps in found.items():
-            if label == "lod" and (template, n, camera, "empty") in found:
-                over = found[(template, n, camera, "empty")] / fps
-                scene = figures[f"{template}_{n}"]
-                scene["over_empty"] = max(scene.get("over_empty", 0.0), over)
+        from bench_preview import over_empty
+
+        for template, n in {(template, n) for template, n, _, _ in found}:
+            figures[f"{template}_{n}"]["over_empty"] = over_empty(found, template, n)
         return figures
     return found
 

@@ -394,24 +394,24 @@ def bench_quality(shot: str, camera: str = "/World/Cameras/Overview") -> dict:
     return out
 
 
-def cheapest_match(ours: dict, target: float, among=None, common: dict | None = None,
-                   common_target: float | None = None) -> tuple[str, int] | None:
+def cheapest_match(ours: dict, target: float, common: dict, common_target: float,
+                   among=None) -> tuple[str, int] | None:
     """The quickest of usdcrowd's rows (``ours``: (name, spp) -> ((measured, corrected), seconds)), or of
-    those ``among``, whose corrected error is at most ``target`` and, given ``common`` (the same rows
-    against the common reference), whose error there is at most ``common_target``; None if none is.
+    those ``among``, whose corrected error is at most ``target`` and whose error against the common
+    reference (``common``, the same rows) is at most ``common_target``; None if none is.
 
     Both, because the two renderers' converged frames differ by more than a frame's noise: against the
     common reference alone, a noisy frame would match a clean one whose picture lies as far on the other
     side."""
-    keys = [k for k in (ours if among is None else among) if ours[k][0][1] <= target
-            and (common is None or common[k][0][1] <= common_target)]
+    keys = [k for k in (ours if among is None else among)
+            if ours[k][0][1] <= target and common[k][0][1] <= common_target]
     return min(keys, key=lambda k: ours[k][1], default=None)
 
 
 def match_cycles(out: dict, label: str, among=None) -> tuple[str, int] | None:
     """usdcrowd's quickest row as close as Cycles' ``label`` frame to both its own and the common reference."""
-    return cheapest_match(out["ours"], out["cycles"][label][0][1], among, out["ours_common"],
-                          out["cycles_common"][label][0][1])
+    return cheapest_match(out["ours"], out["cycles"][label][0][1], out["ours_common"],
+                          out["cycles_common"][label][0][1], among)
 
 
 # Rounds of the timing in turns: the machine's speed drifts 10-20 % within the benchmark's quarter of an hour,

@@ -11,7 +11,9 @@ A walker heading for a goal looks over its field of view and
    speed-density relation (the fundamental diagram) without it being put in.
 
 Here the people seen are the neighbour list's (``NEIGHBOR_K`` nearest within
-``NEIGHBOR_RADIUS``); walls are left to the wall forces and constraints.
+``NEIGHBOR_RADIUS``); walls are seen along each direction by sampling the
+walkable grid's distance to them (:func:`_wall_hit`), and the wall forces and
+constraints still keep bodies out of them.
 """
 
 from __future__ import annotations
