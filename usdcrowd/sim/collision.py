@@ -27,6 +27,7 @@ import numpy as np
 
 from . import params as P
 from .grid import WalkGrid
+from .kernels import GOLDEN_ANGLE, overlap_corrections
 
 _GAP_MIN = np.float32(0.02)  # m, floor of the gap in t_o (contact)
 
@@ -114,28 +115,11 @@ def resolve_overlaps(pos, idx, radius, movable, relax=P.OVERLAP_RELAX):
         1 for agents that may be pushed, 0 to pin (dead bodies stay put).
     """
     n = idx.shape[0]
-    pj = pos[:, idx]
-    dx = pos[:, :n, None] - pj
-    dist = np.sqrt(dx[0] * dx[0] + dx[1] * dx[1])
-    over = radius[:n, None] + radius[idx] - dist
-    w = np.where(over > 0, over * np.float32(0.5 * relax) / np.maximum(dist, 1e-6), 0.0).astype(np.float32)
-    # Coincident agents: push each pair apart along a direction of their own, opposite for the two
-    # (the same direction for both would move them together, never apart).
-    same = dist < 1e-6
-    if same.any():
-        i, k = np.nonzero(same)
-        j = idx[i, k].astype(np.int64)
-        angle = ((i + j) * _GOLDEN_ANGLE) % (2.0 * np.pi)
-        side = np.where(i > j, 1.0, -1.0)
-        dx[0][i, k] = side * np.cos(angle)
-        dx[1][i, k] = side * np.sin(angle)
-        w[same] = np.float32(0.5 * relax) * over[same]
-    corr = np.einsum("cnk,nk->cn", dx, w)
-    pos[:, :n] += corr * movable
+    corr = np.empty((2, n), np.float32)
+    overlap_corrections(pos, idx, radius, movable, np.float32(0.5 * relax), corr)
+    pos[:, :n] += corr
 
 
-# Successive pairs turn by the golden angle: coincident clones fan out evenly.
-_GOLDEN_ANGLE = np.pi * (3.0 - np.sqrt(5.0))
 # The k-th body of a pile is set sqrt(k) times this many body widths from its centre.
 SPIRAL_SPACING = 0.6
 
@@ -217,7 +201,7 @@ def _spread_coincident(pos, radius, movable) -> None:
     rank[order] = np.arange(n) - first[inverse[order]]
     # About one body's square of area each.
     r = SPIRAL_SPACING * 2.0 * radius[:n].astype(np.float64) * np.sqrt(rank)
-    angle = rank * _GOLDEN_ANGLE
+    angle = rank * GOLDEN_ANGLE
     pos[0, :n] += np.where(shared, r * np.cos(angle), 0.0).astype(pos.dtype)
     pos[1, :n] += np.where(shared, r * np.sin(angle), 0.0).astype(pos.dtype)
 

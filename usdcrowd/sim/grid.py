@@ -22,6 +22,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..core.model import Obstacles, Scenario, code, LAYER_MEANINGS, LAYER_GENERATORS
+from . import kernels
 from . import params as P
 
 
@@ -110,6 +111,8 @@ class WalkGrid:
         self._flat_ny = self.normal[1].ravel()
         self._flat_solid = self.solid.ravel()
         self._flat_label = self.label.ravel()
+        # What the compiled lookups need to find a point's cell (as flat_index does).
+        self._lookup = (float(self.origin[0]), float(self.origin[1]), 1.0 / self.cell, self.w, self.h)
 
     # -- rasterisation -------------------------------------------------------
     def _raster_polygon(self, poly: np.ndarray, index: int, label: np.ndarray) -> None:
@@ -158,8 +161,8 @@ class WalkGrid:
         nx, ny : (n,) float32
             Unit normal pointing away from it.
         """
-        f = self.flat_index(x, y)
-        return self._flat_sdf[f], self._flat_nx[f], self._flat_ny[f]
+        return kernels.clearance(np.asarray(x), np.asarray(y), *self._lookup, self._flat_sdf, self._flat_nx,
+                                 self._flat_ny)
 
     def is_solid(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """(n,) bool: points whose cell is solid."""
@@ -194,13 +197,10 @@ class WalkGrid:
         dy = by - ay
         length = np.sqrt(dx * dx + dy * dy)
         s = int(min(max_samples, max(2, np.ceil(length.max() / (0.7 * self.cell)) + 1)))
-        # Sample strictly inside the segment: the end points are agents'
+        # Sampled strictly inside the segment: the end points are agents'
         # positions, which may touch a wall's cell.
-        t = ((np.arange(s, dtype=np.float32) + 0.5) / s)[None, :]
-        px = ax[:, None] + dx[:, None] * t
-        py = ay[:, None] + dy[:, None] * t
-        blocked = self._flat_solid[self.flat_index(px.ravel(), py.ravel())].reshape(n, s)
-        return ~blocked.any(axis=1)
+        return kernels.line_of_sight(np.asarray(ax), np.asarray(ay), np.asarray(bx), np.asarray(by), s, *self._lookup,
+                                     self._flat_solid)
 
     def cell_centers(self) -> np.ndarray:
         """(2, h*w) float64 centres of all cells, flat order."""

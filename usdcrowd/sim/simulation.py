@@ -11,6 +11,7 @@ behavior maps, reactions      :mod:`usdcrowd.sim.behavior_maps`
 Bezier / slope paths          :mod:`usdcrowd.sim.paths`
 walkable grid, distance maps  :mod:`usdcrowd.sim.grid`, :mod:`usdcrowd.sim.distance_maps`
 neighbour lists               :mod:`usdcrowd.sim.neighbors`
+pair and grid loops, compiled :mod:`usdcrowd.sim.kernels` (same formulas)
 integration, limits, heading  :meth:`Simulation.step` (below)
 ===========================  ===============================================
 
@@ -36,15 +37,15 @@ import numpy as np
 from ..core.model import BEHAVIORS, CHARACTER_TYPES, HEALTH_STATES, ROLES, CrowdFrames, Scenario, code
 from . import params as P
 from .behavior_maps import Reactions
-from .collision import (agent_avoidance, project_out_of_walls, resolve_overlaps, room_for_piles, separate_spawns,
-                        wall_avoidance)
+from .collision import project_out_of_walls, resolve_overlaps, room_for_piles, separate_spawns, wall_avoidance
 from .distance_maps import DistanceMaps
 from .grid import WalkGrid
-from .groups import Groups, flocking, mate_mask
+from .groups import Groups, mate_mask
 from .interest import InterestFields
+from .kernels import pair_forces
 from .neighbors import NeighborList
 from .paths import BEZIER, GRADIENT, BezierPaths, SlopeSteering, Terrain, choose_path_method, enforce_slope
-from .steering import arrive, clip_norm, containment, separation, steer, unit, wander
+from .steering import arrive, clip_norm, containment, steer, unit, wander
 from .trade import Trading, top_groups
 from .validate import validate
 from .vision import heuristic_velocity
@@ -467,13 +468,8 @@ class Simulation:
         v_i = vel[:, :n]
         F = steer(it.v, v_i)
         idx = self.nl.idx
-        dx = pos[:, :n, None] - pos[:, idx]
-        dv = v_i[:, :, None] - vel[:, idx]
-        dist = np.sqrt(dx[0] * dx[0] + dx[1] * dx[1])
-        gap = dist - (self.radius[:n, None] + self.radius[idx])
-        F += agent_avoidance(dx, dv, dist, gap, v_i)  # E_C, dynamic obstacles
-        F += separation(dx, dist, gap)  # personal space
-        F += flocking(dx, dv, dist, self.mates)  # E_F + E_V
+        # E_C against other agents, personal space, E_F + E_V: one pass over the neighbour table.
+        pair_forces(pos, vel, self.radius, idx, self.mates, F)
         if self.grid.has_solid:
             F += wall_avoidance(self.grid, pos[:, :n], v_i, self.radius[:n])  # E_C, static
         F += containment(pos[:, :n], v_i, self.lo, self.hi)

@@ -21,20 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import params as P
-
-
-def _ray_hit(ox, oy, ux, uy, speed, rel_vx, rel_vy, reach):
-    """Distance walked along unit ``u`` at ``speed`` before touching discs of radius ``reach`` at relative
-    positions ``o`` moving at relative velocities ``rel_v``: inf where never, 0 where already touching and
-    closing in. All broadcastable arrays."""
-    wx, wy = rel_vx - speed * ux, rel_vy - speed * uy        # the disc's motion seen from the walker
-    a = wx * wx + wy * wy
-    b = ox * wx + oy * wy                                     # < 0: closing in
-    c = ox * ox + oy * oy - reach * reach                     # < 0: touching now
-    disc = b * b - a * c
-    t = (-b - np.sqrt(np.maximum(disc, 0.0))) / np.maximum(a, np.float32(1e-9))
-    dist = np.where((disc > 0.0) & (b < 0.0) & (a > 1e-9), np.maximum(t, 0.0) * speed, np.float32(np.inf))
-    return np.where(c <= 0.0, np.where(b < 0.0, np.float32(0.0), np.float32(np.inf)), dist)
+from .kernels import free_distances, standing_gaps
 
 
 # Distances along a direction at which walls are looked for, metres (to the horizon).
@@ -96,28 +83,22 @@ def heuristic_velocity(pos: np.ndarray, vel: np.ndarray, goal_dir: np.ndarray, v
     if m == 0:
         return np.zeros((2, 0), np.float32), np.zeros(0, bool)
     nb = idx[rows]                                            # (m, k)
-    ox = (pos[0, nb] - pos[0, rows, None])[:, None, :]       # (m, 1, k)
-    oy = (pos[1, nb] - pos[1, rows, None])[:, None, :]
-    rvx, rvy = vel[0, nb][:, None, :], vel[1, nb][:, None, :]
-    reach = (radius[rows, None] + radius[nb])[:, None, :]
     base = np.arctan2(goal_dir[1], goal_dir[0]).astype(np.float32)[:, None]
     offsets = np.radians(np.linspace(-fov_deg, fov_deg, directions)).astype(np.float32)[None, :]
     ang = base + offsets                                       # (m, d)
-    ux, uy = np.cos(ang)[..., None], np.sin(ang)[..., None]   # (m, d, 1)
-    speed = np.asarray(v0, np.float32)[:, None, None]
-    f = _ray_hit(ox, oy, ux, uy, speed, rvx, rvy, reach).min(axis=2)
-    f = np.minimum(f, horizon)                                 # (m, d)
+    ux, uy = np.cos(ang), np.sin(ang)                          # (m, d)
+    # The discs' (neighbours') hits, walker by walker (:func:`.kernels.free_distances`).
+    f = free_distances(pos, vel, radius, nb, rows, ux, uy, np.asarray(v0, np.float32), np.float32(horizon))
     if walls is not None:
-        f_wall = _wall_hit(walls, pos[:, rows], ux[..., 0], uy[..., 0], radius[rows], horizon)
+        f_wall = _wall_hit(walls, pos[:, rows], ux, uy, radius[rows], horizon)
         f = np.minimum(f, f_wall)
     # Distance left to the goal (at the horizon) after walking f along each direction.
     left = f * f - np.float32(2.0 * horizon) * f * np.cos(offsets)        # + horizon^2, the same for all
     best = np.argmin(left, axis=1)
     pick = np.arange(m)
-    ux, uy = ux[pick, best, 0], uy[pick, best, 0]
+    ux, uy = ux[pick, best], uy[pick, best]
     # The time gap to whoever stands in the chosen direction now (they might stop).
-    still = _ray_hit(ox[:, 0], oy[:, 0], ux[:, None], uy[:, None], np.float32(1.0), 0.0, 0.0, reach[:, 0])
-    gap = np.minimum(still.min(axis=1), horizon)
+    gap = standing_gaps(pos, radius, nb, rows, ux, uy, np.float32(horizon))
     if walls is not None:
         gap = np.minimum(gap, f_wall[pick, best])
     v0 = np.asarray(v0, np.float32)

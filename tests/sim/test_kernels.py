@@ -1,0 +1,188 @@
+"""The compiled loops of the crowd step (usdcrowd.sim.kernels) against the numpy formulas they replace.
+
+The grid and vision kernels must give the reference's bits; the pair forces and overlap corrections
+sum neighbours in another order, so they must agree to float32 rounding. The references here are the
+vectorised numpy forms (the package's own building blocks where they remain, the step's former code
+otherwise).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tests.helpers import scenarios as S
+from tests.helpers.tools import load_tool
+from usdcrowd.sim import SimSettings, Simulation
+from usdcrowd.sim import kernels as K
+from usdcrowd.sim import params as P
+from usdcrowd.sim.collision import GOLDEN_ANGLE, agent_avoidance, resolve_overlaps
+from usdcrowd.sim.grid import WalkGrid
+from usdcrowd.sim.groups import flocking, mate_mask
+from usdcrowd.sim.neighbors import NeighborList
+from usdcrowd.sim.steering import separation
+from usdcrowd.sim.vision import heuristic_velocity
+
+
+@pytest.fixture
+def packed_crowd():
+    """600 people walking every way in a 12 m square (many touching, some coincident pairs), in groups
+    of 6, with their neighbour table: (pos, vel, radius, idx, mates)."""
+    rng = np.random.default_rng(7)
+    n = 600
+    pos = np.empty((2, n + 1), np.float32)
+    pos[:, :n] = rng.uniform(-6.0, 6.0, (2, n))
+    pos[:, 50:53] = pos[:, 40:43]                     # three people on top of three others
+    pos[:, n] = P.GHOST_POSITION
+    vel = np.zeros((2, n + 1), np.float32)
+    vel[:, :n] = rng.normal(0.0, 1.0, (2, n))
+    radius = np.append(rng.uniform(0.2, 0.3, n), 0.0).astype(np.float32)
+    nl = NeighborList(n, np.arange(n))
+    nl.update(pos)
+    group = np.append(np.arange(n) // 6, -1).astype(np.int32)
+    mates = mate_mask(group, nl.idx, np.zeros(n, bool))
+    return pos, vel, radius, nl.idx, mates
+
+
+def _reference_pair_forces(pos, vel, radius, idx, mates, steering):
+    n = idx.shape[0]
+    dx = pos[:, :n, None] - pos[:, idx]
+    dv = vel[:, :n, None] - vel[:, idx]
+    dist = np.sqrt(dx[0] * dx[0] + dx[1] * dx[1])
+    gap = dist - (radius[:n, None] + radius[idx])
+    F = steering.copy()
+    F += agent_avoidance(dx, dv, dist, gap, vel[:, :n])
+    F += separation(dx, dist, gap)
+    F += flocking(dx, dv, dist, mates)
+    return F
+
+
+def _reference_overlaps(pos, idx, radius, movable, relax=P.OVERLAP_RELAX):
+    """The Jacobi pass as numpy arrays (the step's former code)."""
+    n = idx.shape[0]
+    dx = pos[:, :n, None] - pos[:, idx]
+    dist = np.sqrt(dx[0] * dx[0] + dx[1] * dx[1])
+    over = radius[:n, None] + radius[idx] - dist
+    w = np.where(over > 0, over * np.float32(0.5 * relax) / np.maximum(dist, 1e-6), 0.0).astype(np.float32)
+    same = dist < 1e-6
+    i, k = np.nonzero(same)
+    j = idx[i, k].astype(np.int64)
+    angle = ((i + j) * GOLDEN_ANGLE) % (2.0 * np.pi)
+    side = np.where(i > j, 1.0, -1.0)
+    dx[0][i, k] = side * np.cos(angle)
+    dx[1][i, k] = side * np.sin(angle)
+    w[same] = np.float32(0.5 * relax) * over[same]
+    out = pos.copy()
+    out[:, :n] += np.einsum("cnk,nk->cn", dx, w) * movable
+    return out
+
+
+def _reference_ray_hit(ox, oy, ux, uy, speed, rel_vx, rel_vy, reach):
+    """vision's time-to-touch of discs as broadcast numpy arrays (its former form)."""
+    wx, wy = rel_vx - speed * ux, rel_vy - speed * uy
+    a = wx * wx + wy * wy
+    b = ox * wx + oy * wy
+    c = ox * ox + oy * oy - reach * reach
+    disc = b * b - a * c
+    t = (-b - np.sqrt(np.maximum(disc, 0.0))) / np.maximum(a, np.float32(1e-9))
+    dist = np.where((disc > 0.0) & (b < 0.0) & (a > 1e-9), np.maximum(t, 0.0) * speed, np.float32(np.inf))
+    return np.where(c <= 0.0, np.where(b < 0.0, np.float32(0.0), np.float32(np.inf)), dist)
+
+
+def test_pair_forces_are_the_three_force_terms_summed(packed_crowd):
+    pos, vel, radius, idx, mates = packed_crowd
+    n = idx.shape[0]
+    steering = np.random.default_rng(1).normal(0.0, 1.0, (2, n)).astype(np.float32)
+    want = _reference_pair_forces(pos, vel, radius, idx, mates, steering)
+    got = steering.copy()
+    K.pair_forces(pos, vel, radius, idx, mates, got)
+    assert np.abs(want - steering).max() > 10.0          # the terms are not negligible here
+    np.testing.assert_allclose(got, want, rtol=1e-5, atol=2e-5)
+
+
+def test_overlap_corrections_push_apart_as_the_jacobi_pass_did(packed_crowd):
+    pos, _, radius, idx, _ = packed_crowd
+    n = idx.shape[0]
+    movable = np.ones(n, np.float32)
+    movable[::7] = 0.0                                   # pinned bodies stay put
+    want = _reference_overlaps(pos, idx, radius, movable)
+    got = pos.copy()
+    resolve_overlaps(got, idx, radius, movable)
+    assert np.abs(want - pos).max() > 0.05
+    np.testing.assert_allclose(got, want, rtol=0, atol=2e-6)
+    np.testing.assert_array_equal(got[:, :n:7], pos[:, :n:7])
+    # The coincident pairs go opposite ways.
+    d = got[:, 50:53] - got[:, 40:43]
+    assert (np.hypot(d[0], d[1]) > 0.05).all()
+
+
+@pytest.fixture
+def walled_grid():
+    """The crowd-step benchmark's square with its four walls, as a walkable grid."""
+    return WalkGrid(load_tool("bench_sim").scene(50))
+
+
+def test_grid_lookups_give_the_reference_bits(walled_grid):
+    g = walled_grid
+    rng = np.random.default_rng(3)
+    for dtype in (np.float32, np.float64):
+        x, y = rng.uniform(-104.0, 104.0, (2, 5000)).astype(dtype)
+        f = g.flat_index(x, y)
+        sdf, nx, ny = g.clearance(x, y)
+        np.testing.assert_array_equal(sdf, g._flat_sdf[f])
+        np.testing.assert_array_equal(nx, g._flat_nx[f])
+        np.testing.assert_array_equal(ny, g._flat_ny[f])
+        bx, by = rng.uniform(-104.0, 104.0, (2, 5000)).astype(dtype)
+        bx[:2500], by[:2500] = x[:2500] + (bx[:2500] - x[:2500]) * 0.02, y[:2500] + (by[:2500] - y[:2500]) * 0.02
+        s = int(min(96, max(2, np.ceil(np.hypot(bx - x, by - y).max() / (0.7 * g.cell)) + 1)))
+        t = ((np.arange(s, dtype=np.float32) + 0.5) / s)[None, :]
+        px, py = x[:, None] + (bx - x)[:, None] * t, y[:, None] + (by - y)[:, None] * t
+        want = ~g._flat_solid[g.flat_index(px.ravel(), py.ravel())].reshape(len(x), s).any(axis=1)
+        got = g.line_of_sight(x, y, bx, by)
+        assert 0 < want.sum() < len(want)
+        np.testing.assert_array_equal(got, want)
+
+
+def test_walking_by_sight_gives_the_reference_bits(packed_crowd):
+    pos, vel, radius, idx, _ = packed_crowd
+    rows = np.arange(0, idx.shape[0], 3)
+    rng = np.random.default_rng(5)
+    a = rng.uniform(-np.pi, np.pi, len(rows))
+    goal = np.stack([np.cos(a), np.sin(a)])
+    v0 = rng.uniform(1.0, 1.5, len(rows))
+    got, free = heuristic_velocity(pos, vel, goal, v0, idx, radius, rows)
+    # The reference: every walker x direction x neighbour as broadcast arrays.
+    nb = idx[rows]
+    ox = (pos[0, nb] - pos[0, rows, None])[:, None, :]
+    oy = (pos[1, nb] - pos[1, rows, None])[:, None, :]
+    reach = (radius[rows, None] + radius[nb])[:, None, :]
+    base = np.arctan2(goal[1], goal[0]).astype(np.float32)[:, None]
+    d = P.VISION_DIRECTIONS
+    offsets = np.radians(np.linspace(-P.VISION_FIELD_DEG, P.VISION_FIELD_DEG, d)).astype(np.float32)[None, :]
+    ux, uy = np.cos(base + offsets)[..., None], np.sin(base + offsets)[..., None]
+    f = _reference_ray_hit(ox, oy, ux, uy, v0.astype(np.float32)[:, None, None], vel[0, nb][:, None, :],
+                           vel[1, nb][:, None, :], reach).min(axis=2)
+    f = np.minimum(f, P.VISION_HORIZON)
+    left = f * f - np.float32(2.0 * P.VISION_HORIZON) * f * np.cos(offsets)
+    best = np.argmin(left, axis=1)
+    pick = np.arange(len(rows))
+    ux, uy = ux[pick, best, 0], uy[pick, best, 0]
+    still = _reference_ray_hit(ox[:, 0], oy[:, 0], ux[:, None], uy[:, None], np.float32(1.0), 0.0, 0.0,
+                               reach[:, 0])
+    gap = np.minimum(still.min(axis=1), P.VISION_HORIZON)
+    v = np.minimum(v0.astype(np.float32), np.maximum(gap, 0.0) / np.float32(P.VISION_TAU))
+    want = np.stack([ux * v, uy * v]).astype(np.float32)
+    assert 0 < free.sum() < len(rows)                     # some walkers blocked, some not
+    np.testing.assert_array_equal(got, want)
+
+
+def test_the_compiled_step_gives_the_same_bytes_run_to_run():
+    """Both cores share the loops: each agent's sums still run in one order, so a seed gives one result."""
+    sc = S.room_with_pillars(n=120, seed=4)
+    runs = []
+    for _ in range(2):
+        sim = Simulation(sc, SimSettings())
+        for _ in range(150):
+            sim.step()
+        runs.append((sim.pos.tobytes(), sim.vel.tobytes()))
+    assert runs[0] == runs[1]

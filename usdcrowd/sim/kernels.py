@@ -1,0 +1,281 @@
+"""Compiled loops of the crowd step (numba).
+
+The step's pair interactions and grid queries, written as one loop over
+agents each instead of a chain of ``(n, k)`` numpy temporaries: the same
+formulas as the vectorised building blocks they replace
+(:func:`.collision.agent_avoidance`, :func:`.steering.separation`,
+:func:`.groups.flocking`, :func:`.collision.resolve_overlaps`,
+:meth:`.grid.WalkGrid.clearance` and ``line_of_sight``, the time to touch a
+disc of :mod:`.vision`). The numpy forms stay as the readable reference
+(in the package, or in ``tests/sim/test_kernels.py``) the tests compare
+these against.
+
+All arithmetic is float32 where the reference's is (module constants are
+``np.float32``: a Python float literal would make numba compute in float64).
+The grid and vision kernels give the reference's bits exactly; the pair
+forces sum each agent's neighbours in order, where numpy's ``einsum`` and
+``sum`` group them differently, so forces agree to float32 rounding
+(``tests/sim/test_kernels.py``), not bit for bit. Every kernel is
+deterministic: the same seed gives the same bytes run to run.
+
+Compiled once per machine (``cache=True`` keeps the machine code beside
+this file, or in numba's user cache where that is read-only).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from . import params as P
+
+_F0 = np.float32(0.0)
+_F1 = np.float32(1.0)
+_EPS = np.float32(1e-6)
+_CLOSING = np.float32(1e-3)
+_GAP_MIN = np.float32(0.02)
+_AVOID_EXP = np.float32(-0.5 / (P.AGENT_AVOID_TAU * P.AGENT_AVOID_TAU))
+_AVOID_GAIN = np.float32(P.AGENT_AVOID_GAIN)
+_HORIZON = np.float32(P.AVOID_HORIZON)
+_BIAS = np.float32(P.PASS_RIGHT_BIAS)
+_PERSONAL = np.float32(P.PERSONAL_GAP)
+_SEP_SCALE = np.float32(P.SEPARATION_GAIN / P.PERSONAL_GAP)
+_FLOCK_RADIUS = np.float32(P.FLOCK_RADIUS)
+_COHESION = np.float32(P.COHESION_GAIN)
+_ALIGN = np.float32(P.ALIGN_GAIN)
+# Successive pairs turn by the golden angle: coincident clones fan out evenly.
+GOLDEN_ANGLE = np.pi * (3.0 - np.sqrt(5.0))
+_INF32 = np.float32(np.inf)
+_A_MIN = np.float32(1e-9)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def pair_forces(pos, vel, radius, idx, mates, out):
+    """Time-to-impact avoidance, then personal space, then flocking from each agent's neighbours,
+    added to ``out`` in that order.
+
+    Parameters
+    ----------
+    pos, vel : (2, n + 1) float32
+        Positions and velocities, ghost last.
+    radius : (n + 1,) float32
+    idx : (n, k) int32
+        Neighbour table (``n``: none).
+    mates : (n, k) float32
+        Group-mate (and line-of-sight) mask.
+    out : (2, n) float32
+        Forces so far (steering), m/s^2; the three are added to it in place.
+    """
+    n, k = idx.shape
+    for i in prange(n):
+        px, py = pos[0, i], pos[1, i]
+        vx, vy = vel[0, i], vel[1, i]
+        ri = radius[i]
+        sp = np.sqrt(vx * vx + vy * vy)
+        inv_v = _BIAS / max(sp, _CLOSING)
+        rx = vy * inv_v
+        ry = -vx * inv_v
+        ax = _F0
+        ay = _F0
+        sx_sep = _F0
+        sy_sep = _F0
+        cx = _F0
+        cy = _F0
+        mvx = _F0
+        mvy = _F0
+        count = _F0
+        for c in range(k):
+            j = idx[i, c]
+            if j == n:  # the ghost: far away, never a mate
+                continue
+            dx = px - pos[0, j]
+            dy = py - pos[1, j]
+            dvx = vx - vel[0, j]
+            dvy = vy - vel[1, j]
+            dist = np.sqrt(dx * dx + dy * dy)
+            gap = dist - (ri + radius[j])
+            # Seed 003's E_C against a moving obstacle (collision.agent_avoidance).
+            closing = -(dx * dvx + dy * dvy) * (_F1 / max(dist, _EPS))
+            if closing > _CLOSING:
+                t = max(gap, _GAP_MIN) / closing
+                mag = np.exp(_AVOID_EXP * t * t) * _AVOID_GAIN
+                tc = min(t, _HORIZON)
+                sx = dx + dvx * tc
+                sy = dy + dvy * tc
+                inv_s = _F1 / max(np.sqrt(sx * sx + sy * sy), _EPS)
+                ax += (sx * inv_s + rx) * mag
+                ay += (sy * inv_s + ry) * mag
+            # Personal space (steering.separation).
+            w = max((_PERSONAL - gap) * _SEP_SCALE, _F0) / max(dist, _EPS)
+            sx_sep += dx * w
+            sy_sep += dy * w
+            # E_F + E_V with visible group-mates (groups.flocking).
+            if dist < _FLOCK_RADIUS:
+                m = mates[i, c]
+                count += m
+                cx += dx * m
+                cy += dy * m
+                mvx += dvx * m
+                mvy += dvy * m
+        cnt = max(count, _F1)
+        out[0, i] = ((out[0, i] + ax) + sx_sep) + (cx * (-_COHESION / cnt) + mvx * (-_ALIGN / cnt))
+        out[1, i] = ((out[1, i] + ay) + sy_sep) + (cy * (-_COHESION / cnt) + mvy * (-_ALIGN / cnt))
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def overlap_corrections(pos, idx, radius, movable, half_relax, out):
+    """One Jacobi pass of overlap corrections (collision.resolve_overlaps), into ``out`` (2, n).
+
+    Coincident pairs are pushed apart along a direction of their own, opposite for the two (the
+    golden-angle turn of the reference).
+    """
+    n, k = idx.shape
+    for i in prange(n):
+        px, py = pos[0, i], pos[1, i]
+        ri = radius[i]
+        sx = _F0
+        sy = _F0
+        for c in range(k):
+            j = idx[i, c]
+            if j == n:
+                continue
+            dx = px - pos[0, j]
+            dy = py - pos[1, j]
+            dist = np.sqrt(dx * dx + dy * dy)
+            over = ri + radius[j] - dist
+            if dist < _EPS:
+                angle = ((i + j) * GOLDEN_ANGLE) % (2.0 * np.pi)
+                side = 1.0 if i > j else -1.0
+                dx = np.float32(side * np.cos(angle))
+                dy = np.float32(side * np.sin(angle))
+                w = half_relax * over
+            elif over > _F0:
+                w = over * half_relax / max(dist, _EPS)
+            else:
+                continue
+            sx += dx * w
+            sy += dy * w
+        out[0, i] = sx * movable[i]
+        out[1, i] = sy * movable[i]
+
+
+@njit(cache=True, nogil=True)
+def _cell(x, y, ox, oy, inv_cell, w, h):
+    # As WalkGrid.flat_index: float64 offsets, truncation, clamping.
+    ix = min(max(np.int64((np.float64(x) - ox) * inv_cell), 0), w - 1)
+    iy = min(max(np.int64((np.float64(y) - oy) * inv_cell), 0), h - 1)
+    return iy * w + ix
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def clearance(x, y, ox, oy, inv_cell, w, h, sdf, nx, ny):
+    """Nearest-cell clearance and wall normal at points (WalkGrid.clearance).
+
+    Returns
+    -------
+    (m,) float32 sdf, nx, ny
+    """
+    m = x.shape[0]
+    s = np.empty(m, np.float32)
+    ux = np.empty(m, np.float32)
+    uy = np.empty(m, np.float32)
+    for i in prange(m):
+        f = _cell(x[i], y[i], ox, oy, inv_cell, w, h)
+        s[i] = sdf[f]
+        ux[i] = nx[f]
+        uy[i] = ny[f]
+    return s, ux, uy
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def line_of_sight(ax, ay, bx, by, samples, ox, oy, inv_cell, w, h, solid):
+    """Whether segments a->b cross no solid cell, each sampled at ``samples`` points strictly inside
+    (WalkGrid.line_of_sight); a segment stops at its first solid sample.
+
+    Returns
+    -------
+    (m,) bool
+    """
+    m = ax.shape[0]
+    out = np.ones(m, np.bool_)
+    s32 = np.float32(samples)
+    for i in prange(m):
+        dx = bx[i] - ax[i]
+        dy = by[i] - ay[i]
+        for q in range(samples):
+            t = (np.float32(q) + np.float32(0.5)) / s32
+            if solid[_cell(ax[i] + dx * t, ay[i] + dy * t, ox, oy, inv_cell, w, h)]:
+                out[i] = False
+                break
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _ray(ox, oy, ux, uy, speed, rvx, rvy, reach):
+    # Distance walked along u at `speed` before touching a disc of radius `reach` at relative position o
+    # moving at rv: inf where never, 0 where touching and closing in (float32, the reference's order).
+    wx = rvx - speed * ux
+    wy = rvy - speed * uy
+    a = wx * wx + wy * wy
+    b = ox * wx + oy * wy
+    c = ox * ox + oy * oy - reach * reach
+    if c <= _F0:
+        return _F0 if b < _F0 else _INF32
+    disc = b * b - a * c
+    if disc > _F0 and b < _F0 and a > _A_MIN:
+        t = (-b - np.sqrt(max(disc, _F0))) / max(a, _A_MIN)
+        return max(t, _F0) * speed
+    return _INF32
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def free_distances(pos, vel, radius, nb, rows, ux, uy, speed, horizon):
+    """(m, d) how far each walker can walk along each direction before touching someone, capped at
+    ``horizon`` (vision.heuristic_velocity's first heuristic).
+
+    Parameters
+    ----------
+    pos, vel : (2, N) float32
+    radius : (N,) float32
+    nb : (m, k) int
+        The walkers' neighbours.
+    rows : (m,) int
+        The walkers.
+    ux, uy : (m, d) float32
+        Unit directions tried.
+    speed : (m,) float32
+        Desired speeds.
+    """
+    m, d = ux.shape
+    k = nb.shape[1]
+    out = np.empty((m, d), np.float32)
+    for i in prange(m):
+        r = rows[i]
+        for q in range(d):
+            best = _INF32
+            for c in range(k):
+                j = nb[i, c]
+                h = _ray(pos[0, j] - pos[0, r], pos[1, j] - pos[1, r], ux[i, q], uy[i, q], speed[i],
+                         vel[0, j], vel[1, j], radius[r] + radius[j])
+                best = min(best, h)
+            out[i, q] = min(best, horizon)
+    return out
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def standing_gaps(pos, radius, nb, rows, ux, uy, horizon):
+    """(m,) distance along each walker's chosen direction to the first person, were everyone to stop,
+    capped at ``horizon`` (vision.heuristic_velocity's time-gap heuristic)."""
+    m = ux.shape[0]
+    k = nb.shape[1]
+    out = np.empty(m, np.float32)
+    for i in prange(m):
+        r = rows[i]
+        best = _INF32
+        for c in range(k):
+            j = nb[i, c]
+            h = _ray(pos[0, j] - pos[0, r], pos[1, j] - pos[1, r], ux[i], uy[i], _F1, _F0, _F0,
+                     radius[r] + radius[j])
+            best = min(best, h)
+        out[i] = min(best, horizon)
+    return out
