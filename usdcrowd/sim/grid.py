@@ -175,9 +175,10 @@ class WalkGrid:
     def line_of_sight(self, ax, ay, bx, by, max_samples: int = 96) -> np.ndarray:
         """Whether segments a->b cross no solid cell.
 
-        Samples every segment at (up to) cell spacing; a segment longer than
-        ``max_samples`` cells is sampled more coarsely (thin walls may then be
-        missed, which only matters beyond the perception range).
+        Samples each segment strictly inside at (up to) 0.7 cell spacing, at
+        least 2 points; a segment longer than ``max_samples`` such steps is
+        sampled more coarsely (thin walls may then be missed, which only
+        matters beyond the perception range).
 
         Parameters
         ----------
@@ -193,14 +194,9 @@ class WalkGrid:
         n = len(ax)
         if n == 0 or not self.has_solid:
             return np.ones(n, dtype=bool)
-        dx = bx - ax
-        dy = by - ay
-        length = np.sqrt(dx * dx + dy * dy)
-        s = int(min(max_samples, max(2, np.ceil(length.max() / (0.7 * self.cell)) + 1)))
-        # Sampled strictly inside the segment: the end points are agents'
-        # positions, which may touch a wall's cell.
-        return kernels.line_of_sight(np.asarray(ax), np.asarray(ay), np.asarray(bx), np.asarray(by), s, *self._lookup,
-                                     self._flat_solid)
+        # Strictly inside: the end points are agents' positions, which may touch a wall's cell.
+        return kernels.line_of_sight(np.asarray(ax), np.asarray(ay), np.asarray(bx), np.asarray(by),
+                                     1.0 / (0.7 * self.cell), max_samples, *self._lookup, self._flat_solid)
 
     def cell_centers(self) -> np.ndarray:
         """(2, h*w) float64 centres of all cells, flat order."""

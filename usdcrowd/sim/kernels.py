@@ -188,9 +188,11 @@ def clearance(x, y, ox, oy, inv_cell, w, h, sdf, nx, ny):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def line_of_sight(ax, ay, bx, by, samples, ox, oy, inv_cell, w, h, solid):
-    """Whether segments a->b cross no solid cell, each sampled at ``samples`` points strictly inside
-    (WalkGrid.line_of_sight); a segment stops at its first solid sample.
+def line_of_sight(ax, ay, bx, by, per_metre, max_samples, ox, oy, inv_cell, w, h, solid):
+    """Whether segments a->b cross no solid cell (WalkGrid.line_of_sight).
+
+    Segment ``i`` is sampled at ``s = min(max_samples, max(2, ceil(length * per_metre) + 1))``
+    points ``a + (b - a) (q + 0.5) / s`` (float32 fractions), and stops at its first solid one.
 
     Returns
     -------
@@ -198,10 +200,12 @@ def line_of_sight(ax, ay, bx, by, samples, ox, oy, inv_cell, w, h, solid):
     """
     m = ax.shape[0]
     out = np.ones(m, np.bool_)
-    s32 = np.float32(samples)
     for i in prange(m):
         dx = bx[i] - ax[i]
         dy = by[i] - ay[i]
+        length = np.sqrt(np.float64(dx) * dx + np.float64(dy) * dy)
+        samples = min(max_samples, max(2, np.int64(np.ceil(length * per_metre)) + 1))
+        s32 = np.float32(samples)
         for q in range(samples):
             t = (np.float32(q) + np.float32(0.5)) / s32
             if solid[_cell(ax[i] + dx * t, ay[i] + dy * t, ox, oy, inv_cell, w, h)]:

@@ -15,6 +15,10 @@ from scipy.spatial import cKDTree
 
 from . import params as P
 
+# Agents from which a neighbour query is split over all cores (measured on 2: 10,000 agents 7.0 ms on
+# both, 9.3 on one).
+PARALLEL_QUERY_MIN = 5000
+
 
 class NeighborList:
     """Fixed-k neighbour table over a subset of agents.
@@ -83,7 +87,9 @@ class NeighborList:
             return
         pts = pos[:, m].T.astype(np.float64)
         tree = cKDTree(pts, balanced_tree=False, compact_nodes=False)
-        _, j = tree.query(pts, k=self.k + 1, distance_upper_bound=self.radius + self.skin, workers=-1)
+        # Threads pay for themselves only on large crowds (1,000 agents: 0.29 ms on one, 0.41 on all).
+        workers = -1 if len(m) >= PARALLEL_QUERY_MIN else 1
+        _, j = tree.query(pts, k=self.k + 1, distance_upper_bound=self.radius + self.skin, workers=workers)
         j = j.astype(np.int64)
         # The agent itself is normally column 0; with coincident agents it
         # may sit elsewhere: swap it into column 0, then drop that column.
