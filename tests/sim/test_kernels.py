@@ -146,14 +146,34 @@ def test_grid_lookups_give_the_reference_bits(walled_grid):
         np.testing.assert_array_equal(got, want)
 
 
-def test_walking_by_sight_gives_the_reference_bits(packed_crowd):
+@pytest.fixture
+def pillars_among_the_crowd():
+    """A walkable grid with two pillars and a wall inside packed_crowd's square."""
+    obstacles = [S.box(1.0, 1.0, 0.5, 2.0), S.box(-3.0, -2.0, 1.0, 0.5), S.box(0.0, 5.5, 6.0, 0.3)]
+    return WalkGrid(S.scenario(S.agents(np.zeros((1, 2))), S.groups([[0, 0, 0]]), obstacles=obstacles,
+                               bounds=((-8, -8), (8, 8))))
+
+
+def _reference_wall_hit(grid, p, ux, uy, radius, horizon):
+    s = np.array([0.25, 0.5, 1.0, 2.0, 4.0], np.float32)
+    s = s[s <= horizon]
+    x = p[0][:, None, None] + ux[..., None] * s
+    y = p[1][:, None, None] + uy[..., None] * s
+    limit = np.minimum(radius, grid.clearance(p[0], p[1])[0] - 0.05)[:, None, None]
+    near = grid.clearance(x.ravel(), y.ravel())[0].reshape(x.shape) < limit
+    return np.where(near.any(axis=2), s[np.argmax(near, axis=2)] - 0.25, horizon)
+
+
+@pytest.mark.parametrize("walls", [False, True], ids=["open", "walls"])
+def test_walking_by_sight_gives_the_reference_bits(packed_crowd, pillars_among_the_crowd, walls):
     pos, vel, radius, idx, _ = packed_crowd
+    grid = pillars_among_the_crowd if walls else None
     rows = np.arange(0, idx.shape[0], 3)
     rng = np.random.default_rng(5)
     a = rng.uniform(-np.pi, np.pi, len(rows))
     goal = np.stack([np.cos(a), np.sin(a)])
     v0 = rng.uniform(1.0, 1.5, len(rows))
-    got, free = heuristic_velocity(pos, vel, goal, v0, idx, radius, rows)
+    got, free = heuristic_velocity(pos, vel, goal, v0, idx, radius, rows, grid=grid)
     # The reference: every walker x direction x neighbour as broadcast arrays.
     nb = idx[rows]
     ox = (pos[0, nb] - pos[0, rows, None])[:, None, :]
@@ -166,6 +186,10 @@ def test_walking_by_sight_gives_the_reference_bits(packed_crowd):
     f = _reference_ray_hit(ox, oy, ux, uy, v0.astype(np.float32)[:, None, None], vel[0, nb][:, None, :],
                            vel[1, nb][:, None, :], reach).min(axis=2)
     f = np.minimum(f, P.VISION_HORIZON)
+    if walls:
+        f_wall = _reference_wall_hit(grid, pos[:, rows], ux[..., 0], uy[..., 0], radius[rows], P.VISION_HORIZON)
+        assert (f_wall < P.VISION_HORIZON).sum() > 50     # walls in the way of many
+        f = np.minimum(f, f_wall)
     left = f * f - np.float32(2.0 * P.VISION_HORIZON) * f * np.cos(offsets)
     best = np.argmin(left, axis=1)
     pick = np.arange(len(rows))
@@ -173,6 +197,8 @@ def test_walking_by_sight_gives_the_reference_bits(packed_crowd):
     still = _reference_ray_hit(ox[:, 0], oy[:, 0], ux[:, None], uy[:, None], np.float32(1.0), 0.0, 0.0,
                                reach[:, 0])
     gap = np.minimum(still.min(axis=1), P.VISION_HORIZON)
+    if walls:
+        gap = np.minimum(gap, f_wall[pick, best])
     v = np.minimum(v0.astype(np.float32), np.maximum(gap, 0.0) / np.float32(P.VISION_TAU))
     want = np.stack([ux * v, uy * v]).astype(np.float32)
     assert 0 < free.sum() < len(rows)                     # some walkers blocked, some not

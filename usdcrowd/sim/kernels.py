@@ -214,6 +214,23 @@ def line_of_sight(ax, ay, bx, by, per_metre, max_samples, ox, oy, inv_cell, w, h
     return out
 
 
+@njit(cache=True, nogil=True, parallel=True)
+def march(x, y, ux, uy, steps, limit, ox, oy, inv_cell, w, h, sdf):
+    """(m, d) the first of ``steps`` (s,) along each direction (m, d) from each point (m,) whose cell's
+    clearance is below the point's ``limit`` (m,); inf where none is (WalkGrid.march)."""
+    m, d = ux.shape
+    out = np.empty((m, d), np.float32)
+    for i in prange(m):
+        for q in range(d):
+            out[i, q] = _INF32
+            for j in range(steps.shape[0]):
+                f = _cell(x[i] + ux[i, q] * steps[j], y[i] + uy[i, q] * steps[j], ox, oy, inv_cell, w, h)
+                if sdf[f] < limit[i]:
+                    out[i, q] = steps[j]
+                    break
+    return out
+
+
 @njit(cache=True, nogil=True)
 def _ray(ox, oy, ux, uy, speed, rvx, rvy, reach):
     # Distance walked along u at `speed` before touching a disc of radius `reach` at relative position o

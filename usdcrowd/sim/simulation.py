@@ -415,9 +415,9 @@ class Simulation:
         every = max(1, int(round(P.VISION_INTERVAL / self.dt)))
         due = rows[((self.steps + rows) % every == 0) | ~np.isfinite(self._sight[0, rows])]
         if len(due):
-            walls = (lambda x, y: self.grid.clearance(x, y)[0]) if self.grid.has_solid else None
             self._sight[:, due], self._sight_free[due] = heuristic_velocity(
-                self.pos, self.vel, v[:, due] / speed[due], speed[due], self.nl.idx, self.radius, due, walls=walls)
+                self.pos, self.vel, v[:, due] / speed[due], speed[due], self.nl.idx, self.radius, due,
+                grid=self.grid if self.grid.has_solid else None)
         # Nothing in their way at their last look: they walk as they meant to, to the bit.
         held = rows[~self._sight_free[rows]]
         v[:, held] = self._sight[:, held]

@@ -30,25 +30,22 @@ _WALL_SAMPLES = np.array([0.25, 0.5, 1.0, 2.0, 4.0], np.float32)
 _WALL_APPROACH = 0.05
 
 
-def _wall_hit(walls, p: np.ndarray, ux: np.ndarray, uy: np.ndarray, radius: np.ndarray,
+def _wall_hit(grid, p: np.ndarray, ux: np.ndarray, uy: np.ndarray, radius: np.ndarray,
               horizon: float) -> np.ndarray:
     """(m, d) how far walkers at ``p`` (2, m) can walk along each direction ``u`` (m, d) before a wall
     comes within their ``radius``: the first sample that does, less 0.25 m, taken as where the wall
     begins (``horizon`` if none does). One already that near
     a wall is stopped only where it would get nearer still: it may walk along the wall or away."""
     s = _WALL_SAMPLES[_WALL_SAMPLES <= horizon]
-    x = p[0][:, None, None] + ux[..., None] * s
-    y = p[1][:, None, None] + uy[..., None] * s
-    limit = np.minimum(radius, walls(p[0], p[1]) - _WALL_APPROACH)[:, None, None]
-    near = walls(x.ravel(), y.ravel()).reshape(x.shape) < limit
-    first = np.argmax(near, axis=2)
-    return np.where(near.any(axis=2), s[first] - 0.25, horizon)
+    limit = np.minimum(radius, grid.clearance(p[0], p[1])[0] - _WALL_APPROACH)
+    first = grid.march(p[0], p[1], ux, uy, s, limit)
+    return np.where(np.isfinite(first), first - 0.25, horizon)
 
 
 def heuristic_velocity(pos: np.ndarray, vel: np.ndarray, goal_dir: np.ndarray, v0: np.ndarray,
                        idx: np.ndarray, radius: np.ndarray, rows: np.ndarray, fov_deg: float | None = None,
                        directions: int | None = None, horizon: float | None = None,
-                       tau: float | None = None, walls=None) -> np.ndarray:
+                       tau: float | None = None, grid=None) -> np.ndarray:
     """The heuristics' desired velocity of the walkers ``rows``.
 
     Parameters
@@ -65,8 +62,8 @@ def heuristic_velocity(pos: np.ndarray, vel: np.ndarray, goal_dir: np.ndarray, v
         Body radii, m.
     rows : (m,) int
         The walkers.
-    walls : callable((p,) x, (p,) y) -> (p,) float, optional
-        Distance from points to the nearest wall, metres (negative inside).
+    grid : WalkGrid, optional
+        Where the walls are (its clearance, looked at along each direction).
 
     Returns
     -------
@@ -89,8 +86,8 @@ def heuristic_velocity(pos: np.ndarray, vel: np.ndarray, goal_dir: np.ndarray, v
     ux, uy = np.cos(ang), np.sin(ang)                          # (m, d)
     # The discs' (neighbours') hits, walker by walker (:func:`.kernels.free_distances`).
     f = free_distances(pos, vel, radius, nb, rows, ux, uy, np.asarray(v0, np.float32), np.float32(horizon))
-    if walls is not None:
-        f_wall = _wall_hit(walls, pos[:, rows], ux, uy, radius[rows], horizon)
+    if grid is not None:
+        f_wall = _wall_hit(grid, pos[:, rows], ux, uy, radius[rows], horizon)
         f = np.minimum(f, f_wall)
     # Distance left to the goal (at the horizon) after walking f along each direction.
     left = f * f - np.float32(2.0 * horizon) * f * np.cos(offsets)        # + horizon^2, the same for all
@@ -99,7 +96,7 @@ def heuristic_velocity(pos: np.ndarray, vel: np.ndarray, goal_dir: np.ndarray, v
     ux, uy = ux[pick, best], uy[pick, best]
     # The time gap to whoever stands in the chosen direction now (they might stop).
     gap = standing_gaps(pos, radius, nb, rows, ux, uy, np.float32(horizon))
-    if walls is not None:
+    if grid is not None:
         gap = np.minimum(gap, f_wall[pick, best])
     v0 = np.asarray(v0, np.float32)
     v = np.minimum(v0, np.maximum(gap, 0.0) / np.float32(tau))
