@@ -16,7 +16,8 @@ from tests.helpers.tools import load_tool
 from usdcrowd.sim import SimSettings, Simulation
 from usdcrowd.sim import kernels as K
 from usdcrowd.sim import params as P
-from usdcrowd.sim.collision import GOLDEN_ANGLE, agent_avoidance, resolve_overlaps
+from usdcrowd.sim.collision import (GOLDEN_ANGLE, agent_avoidance, polygon_signed_distance, project_out_of_walls,
+                                   resolve_overlaps)
 from usdcrowd.sim.grid import WalkGrid
 from usdcrowd.sim.groups import flocking, mate_mask
 from usdcrowd.sim.neighbors import NeighborList
@@ -129,9 +130,9 @@ def test_grid_lookups_give_the_reference_bits(walled_grid):
         x, y = rng.uniform(-104.0, 104.0, (2, 5000)).astype(dtype)
         f = g.flat_index(x, y)
         sdf, nx, ny = g.clearance(x, y)
-        np.testing.assert_array_equal(sdf, g._flat_sdf[f])
-        np.testing.assert_array_equal(nx, g._flat_nx[f])
-        np.testing.assert_array_equal(ny, g._flat_ny[f])
+        np.testing.assert_array_equal(sdf, g.flat_sdf[f])
+        np.testing.assert_array_equal(nx, g.flat_nx[f])
+        np.testing.assert_array_equal(ny, g.flat_ny[f])
         bx, by = rng.uniform(-104.0, 104.0, (2, 5000)).astype(dtype)
         bx[:2500], by[:2500] = x[:2500] + (bx[:2500] - x[:2500]) * 0.02, y[:2500] + (by[:2500] - y[:2500]) * 0.02
         length = np.hypot((bx - x).astype(np.float64), (by - y).astype(np.float64))
@@ -140,7 +141,7 @@ def test_grid_lookups_give_the_reference_bits(walled_grid):
             s = int(min(96, max(2, np.ceil(length[i] / (0.7 * g.cell)) + 1)))
             t = (np.arange(s, dtype=np.float32) + np.float32(0.5)) / np.float32(s)
             px, py = x[i] + (bx[i] - x[i]) * t, y[i] + (by[i] - y[i]) * t
-            want[i] = not g._flat_solid[g.flat_index(px, py)].any()
+            want[i] = not g.flat_solid[g.flat_index(px, py)].any()
         got = g.line_of_sight(x, y, bx, by)
         assert 0 < want.sum() < len(want)
         np.testing.assert_array_equal(got, want)
@@ -148,10 +149,61 @@ def test_grid_lookups_give_the_reference_bits(walled_grid):
 
 @pytest.fixture
 def pillars_among_the_crowd():
-    """A walkable grid with two pillars and a wall inside packed_crowd's square."""
+    """A walkable grid with two pillars, a wall and a painted forbidden patch inside packed_crowd's square."""
     obstacles = [S.box(1.0, 1.0, 0.5, 2.0), S.box(-3.0, -2.0, 1.0, 0.5), S.box(0.0, 5.5, 6.0, 0.3)]
+    img = np.zeros((16, 16), np.float32)
+    img[2:5, 10:14] = 1.0                                 # x 2-6 m, y -6 to -3 m (rows from the top)
+    water = S.field("forbidden", values=img, extent=((-8, -8), (8, 8)))
     return WalkGrid(S.scenario(S.agents(np.zeros((1, 2))), S.groups([[0, 0, 0]]), obstacles=obstacles,
-                               bounds=((-8, -8), (8, 8))))
+                               fields=[water], bounds=((-8, -8), (8, 8))))
+
+
+def _reference_projection(grid, pos, radius, passes=2):
+    """Bodies pushed out of walls as numpy arrays, all near ones together each pass (the former code)."""
+    pos = pos.copy()
+    n = pos.shape[1] - 1
+    rows = np.arange(n)
+    for _ in range(passes):
+        sdf, nx, ny = grid.clearance(pos[0, rows], pos[1, rows])
+        near = sdf < radius[rows] + P.WALL_PROJECT_MARGIN
+        if not near.any():
+            break
+        sel = rows[near]
+        lab = grid.nearest_label(pos[0, sel], pos[1, sel])
+        fb = lab < 0
+        s = sel[fb]
+        depth = np.maximum(radius[s] - sdf[near][fb], 0.0)
+        pos[0, s] += nx[near][fb] * depth
+        pos[1, s] += ny[near][fb] * depth
+        s = sel[~fb]
+        p = np.stack([pos[0, s], pos[1, s]], axis=1).astype(np.float64)
+        r = radius[s].astype(np.float64)
+        sd, c, nrm = polygon_signed_distance(p, grid.polygons[lab[~fb]])
+        d = p - c
+        dn = np.linalg.norm(d, axis=1)
+        direction = np.where(((sd > 1e-9) & (dn > 1e-9))[:, None], d / np.maximum(dn, 1e-12)[:, None], nrm)
+        bad = sd < r
+        p[bad] = c[bad] + direction[bad] * (r[bad] + 1e-4)[:, None]
+        pos[0, s], pos[1, s] = p[:, 0], p[:, 1]
+    return pos
+
+
+def test_bodies_are_pushed_out_of_walls_as_before(packed_crowd, pillars_among_the_crowd):
+    pos, _, radius, _, _ = packed_crowd
+    grid = pillars_among_the_crowd
+    want = _reference_projection(grid, pos, radius)
+    got = pos.copy()
+    project_out_of_walls(grid, got, radius)
+    moved = np.hypot(*(want - pos))[:-1] > 1e-3
+    wet = grid.nearest_label(pos[0, :-1], pos[1, :-1]) < 0
+    assert (moved & ~wet).sum() > 20 and (moved & wet).sum() > 5   # out of the polygons, and of the water
+    np.testing.assert_array_equal(got, want)
+    # Those moved out of a polygon stand clear of the polygon nearest them now (a radius clear of the one
+    # they were in, unless another wall stands within a radius: two passes do not settle every squeeze).
+    sd, _, _ = polygon_signed_distance(got[:, :-1].T.astype(np.float64),
+                                       grid.polygons[grid.nearest_label(got[0, :-1], got[1, :-1])])
+    solid = moved & ~wet
+    assert (sd[solid] > 0).all() and np.median(sd[solid] - radius[:-1][solid]) > -1e-6
 
 
 def _reference_wall_hit(grid, p, ux, uy, radius, horizon):

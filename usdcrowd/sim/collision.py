@@ -27,7 +27,7 @@ import numpy as np
 
 from . import params as P
 from .grid import WalkGrid
-from .kernels import GOLDEN_ANGLE, overlap_corrections
+from .kernels import GOLDEN_ANGLE, overlap_corrections, push_out_of_walls
 
 _GAP_MIN = np.float32(0.02)  # m, floor of the gap in t_o (contact)
 
@@ -206,7 +206,7 @@ def _spread_coincident(pos, radius, movable) -> None:
     pos[1, :n] += np.where(shared, r * np.sin(angle), 0.0).astype(pos.dtype)
 
 
-def project_out_of_walls(grid: WalkGrid, pos, radius, rows=None, passes: int = 2):
+def project_out_of_walls(grid: WalkGrid, pos, radius, passes: int = 2):
     """Push agents out of obstacle polygons (exact) and forbidden cells (grid), in place.
 
     Parameters
@@ -214,41 +214,13 @@ def project_out_of_walls(grid: WalkGrid, pos, radius, rows=None, passes: int = 2
     grid : WalkGrid
     pos : (2, n + 1) float32
     radius : (n + 1,) float32
-    rows : (m,) int, optional
-        Agents to consider (default all but the ghost).
     passes : int
         Repetitions, for agents squeezed between two obstacles.
     """
     if not grid.has_solid:
         return
-    n = pos.shape[1] - 1
-    if rows is None:
-        rows = np.arange(n)
-    polys = grid.polygons
-    for _ in range(passes):
-        x = pos[0, rows]
-        y = pos[1, rows]
-        sdf, nx, ny = grid.clearance(x, y)
-        r = radius[rows]
-        near = sdf < r + P.WALL_PROJECT_MARGIN
-        if not near.any():
-            return
-        sel = rows[near]
-        lab = grid.nearest_label(pos[0, sel], pos[1, sel])
-        # Forbidden areas (no polygon): push along the clearance gradient.
-        fb = lab < 0
-        if fb.any():
-            s = sel[fb]
-            depth = np.maximum(radius[s] - sdf[near][fb], 0.0)
-            pos[0, s] += nx[near][fb] * depth
-            pos[1, s] += ny[near][fb] * depth
-        pl = ~fb
-        if pl.any() and len(polys):
-            s = sel[pl]
-            p = np.stack([pos[0, s], pos[1, s]], axis=1).astype(np.float64)  # (m, 2)
-            new = _push_out_of_convex(p, polys[lab[pl]], radius[s].astype(np.float64))
-            pos[0, s] = new[:, 0]
-            pos[1, s] = new[:, 1]
+    push_out_of_walls(pos, radius, passes, np.float32(P.WALL_PROJECT_MARGIN), grid.polygons, *grid.lookup, grid.flat_sdf,
+                      grid.flat_nx, grid.flat_ny, grid.flat_label)
 
 
 def polygon_signed_distance(p: np.ndarray, poly: np.ndarray):
@@ -283,19 +255,3 @@ def polygon_signed_distance(p: np.ndarray, poly: np.ndarray):
     ek = e[r, k]
     nrm = np.stack([ek[:, 1], -ek[:, 0]], axis=1) / np.maximum(np.sqrt(ll[r, k]), 1e-12)[:, None]
     return np.where(inside, -dist, dist), c[r, k], nrm
-
-
-def _push_out_of_convex(p: np.ndarray, poly: np.ndarray, r: np.ndarray) -> np.ndarray:
-    sd, c, nrm = polygon_signed_distance(p, poly)
-    bad = sd < r
-    if not bad.any():
-        return p
-    d = p - c
-    dn = np.linalg.norm(d, axis=1)
-    # Outside a vertex region the push is radial from the nearest point;
-    # inside (or exactly on an edge) along the nearest edge's normal.
-    direction = np.where(((sd > 1e-9) & (dn > 1e-9))[:, None], d / np.maximum(dn, 1e-12)[:, None], nrm)
-    out = p.copy()
-    # A hair beyond r so float32 storage doesn't round back inside.
-    out[bad] = c[bad] + direction[bad] * (r[bad] + 1e-4)[:, None]
-    return out

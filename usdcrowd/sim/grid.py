@@ -60,6 +60,13 @@ class WalkGrid:
     cell : float, optional
         Cell size in metres; grows from :data:`params.GRID_CELL` so the grid
         stays under :data:`params.GRID_MAX_CELLS` cells.
+
+    Attributes
+    ----------
+    flat_sdf, flat_nx, flat_ny, flat_solid, flat_label : (h * w,) arrays
+        The fields in flat cell order (:meth:`flat_index`), as the compiled loops read them.
+    lookup : tuple
+        ``(origin_x, origin_y, 1 / cell, w, h)``: what the compiled loops need to find a point's cell.
     """
 
     def __init__(self, scenario: Scenario, cell: float | None = None):
@@ -106,13 +113,12 @@ class WalkGrid:
         norm = np.hypot(gx, gy)
         norm[norm == 0] = 1.0
         self.normal = np.stack([gx / norm, gy / norm]).astype(np.float32)  # (2, h, w)
-        self._flat_sdf = self.sdf.ravel()
-        self._flat_nx = self.normal[0].ravel()
-        self._flat_ny = self.normal[1].ravel()
-        self._flat_solid = self.solid.ravel()
-        self._flat_label = self.label.ravel()
-        # What the compiled lookups need to find a point's cell (as flat_index does).
-        self._lookup = (float(self.origin[0]), float(self.origin[1]), 1.0 / self.cell, self.w, self.h)
+        self.flat_sdf = self.sdf.ravel()
+        self.flat_nx = self.normal[0].ravel()
+        self.flat_ny = self.normal[1].ravel()
+        self.flat_solid = self.solid.ravel()
+        self.flat_label = self.label.ravel()
+        self.lookup = (float(self.origin[0]), float(self.origin[1]), 1.0 / self.cell, self.w, self.h)
 
     # -- rasterisation -------------------------------------------------------
     def _raster_polygon(self, poly: np.ndarray, index: int, label: np.ndarray) -> None:
@@ -161,8 +167,8 @@ class WalkGrid:
         nx, ny : (n,) float32
             Unit normal pointing away from it.
         """
-        return kernels.clearance(np.asarray(x), np.asarray(y), *self._lookup, self._flat_sdf, self._flat_nx,
-                                 self._flat_ny)
+        return kernels.clearance(np.asarray(x), np.asarray(y), *self.lookup, self.flat_sdf, self.flat_nx,
+                                 self.flat_ny)
 
     def march(self, x: np.ndarray, y: np.ndarray, ux: np.ndarray, uy: np.ndarray, steps: np.ndarray,
               limit: np.ndarray) -> np.ndarray:
@@ -184,15 +190,15 @@ class WalkGrid:
         (m, d) float32
             The first step whose cell's clearance is below the limit, inf where none is.
         """
-        return kernels.march(x, y, ux, uy, steps, limit, *self._lookup, self._flat_sdf)
+        return kernels.march(x, y, ux, uy, steps, limit, *self.lookup, self.flat_sdf)
 
     def is_solid(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """(n,) bool: points whose cell is solid."""
-        return self._flat_solid[self.flat_index(x, y)]
+        return self.flat_solid[self.flat_index(x, y)]
 
     def nearest_label(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """(n,) int32: nearest obstacle polygon per point (-1: none / forbidden)."""
-        return self._flat_label[self.flat_index(x, y)]
+        return self.flat_label[self.flat_index(x, y)]
 
     def line_of_sight(self, ax, ay, bx, by, max_samples: int = 96) -> np.ndarray:
         """Whether segments a->b cross no solid cell.
@@ -218,7 +224,7 @@ class WalkGrid:
             return np.ones(n, dtype=bool)
         # Strictly inside: the end points are agents' positions, which may touch a wall's cell.
         return kernels.line_of_sight(np.asarray(ax), np.asarray(ay), np.asarray(bx), np.asarray(by),
-                                     1.0 / (0.7 * self.cell), max_samples, *self._lookup, self._flat_solid)
+                                     1.0 / (0.7 * self.cell), max_samples, *self.lookup, self.flat_solid)
 
     def cell_centers(self) -> np.ndarray:
         """(2, h*w) float64 centres of all cells, flat order."""

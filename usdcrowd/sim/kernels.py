@@ -232,6 +232,83 @@ def march(x, y, ux, uy, steps, limit, ox, oy, inv_cell, w, h, sdf):
 
 
 @njit(cache=True, nogil=True)
+def _out_of_convex(px, py, poly, r):
+    """Where a body of radius ``r`` at ``p`` (float64) stands once pushed out of the convex CCW polygon
+    ``poly`` (K, 2) (padded with repeated vertices); ``p`` itself when already clear
+    (collision.polygon_signed_distance and the push made from it)."""
+    K = poly.shape[0]
+    best = np.inf
+    kb = 0
+    cbx = cby = 0.0
+    inside = True
+    for k in range(K):
+        ax, ay = poly[k, 0], poly[k, 1]
+        ex, ey = poly[(k + 1) % K, 0] - ax, poly[(k + 1) % K, 1] - ay
+        apx, apy = px - ax, py - ay
+        ll = ex * ex + ey * ey
+        if ll <= 1e-18:                 # a padding edge
+            continue
+        if ex * apy - ey * apx < 0.0:
+            inside = False
+        t = min(max((apx * ex + apy * ey) / ll, 0.0), 1.0)
+        cx, cy = ax + ex * t, ay + ey * t
+        d2 = (px - cx) * (px - cx) + (py - cy) * (py - cy)
+        if d2 < best:
+            best, kb, cbx, cby = d2, k, cx, cy
+    dist = np.sqrt(best)
+    sd = -dist if inside else dist
+    if not sd < r:
+        return px, py
+    ex, ey = poly[(kb + 1) % K, 0] - poly[kb, 0], poly[(kb + 1) % K, 1] - poly[kb, 1]
+    ln = max(np.sqrt(ex * ex + ey * ey), 1e-12)
+    dx, dy = px - cbx, py - cby
+    dn = np.sqrt(dx * dx + dy * dy)
+    # Outside a vertex region the push is radial from the nearest point; inside (or exactly on an edge)
+    # along the nearest edge's normal.
+    if sd > 1e-9 and dn > 1e-9:
+        ux, uy = dx / max(dn, 1e-12), dy / max(dn, 1e-12)
+    else:
+        ux, uy = ey / ln, -ex / ln
+    # A hair beyond r so float32 storage doesn't round back inside.
+    return cbx + ux * (r + 1e-4), cby + uy * (r + 1e-4)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def push_out_of_walls(pos, radius, passes, margin, polys, ox, oy, inv_cell, w, h, sdf, nx, ny, label):
+    """Push bodies out of obstacle polygons (exact) and forbidden cells (along the clearance gradient),
+    in place (collision.project_out_of_walls).
+
+    Parameters
+    ----------
+    pos : (2, n + 1) float32
+        Rows ``:n`` are moved.
+    radius : (n + 1,) float32
+    passes : int
+        Repetitions, for bodies squeezed between two obstacles.
+    margin : float
+        Bodies whose cell is farther than radius + margin from every wall are left alone.
+    polys : (o, K, 2) float64
+        Obstacle polygons; ``label`` (cells) names the nearest, -1 for forbidden areas.
+    """
+    n = pos.shape[1] - 1
+    for i in prange(n):
+        r = radius[i]
+        for _ in range(passes):
+            f = _cell(pos[0, i], pos[1, i], ox, oy, inv_cell, w, h)
+            if not sdf[f] < r + margin:
+                break
+            lab = label[f]
+            if lab < 0:
+                depth = max(r - sdf[f], _F0)
+                pos[0, i] += nx[f] * depth
+                pos[1, i] += ny[f] * depth
+            elif polys.shape[0] > 0:
+                qx, qy = _out_of_convex(np.float64(pos[0, i]), np.float64(pos[1, i]), polys[lab], np.float64(r))
+                pos[0, i] = qx
+                pos[1, i] = qy
+
+
+@njit(cache=True, nogil=True)
 def _ray(ox, oy, ux, uy, speed, rvx, rvy, reach):
     # Distance walked along u at `speed` before touching a disc of radius `reach` at relative position o
     # moving at rv: inf where never, 0 where touching and closing in (float32, the reference's order).
