@@ -123,12 +123,21 @@ def walled_grid():
     return WalkGrid(load_tool("bench_sim").scene(50))
 
 
+def _reference_cells(g, x, y):
+    ix = np.clip(((x - g.origin[0]) * (1.0 / g.cell)).astype(np.int64), 0, g.w - 1)
+    iy = np.clip(((y - g.origin[1]) * (1.0 / g.cell)).astype(np.int64), 0, g.h - 1)
+    return iy * g.w + ix
+
+
 def test_grid_lookups_give_the_reference_bits(walled_grid):
     g = walled_grid
     rng = np.random.default_rng(3)
     for dtype in (np.float32, np.float64):
         x, y = rng.uniform(-104.0, 104.0, (2, 5000)).astype(dtype)
-        f = g.flat_index(x, y)
+        f = _reference_cells(g, x, y)
+        np.testing.assert_array_equal(g.flat_index(x, y), f)
+        far = np.array([-1e4, 1e4], dtype)                     # beyond the grid: clamped to its corners
+        np.testing.assert_array_equal(g.flat_index(far, far), [0, g.w * g.h - 1])
         sdf, nx, ny = g.clearance(x, y)
         np.testing.assert_array_equal(sdf, g.flat_sdf[f])
         np.testing.assert_array_equal(nx, g.flat_nx[f])
@@ -141,7 +150,7 @@ def test_grid_lookups_give_the_reference_bits(walled_grid):
             s = int(min(96, max(2, np.ceil(length[i] / (0.7 * g.cell)) + 1)))
             t = (np.arange(s, dtype=np.float32) + np.float32(0.5)) / np.float32(s)
             px, py = x[i] + (bx[i] - x[i]) * t, y[i] + (by[i] - y[i]) * t
-            want[i] = not g.flat_solid[g.flat_index(px, py)].any()
+            want[i] = not g.flat_solid[_reference_cells(g, px, py)].any()
         got = g.line_of_sight(x, y, bx, by)
         assert 0 < want.sum() < len(want)
         np.testing.assert_array_equal(got, want)

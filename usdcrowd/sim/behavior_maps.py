@@ -94,12 +94,12 @@ class MapLayer:
         if self.kind == "food":
             d2 = ((x[:, None] - self.patches[None, :, 0]) ** 2 + (y[:, None] - self.patches[None, :, 1]) ** 2)
             r = np.sqrt(d2.min(axis=1))
-            return np.clip(1.5 - r / P.FOOD_PATCH_RADIUS, 0.0, 1.0).astype(np.float32)
+            return np.minimum(np.maximum(1.5 - r / P.FOOD_PATCH_RADIUS, 0.0), 1.0).astype(np.float32)
         R = self.current_radius(t)
         if R <= 0:
             return np.zeros(len(x), np.float32)
         r = np.hypot(x - self.origin[0], y - self.origin[1])
-        return np.clip(1.0 - r / R, 0.0, 1.0).astype(np.float32)
+        return np.minimum(np.maximum(1.0 - r / R, 0.0), 1.0).astype(np.float32)
 
     def render(self, t: float, shape=(128, 128)) -> np.ndarray:
         """The layer as an image over its extent (row 0 at +Y), like BehaviorField.values.
@@ -346,7 +346,7 @@ class Reactions:
         rows, d = rows[reach], d[reach]
         u = sample_grid(self.grid, dirs, pos[0, rows], pos[1, rows])
         there = d <= 0.5 * self.grid.cell
-        v = u * speed[rows] * np.where(there, 0.0, np.clip(d / P.SLOW_RADIUS, 0.2, 1.0)).astype(np.float32)
+        v = u * speed[rows] * np.where(there, 0.0, np.minimum(np.maximum(d / P.SLOW_RADIUS, 0.2), 1.0)).astype(np.float32)
         # On the patch: keep the current (wander) motion, slowed to a drift.
         v[:, there] = intent.v[:, rows[there]] * np.float32(pace_there)
         beh = np.where(there, beh_there, intent.behavior[rows]).astype(np.int8)

@@ -91,7 +91,7 @@ def wall_avoidance(grid: WalkGrid, pos, vel, radius, gain=P.WALL_AVOID_GAIN, tau
     toward = approach > 1e-3
     t = np.maximum(clear, _GAP_MIN) / np.where(toward, approach, 1.0)
     avoid = (np.where(toward, np.exp((-0.5 / (tau * tau)) * t * t), 0.0) * gain).astype(np.float32)
-    mag = avoid + np.clip((P.WALL_CONTACT_GAP - clear) / P.WALL_CONTACT_GAP, 0.0, 1.0) * P.WALL_CONTACT_GAIN
+    mag = avoid + np.minimum(np.maximum((P.WALL_CONTACT_GAP - clear) / P.WALL_CONTACT_GAP, 0.0), 1.0) * P.WALL_CONTACT_GAIN
     mag = mag.astype(np.float32)
     # Slide along the wall on the side the agent already leans to (or its
     # left when square on), so that a pillar straight ahead is walked around

@@ -151,11 +151,7 @@ class WalkGrid:
         -------
         (n,) int64
         """
-        ix = ((x - self.origin[0]) * (1.0 / self.cell)).astype(np.int64)
-        iy = ((y - self.origin[1]) * (1.0 / self.cell)).astype(np.int64)
-        np.clip(ix, 0, self.w - 1, out=ix)
-        np.clip(iy, 0, self.h - 1, out=iy)
-        return iy * self.w + ix
+        return kernels.cells(np.asarray(x), np.asarray(y), *self.lookup)
 
     def clearance(self, x: np.ndarray, y: np.ndarray):
         """Nearest-cell clearance and wall normal at points.

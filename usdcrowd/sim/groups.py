@@ -161,7 +161,7 @@ class Groups:
         mean = np.bincount(self.slot, weights=dist, minlength=len(self.leaders)) / self._count
         fd = np.bincount(self.slot, weights=self.follow_dist, minlength=len(self.leaders)) / self._count
         pace = 1.0 - (mean - fd - 1.0) / P.LEADER_WAIT_SPREAD
-        return np.clip(pace, P.LEADER_MIN_PACE, 1.0).astype(np.float32)
+        return np.minimum(np.maximum(pace, P.LEADER_MIN_PACE), 1.0).astype(np.float32)
 
 
 def mate_mask(group: np.ndarray, idx: np.ndarray, isolated: np.ndarray) -> np.ndarray:

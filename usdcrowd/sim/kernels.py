@@ -161,10 +161,19 @@ def overlap_corrections(pos, idx, radius, movable, half_relax, out):
 
 @njit(cache=True, nogil=True)
 def _cell(x, y, ox, oy, inv_cell, w, h):
-    # As WalkGrid.flat_index: float64 offsets, truncation, clamping.
+    # Flat index of the cell under (x, y): float64 offsets, truncated, clamped to the grid.
     ix = min(max(np.int64((np.float64(x) - ox) * inv_cell), 0), w - 1)
     iy = min(max(np.int64((np.float64(y) - oy) * inv_cell), 0), h - 1)
     return iy * w + ix
+
+
+@njit(cache=True, nogil=True)
+def cells(x, y, ox, oy, inv_cell, w, h):
+    """(m,) int64 flat cell index of points, clamped to the grid (WalkGrid.flat_index)."""
+    out = np.empty(x.shape[0], np.int64)
+    for i in range(x.shape[0]):
+        out[i] = _cell(x[i], y[i], ox, oy, inv_cell, w, h)
+    return out
 
 
 @njit(cache=True, nogil=True, parallel=True)

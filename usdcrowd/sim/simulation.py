@@ -52,6 +52,11 @@ from .vision import heuristic_velocity
 
 _B = {b: np.int8(code(BEHAVIORS, b)) for b in BEHAVIORS}
 _DEAD = np.int8(code(HEALTH_STATES, "dead"))
+
+
+def _ramp(d):
+    """Speed factor of walkers ``d`` metres from their goal: 0 at ARRIVE_RADIUS, 1 from SLOW_RADIUS beyond."""
+    return np.minimum(np.maximum((d - P.ARRIVE_RADIUS) / P.SLOW_RADIUS, 0), 1)
 _WOUNDED = np.int8(code(HEALTH_STATES, "wounded"))
 _HUMAN = code(CHARACTER_TYPES, "human")
 LOOK_HEIGHT = 1.5  # m above the ground: eye level of a point looked at without a height
@@ -342,12 +347,12 @@ class Simulation:
         if self.direct_rows.size:
             r = self.direct_rows
             u, d = self._goal_direction(r)
-            it.v[:, r] = u * (speed[r] * pace[r] * np.clip((d - P.ARRIVE_RADIUS) / P.SLOW_RADIUS, 0, 1))
+            it.v[:, r] = u * (speed[r] * pace[r] * _ramp(d))
         if self.grad_rows.size:
             r = self.grad_rows
             u, d = self._goal_direction(r)
             u = self.slope_nav.direction(pos[:, r], u, self.dt)
-            it.v[:, r] = u * (speed[r] * pace[r] * np.clip((d - P.ARRIVE_RADIUS) / P.SLOW_RADIUS, 0, 1))
+            it.v[:, r] = u * (speed[r] * pace[r] * _ramp(d))
         if self.bezier is not None:
             r = self.bez_rows
             carrot, last = self.bezier.carrot(pos[:, r])
@@ -380,7 +385,7 @@ class Simulation:
             gl = done & np.isfinite(self.goal[0, r])
             if gl.any():
                 u2, d2 = self._goal_direction(r[gl])
-                it.v[:, r[gl]] = u2 * (speed[r[gl]] * np.clip((d2 - P.ARRIVE_RADIUS) / P.SLOW_RADIUS, 0, 1))
+                it.v[:, r[gl]] = u2 * (speed[r[gl]] * _ramp(d2))
             self._look_at_exhibits(it, r, dom)
         # Followers: arrive at the remembered leader position (E_L).
         if len(self.groups.followers):
@@ -515,8 +520,8 @@ class Simulation:
     def _clip_to_bounds(self, pos: np.ndarray) -> None:
         """Keep every body ((2, n + 1) positions, in place) inside the walkable bounds."""
         n, r = self.n, self.radius[:self.n]
-        np.clip(pos[0, :n], self.lo[0] + r, self.hi[0] - r, out=pos[0, :n])
-        np.clip(pos[1, :n], self.lo[1] + r, self.hi[1] - r, out=pos[1, :n])
+        for c in (0, 1):  # np.clip's checks cost more than the clipping here
+            np.minimum(np.maximum(pos[c, :n], self.lo[c] + r, out=pos[c, :n]), self.hi[c] - r, out=pos[c, :n])
 
     def _occlude_mates(self):
         """Drop group-mates hidden behind walls (agents near obstacles only)."""
@@ -549,7 +554,7 @@ class Simulation:
         move = (sp2 > P.HEADING_MIN_SPEED ** 2) | face
         delta = np.mod(want - self.heading + np.pi, 2 * np.pi) - np.pi
         lim = self.turn_rate * np.float32(self.dt)
-        self.heading += np.where(move, np.clip(delta, -lim, lim), 0.0).astype(np.float32)
+        self.heading += np.where(move, np.minimum(np.maximum(delta, -lim), lim), 0.0).astype(np.float32)
         self.heading = (np.mod(self.heading + np.pi, 2 * np.pi) - np.pi).astype(np.float32)
 
     # -- frames ---------------------------------------------------------------------
@@ -560,7 +565,7 @@ class Simulation:
         z = self.terrain.height(x, y)
         if self.birds.any():
             sp = np.hypot(self.vel[0, :n], self.vel[1, :n])
-            lift = np.clip(sp / np.maximum(0.5 * self.pref, 1e-3), 0.0, 1.0)
+            lift = np.minimum(sp / np.maximum(0.5 * self.pref, 1e-3), 1.0)
             z = z + self.altitude * lift
         look = self.look.copy()
         fill = np.isfinite(look[0]) & ~np.isfinite(look[2])

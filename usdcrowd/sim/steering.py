@@ -54,7 +54,7 @@ def arrive(pos: np.ndarray, target: np.ndarray, speed: np.ndarray,
     (2, n) desired velocity, (n,) distance to the target
     """
     u, d = unit(target - pos)
-    ramp = np.clip((d - stop_radius) / slow_radius, 0.0, 1.0)
+    ramp = np.minimum(np.maximum((d - stop_radius) / slow_radius, 0.0), 1.0)
     return u * (speed * ramp), d
 
 
