@@ -21,7 +21,7 @@ from usdcrowd.sim.collision import (GOLDEN_ANGLE, agent_avoidance, polygon_signe
 from usdcrowd.sim.grid import WalkGrid
 from usdcrowd.sim.groups import flocking, mate_mask
 from usdcrowd.sim.neighbors import NeighborList
-from usdcrowd.sim.steering import separation
+from usdcrowd.sim.steering import clip_norm, separation
 from usdcrowd.sim.vision import heuristic_velocity
 
 
@@ -276,3 +276,45 @@ def test_the_compiled_step_gives_the_same_bytes_run_to_run():
             sim.step()
         runs.append((sim.pos.tobytes(), sim.vel.tobytes()))
     assert runs[0] == runs[1]
+
+
+def test_integration_and_move_limits_are_the_numpy_steps_they_replace(packed_crowd):
+    """Seed 003's integration with its clips, the overlap move limit and the position-based velocity,
+    against the same steps written with steering.clip_norm on whole arrays."""
+    pos, vel, _, _, _ = packed_crowd
+    n = pos.shape[1] - 1
+    rng = np.random.default_rng(11)
+    F = rng.normal(0.0, 6.0, (2, n)).astype(np.float32)
+    alive = rng.uniform(size=n) > 0.1
+    max_accel = np.full(n, 5.0, np.float32)
+    vmax = rng.uniform(0.0, 2.0, n).astype(np.float32)
+    vmax[~alive] = 0.0
+    dt = np.float32(0.01)
+    # The reference.
+    p, v, f = pos.copy(), vel.copy(), F.copy()
+    clip_norm(f, max_accel)
+    f[:, ~alive] = 0.0
+    p[:, :n] += v[:, :n] * dt + f * (np.float32(0.5) * dt * dt)
+    v[:, :n] += f * dt
+    clip_norm(v[:, :n], vmax)
+    # The kernel.
+    got_p, got_v = pos.copy(), vel.copy()
+    K.integrate(got_p, got_v, F.copy(), alive, max_accel, vmax, dt)
+    assert (np.hypot(*F) > max_accel).sum() > 100 and (np.hypot(*v[:, :n]) >= vmax - 1e-6).sum() > 100
+    np.testing.assert_array_equal(got_p, p)
+    np.testing.assert_array_equal(got_v, v)
+    # Moves since `old` limited to vmax dt, then constraint displacements made velocity.
+    old = pos.copy()
+    shoved = p + rng.normal(0.0, 0.02, p.shape).astype(np.float32)
+    want = shoved.copy()
+    moved = want[:, :n] - old[:, :n]
+    clip_norm(moved, vmax * dt)
+    want[:, :n] = old[:, :n] + moved
+    got = shoved.copy()
+    K.limit_moves(got, old, vmax, dt)
+    np.testing.assert_array_equal(got, want)
+    want_v = v.copy()
+    want_v[:, :n] += (want[:, :n] - p[:, :n]) * np.float32(100.0)
+    clip_norm(want_v[:, :n], np.maximum(vmax, 0.0))
+    K.settle_velocities(got, got_v, p[:, :n].copy(), np.float32(100.0), vmax)
+    np.testing.assert_array_equal(got_v, want_v)

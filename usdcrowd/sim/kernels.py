@@ -46,6 +46,7 @@ _ALIGN = np.float32(P.ALIGN_GAIN)
 # Successive pairs turn by the golden angle: coincident clones fan out evenly.
 GOLDEN_ANGLE = np.pi * (3.0 - np.sqrt(5.0))
 _INF32 = np.float32(np.inf)
+_TINY2 = np.float32(1e-12)
 _A_MIN = np.float32(1e-9)
 
 
@@ -157,6 +158,62 @@ def overlap_corrections(pos, idx, radius, movable, half_relax, out):
             sy += dy * w
         out[0, i] = sx * movable[i]
         out[1, i] = sy * movable[i]
+
+
+@njit(cache=True, nogil=True)
+def _clip2(x, y, limit):
+    # steering.clip_norm for one vector: scaled down to `limit` in length, in its float32 operations.
+    n2 = x * x + y * y
+    if n2 > limit * limit:
+        s = limit / np.sqrt(max(n2, _TINY2))
+        return x * s, y * s
+    return x, y
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def integrate(pos, vel, F, alive, max_accel, vmax, dt):
+    """Seed 003's step for each agent, in place: the force clipped to its maximum (none for the dead),
+    ``x += v dt + F dt^2 / 2``, ``v += F dt``, the speed clipped to ``vmax``.
+
+    Parameters
+    ----------
+    pos, vel : (2, n + 1) float32
+    F : (2, n) float32
+    alive : (n,) bool
+    max_accel, vmax : (n,) float32
+    dt : float32
+    """
+    n = F.shape[1]
+    half_dt2 = np.float32(0.5) * dt * dt
+    for i in prange(n):
+        fx, fy = _clip2(F[0, i], F[1, i], max_accel[i])
+        if not alive[i]:
+            fx = fy = _F0
+        vx, vy = vel[0, i], vel[1, i]
+        pos[0, i] += vx * dt + fx * half_dt2
+        pos[1, i] += vy * dt + fy * half_dt2
+        vel[0, i], vel[1, i] = _clip2(vx + fx * dt, vy + fy * dt, vmax[i])
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def limit_moves(pos, old, vmax, dt):
+    """Shorten each agent's move since ``old`` (2, n + 1) to at most ``vmax * dt``, in place."""
+    n = vmax.shape[0]
+    for i in prange(n):
+        mx, my = _clip2(pos[0, i] - old[0, i], pos[1, i] - old[1, i], vmax[i] * dt)
+        pos[0, i] = old[0, i] + mx
+        pos[1, i] = old[1, i] + my
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def settle_velocities(pos, vel, integrated, inv_dt, vmax):
+    """Constraint displacements (``pos`` less ``integrated`` (2, n)) count as velocity, clipped to
+    ``vmax`` (position-based dynamics), in place."""
+    n = vmax.shape[0]
+    for i in prange(n):
+        vx = vel[0, i] + (pos[0, i] - integrated[0, i]) * inv_dt
+        vy = vel[1, i] + (pos[1, i] - integrated[1, i]) * inv_dt
+        vel[0, i], vel[1, i] = _clip2(vx, vy, max(vmax[i], _F0))
 
 
 @njit(cache=True, nogil=True)

@@ -42,10 +42,10 @@ from .distance_maps import DistanceMaps
 from .grid import WalkGrid
 from .groups import Groups, mate_mask
 from .interest import InterestFields
-from .kernels import pair_forces
+from .kernels import integrate, limit_moves, pair_forces, settle_velocities
 from .neighbors import NeighborList
 from .paths import BEZIER, GRADIENT, BezierPaths, SlopeSteering, Terrain, choose_path_method, enforce_slope
-from .steering import arrive, clip_norm, containment, steer, unit, wander
+from .steering import arrive, containment, steer, unit, wander
 from .trade import Trading, top_groups
 from .validate import validate
 from .vision import heuristic_velocity
@@ -478,36 +478,29 @@ class Simulation:
         if self.grid.has_solid:
             F += wall_avoidance(self.grid, pos[:, :n], v_i, self.radius[:n])  # E_C, static
         F += containment(pos[:, :n], v_i, self.lo, self.hi)
-        clip_norm(F, self.max_accel)
 
-        # Integration (seed 003): x += v dt + F dt^2 / 2, v += F dt.
+        # Integration (seed 003): x += v dt + F dt^2 / 2, v += F dt, force and speed clipped.
         alive = self.health != _DEAD
-        F[:, ~alive] = 0.0
-        old = pos.copy()
-        pos[:, :n] += v_i * dt + F * (np.float32(0.5) * dt * dt)
-        v_i += F * dt
         vmax = np.where(it.behavior == _B["run"], self.pref * (P.PANIC_SPEED_FACTOR * 1.1),
                         self.pref * P.MAX_SPEED_FACTOR)
         # Resting or paralysed agents may be jostled, not walk.
         vmax = np.where(it.behavior == _B["rest"], np.minimum(vmax, P.REST_SPEED_MAX), vmax)
         vmax = np.minimum(vmax, self.speed_cap)
         vmax[~alive] = 0.0
-        clip_norm(v_i, vmax)
+        old = pos.copy()
+        integrate(pos, vel, F, alive, self.max_accel, vmax, dt)
         integrated = pos[:, :n].copy()
 
         # Hard constraints. Overlap corrections move no one faster than it may move: a pile of bodies
         # (clones spawned where they do not fit) spreads over frames instead of flinging them apart.
         resolve_overlaps(pos, idx, self.radius, self.movable * alive)
-        moved = pos[:, :n] - old[:, :n]
-        clip_norm(moved, vmax * dt)
-        pos[:, :n] = old[:, :n] + moved
+        limit_moves(pos, old, vmax, dt)
         project_out_of_walls(self.grid, pos, self.radius)
         self._clip_to_bounds(pos)
         enforce_slope(self.terrain, old, pos, vel, self.walkers, self.max_slope)
         # Constraint displacements count as velocity (position-based dynamics),
         # so agents stop pushing into what stopped them.
-        v_i += (pos[:, :n] - integrated) * np.float32(1.0 / self.dt)
-        clip_norm(v_i, np.maximum(vmax, 0.0))
+        settle_velocities(pos, vel, integrated, np.float32(1.0 / self.dt), vmax)
         pos[:, n] = P.GHOST_POSITION
         vel[:, n] = 0.0
 
