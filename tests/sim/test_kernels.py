@@ -17,11 +17,11 @@ from usdcrowd.sim import SimSettings, Simulation
 from usdcrowd.sim import kernels as K
 from usdcrowd.sim import params as P
 from usdcrowd.sim.collision import (GOLDEN_ANGLE, agent_avoidance, polygon_signed_distance, project_out_of_walls,
-                                   resolve_overlaps)
+                                   resolve_overlaps, wall_avoidance)
 from usdcrowd.sim.grid import WalkGrid
 from usdcrowd.sim.groups import flocking, mate_mask
 from usdcrowd.sim.neighbors import NeighborList
-from usdcrowd.sim.steering import clip_norm, separation
+from usdcrowd.sim.steering import clip_norm, containment, separation, steer
 from usdcrowd.sim.vision import heuristic_velocity
 
 
@@ -45,16 +45,20 @@ def packed_crowd():
     return pos, vel, radius, nl.idx, mates
 
 
-def _reference_pair_forces(pos, vel, radius, idx, mates, steering):
+def _reference_forces(pos, vel, v_des, radius, idx, mates, grid, lo, hi):
+    """The force terms as (n, k) numpy arrays, added in the step's order."""
     n = idx.shape[0]
     dx = pos[:, :n, None] - pos[:, idx]
     dv = vel[:, :n, None] - vel[:, idx]
     dist = np.sqrt(dx[0] * dx[0] + dx[1] * dx[1])
     gap = dist - (radius[:n, None] + radius[idx])
-    F = steering.copy()
+    F = steer(v_des, vel[:, :n])
     F += agent_avoidance(dx, dv, dist, gap, vel[:, :n])
     F += separation(dx, dist, gap)
     F += flocking(dx, dv, dist, mates)
+    if grid is not None:
+        F += wall_avoidance(grid, pos[:, :n], vel[:, :n], radius[:n])
+    F += containment(pos[:, :n], vel[:, :n], lo, hi)
     return F
 
 
@@ -90,14 +94,20 @@ def _reference_ray_hit(ox, oy, ux, uy, speed, rel_vx, rel_vy, reach):
     return np.where(c <= 0.0, np.where(b < 0.0, np.float32(0.0), np.float32(np.inf)), dist)
 
 
-def test_pair_forces_are_the_three_force_terms_summed(packed_crowd):
+@pytest.mark.parametrize("walls", [False, True], ids=["open", "walls"])
+def test_the_force_is_its_terms_summed(packed_crowd, pillars_among_the_crowd, walls):
     pos, vel, radius, idx, mates = packed_crowd
+    grid = pillars_among_the_crowd
     n = idx.shape[0]
-    steering = np.random.default_rng(1).normal(0.0, 1.0, (2, n)).astype(np.float32)
-    want = _reference_pair_forces(pos, vel, radius, idx, mates, steering)
-    got = steering.copy()
-    K.pair_forces(pos, vel, radius, idx, mates, got)
-    assert np.abs(want - steering).max() > 10.0          # the terms are not negligible here
+    v_des = np.random.default_rng(1).normal(0.0, 1.0, (2, n)).astype(np.float32)
+    lo, hi = np.array([-5.0, -5.0], np.float32), np.array([5.0, 5.0], np.float32)   # some walk out
+    want = _reference_forces(pos, vel, v_des, radius, idx, mates, grid if walls else None, lo, hi)
+    got = K.forces(pos, vel, v_des, radius, idx, mates, walls, *grid.lookup, grid.flat_sdf, grid.flat_nx,
+                   grid.flat_ny, lo, hi)
+    steering = steer(v_des, vel[:, :n])
+    assert (np.hypot(*(want - steering)) > 10.0).sum() > 50       # the terms are not negligible here
+    if walls:
+        assert (np.hypot(*wall_avoidance(grid, pos[:, :n], vel[:, :n], radius[:n])) > 1.0).sum() > 20
     np.testing.assert_allclose(got, want, rtol=1e-5, atol=2e-5)
 
 

@@ -48,79 +48,131 @@ GOLDEN_ANGLE = np.pi * (3.0 - np.sqrt(5.0))
 _INF32 = np.float32(np.inf)
 _TINY2 = np.float32(1e-12)
 _A_MIN = np.float32(1e-9)
+_STEER = np.float32(1.0 / P.TAU_RELAX)
+_WALL_EXP = np.float32(-0.5 / (P.WALL_AVOID_TAU * P.WALL_AVOID_TAU))
+_WALL_GAIN = np.float32(P.WALL_AVOID_GAIN)
+_CONTACT_GAP = np.float32(P.WALL_CONTACT_GAP)
+_CONTACT_GAIN = np.float32(P.WALL_CONTACT_GAIN)
+_SLIDE = np.float32(P.WALL_SLIDE)
+_LOOKAHEAD = np.float32(P.CONTAIN_LOOKAHEAD)
+_CONTAIN = np.float32(-P.CONTAIN_GAIN)
+
+
+@njit(cache=True, nogil=True)
+def _pair_terms(i, pos, vel, radius, idx, mates):
+    """Agent ``i``'s time-to-impact avoidance of its neighbours, personal space, and flocking, each (x, y)."""
+    n, k = idx.shape
+    px, py = pos[0, i], pos[1, i]
+    vx, vy = vel[0, i], vel[1, i]
+    ri = radius[i]
+    sp = np.sqrt(vx * vx + vy * vy)
+    inv_v = _BIAS / max(sp, _CLOSING)
+    rx = vy * inv_v
+    ry = -vx * inv_v
+    ax = ay = sx_sep = sy_sep = cx = cy = mvx = mvy = count = _F0
+    for c in range(k):
+        j = idx[i, c]
+        if j == n:  # the ghost: far away, never a mate
+            continue
+        dx = px - pos[0, j]
+        dy = py - pos[1, j]
+        dvx = vx - vel[0, j]
+        dvy = vy - vel[1, j]
+        dist = np.sqrt(dx * dx + dy * dy)
+        gap = dist - (ri + radius[j])
+        # Seed 003's E_C against a moving obstacle (collision.agent_avoidance).
+        closing = -(dx * dvx + dy * dvy) * (_F1 / max(dist, _EPS))
+        if closing > _CLOSING:
+            t = max(gap, _GAP_MIN) / closing
+            mag = np.exp(_AVOID_EXP * t * t) * _AVOID_GAIN
+            tc = min(t, _HORIZON)
+            sx = dx + dvx * tc
+            sy = dy + dvy * tc
+            inv_s = _F1 / max(np.sqrt(sx * sx + sy * sy), _EPS)
+            ax += (sx * inv_s + rx) * mag
+            ay += (sy * inv_s + ry) * mag
+        # Personal space (steering.separation).
+        w = max((_PERSONAL - gap) * _SEP_SCALE, _F0) / max(dist, _EPS)
+        sx_sep += dx * w
+        sy_sep += dy * w
+        # E_F + E_V with visible group-mates (groups.flocking).
+        if dist < _FLOCK_RADIUS:
+            m = mates[i, c]
+            count += m
+            cx += dx * m
+            cy += dy * m
+            mvx += dvx * m
+            mvy += dvy * m
+    cnt = max(count, _F1)
+    return (ax, ay, sx_sep, sy_sep, cx * (-_COHESION / cnt) + mvx * (-_ALIGN / cnt),
+            cy * (-_COHESION / cnt) + mvy * (-_ALIGN / cnt))
+
+
+@njit(cache=True, nogil=True)
+def _wall_terms(px, py, vx, vy, r, sdf, nx, ny):
+    """Time-to-impact avoidance of the wall whose clearance ``sdf`` and normal ``n`` the agent's cell
+    holds, plus the contact push and the slide along it (collision.wall_avoidance)."""
+    clear = sdf - r
+    approach = -(vx * nx + vy * ny)
+    avoid = _F0
+    if approach > _CLOSING:
+        t = max(clear, _GAP_MIN) / approach
+        avoid = np.exp(_WALL_EXP * t * t) * _WALL_GAIN
+    mag = avoid + min(max((_CONTACT_GAP - clear) / _CONTACT_GAP, _F0), _F1) * _CONTACT_GAIN
+    tx, ty = -ny, nx
+    side = _SLIDE if vx * tx + vy * ty >= _F0 else -_SLIDE
+    return nx * mag + tx * side * avoid, ny * mag + ty * side * avoid
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def pair_forces(pos, vel, radius, idx, mates, out):
-    """Time-to-impact avoidance, then personal space, then flocking from each agent's neighbours,
-    added to ``out`` in that order.
+def forces(pos, vel, v_des, radius, idx, mates, walls, ox, oy, inv_cell, w, h, sdf, nx, ny, lo, hi):
+    """The force on each agent (m/s^2, before its clip): steering toward the desired velocity, then
+    avoidance of the neighbours, personal space, flocking, avoidance of walls and containment in the
+    bounds, added in that order.
 
     Parameters
     ----------
     pos, vel : (2, n + 1) float32
         Positions and velocities, ghost last.
+    v_des : (2, n) float32
+        Desired velocities.
     radius : (n + 1,) float32
     idx : (n, k) int32
         Neighbour table (``n``: none).
     mates : (n, k) float32
         Group-mate (and line-of-sight) mask.
-    out : (2, n) float32
-        Forces so far (steering), m/s^2; the three are added to it in place.
+    walls : bool
+        Whether the grid (``ox`` ... ``ny``, see WalkGrid.lookup) has walls to avoid.
+    lo, hi : (2,) float32
+        Walkable bounds.
+
+    Returns
+    -------
+    (2, n) float32
     """
-    n, k = idx.shape
+    n = idx.shape[0]
+    out = np.empty((2, n), np.float32)
     for i in prange(n):
         px, py = pos[0, i], pos[1, i]
         vx, vy = vel[0, i], vel[1, i]
-        ri = radius[i]
-        sp = np.sqrt(vx * vx + vy * vy)
-        inv_v = _BIAS / max(sp, _CLOSING)
-        rx = vy * inv_v
-        ry = -vx * inv_v
-        ax = _F0
-        ay = _F0
-        sx_sep = _F0
-        sy_sep = _F0
-        cx = _F0
-        cy = _F0
-        mvx = _F0
-        mvy = _F0
-        count = _F0
-        for c in range(k):
-            j = idx[i, c]
-            if j == n:  # the ghost: far away, never a mate
-                continue
-            dx = px - pos[0, j]
-            dy = py - pos[1, j]
-            dvx = vx - vel[0, j]
-            dvy = vy - vel[1, j]
-            dist = np.sqrt(dx * dx + dy * dy)
-            gap = dist - (ri + radius[j])
-            # Seed 003's E_C against a moving obstacle (collision.agent_avoidance).
-            closing = -(dx * dvx + dy * dvy) * (_F1 / max(dist, _EPS))
-            if closing > _CLOSING:
-                t = max(gap, _GAP_MIN) / closing
-                mag = np.exp(_AVOID_EXP * t * t) * _AVOID_GAIN
-                tc = min(t, _HORIZON)
-                sx = dx + dvx * tc
-                sy = dy + dvy * tc
-                inv_s = _F1 / max(np.sqrt(sx * sx + sy * sy), _EPS)
-                ax += (sx * inv_s + rx) * mag
-                ay += (sy * inv_s + ry) * mag
-            # Personal space (steering.separation).
-            w = max((_PERSONAL - gap) * _SEP_SCALE, _F0) / max(dist, _EPS)
-            sx_sep += dx * w
-            sy_sep += dy * w
-            # E_F + E_V with visible group-mates (groups.flocking).
-            if dist < _FLOCK_RADIUS:
-                m = mates[i, c]
-                count += m
-                cx += dx * m
-                cy += dy * m
-                mvx += dvx * m
-                mvy += dvy * m
-        cnt = max(count, _F1)
-        out[0, i] = ((out[0, i] + ax) + sx_sep) + (cx * (-_COHESION / cnt) + mvx * (-_ALIGN / cnt))
-        out[1, i] = ((out[1, i] + ay) + sy_sep) + (cy * (-_COHESION / cnt) + mvy * (-_ALIGN / cnt))
+        fx = (v_des[0, i] - vx) * _STEER
+        fy = (v_des[1, i] - vy) * _STEER
+        ax, ay, sx, sy, gx, gy = _pair_terms(i, pos, vel, radius, idx, mates)
+        fx = ((fx + ax) + sx) + gx
+        fy = ((fy + ay) + sy) + gy
+        if walls:
+            f = _cell(px, py, ox, oy, inv_cell, w, h)
+            wx, wy = _wall_terms(px, py, vx, vy, radius[i], sdf[f], nx[f], ny[f])
+            fx += wx
+            fy += wy
+        # Steering back in when the position a lookahead ahead leaves the bounds (steering.containment).
+        ahx = px + vx * _LOOKAHEAD
+        ahy = py + vy * _LOOKAHEAD
+        fx += (min(ahx - lo[0], _F0) + max(ahx - hi[0], _F0)) * _CONTAIN
+        fy += (min(ahy - lo[1], _F0) + max(ahy - hi[1], _F0)) * _CONTAIN
+        out[0, i] = fx
+        out[1, i] = fy
+    return out
 
 
 @njit(cache=True, nogil=True, parallel=True)

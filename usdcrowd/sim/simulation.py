@@ -37,15 +37,15 @@ import numpy as np
 from ..core.model import BEHAVIORS, CHARACTER_TYPES, HEALTH_STATES, ROLES, CrowdFrames, Scenario, code
 from . import params as P
 from .behavior_maps import Reactions
-from .collision import project_out_of_walls, resolve_overlaps, room_for_piles, separate_spawns, wall_avoidance
+from .collision import project_out_of_walls, resolve_overlaps, room_for_piles, separate_spawns
 from .distance_maps import DistanceMaps
 from .grid import WalkGrid
 from .groups import Groups, mate_mask
 from .interest import InterestFields
-from .kernels import integrate, limit_moves, pair_forces, settle_velocities
+from .kernels import forces, integrate, limit_moves, settle_velocities
 from .neighbors import NeighborList
 from .paths import BEZIER, GRADIENT, BezierPaths, SlopeSteering, Terrain, choose_path_method, enforce_slope
-from .steering import arrive, containment, steer, unit, wander
+from .steering import arrive, unit, wander
 from .trade import Trading, top_groups
 from .validate import validate
 from .vision import heuristic_velocity
@@ -468,16 +468,13 @@ class Simulation:
         it = self._intent()
         self._walk_by_sight(it)
 
-        # Forces (accelerations): steering toward the desired velocity, then
-        # the seed's field components.
-        v_i = vel[:, :n]
-        F = steer(it.v, v_i)
+        # Forces (accelerations): steering toward the desired velocity, then the seed's field
+        # components (E_C against agents and walls, personal space, E_F + E_V, containment), one
+        # pass over the agents and their neighbour table.
         idx = self.nl.idx
-        # E_C against other agents, personal space, E_F + E_V: one pass over the neighbour table.
-        pair_forces(pos, vel, self.radius, idx, self.mates, F)
-        if self.grid.has_solid:
-            F += wall_avoidance(self.grid, pos[:, :n], v_i, self.radius[:n])  # E_C, static
-        F += containment(pos[:, :n], v_i, self.lo, self.hi)
+        g = self.grid
+        F = forces(pos, vel, it.v, self.radius, idx, self.mates, g.has_solid, *g.lookup, g.flat_sdf, g.flat_nx,
+                   g.flat_ny, self.lo, self.hi)
 
         # Integration (seed 003): x += v dt + F dt^2 / 2, v += F dt, force and speed clipped.
         alive = self.health != _DEAD
