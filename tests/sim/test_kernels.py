@@ -328,3 +328,60 @@ def test_integration_and_move_limits_are_the_numpy_steps_they_replace(packed_cro
     clip_norm(want_v[:, :n], np.maximum(vmax, 0.0))
     K.settle_velocities(got, got_v, p[:, :n].copy(), np.float32(100.0), vmax)
     np.testing.assert_array_equal(got_v, want_v)
+
+
+def _reference_memory(groups, step, pos, grid):
+    """groups.Groups.update_memory as numpy arrays, probe by probe (the former code); returns the memory."""
+    memory = groups.memory.copy()
+    f = len(groups.followers)
+    sub = np.arange(step % P.LOS_EVERY, f, P.LOS_EVERY)
+    me = groups.followers[sub]
+    mx, my = pos[0, me], pos[1, me]
+    todo = np.ones(sub.size, dtype=bool)
+    slot = groups.slot[sub]
+    candidates = [pos[:, groups.leader_of[sub]]]
+    candidates += [groups.trail[:, slot, (groups.head - o) % P.TRAIL_LENGTH] for o in P.TRAIL_PROBES]
+    for cand in candidates:
+        w = np.where(todo)[0]
+        cx, cy = cand[0, w], cand[1, w]
+        dx, dy = cx - mx[w], cy - my[w]
+        ok = (dx * dx + dy * dy < np.float32(P.PERCEPTION_RANGE ** 2)) & grid.line_of_sight(mx[w], my[w], cx, cy)
+        hit = w[ok]
+        memory[0, sub[hit]] = cx[ok]
+        memory[1, sub[hit]] = cy[ok]
+        todo[hit] = False
+    return memory
+
+
+@pytest.fixture
+def groups_round_a_wall():
+    """Twelve groups of 6 (a leader each) walking across a wall with three gaps, after 6 s."""
+    rng = np.random.default_rng(9)
+    start = np.stack([rng.uniform(-18.0, -4.0, 72), rng.uniform(-15.0, 15.0, 72)], axis=1)
+    first = np.arange(0, 72, 6)
+    start[first + 3] = start[first] + [14.0, 0.0]          # some members on the far side of the wall
+    leader = np.repeat(first, 6)
+    leader[first] = -1
+    at = S.agents(start, group=np.arange(72) // 6, leader=leader,
+                  role=["leader" if i % 6 == 0 else "member" for i in range(72)])
+    walls = [S.box(0.0, -12.0, 0.3, 6.0), S.box(0.0, 1.0, 0.3, 5.0), S.box(0.0, 13.0, 0.3, 4.0)]
+    sim = Simulation(S.scenario(at, S.groups([[15.0, 0.0, 0.0]] * 12, leaders=list(first)), obstacles=walls),
+                     SimSettings())
+    for _ in range(6 * 48):
+        sim.step()
+    return sim
+
+
+def test_members_remember_their_leader_as_the_probe_by_probe_search_did(groups_round_a_wall):
+    sim = groups_round_a_wall
+    g = sim.groups
+    for step in range(sim.steps, sim.steps + P.LOS_EVERY):
+        want = _reference_memory(g, step, sim.pos, sim.grid)
+        before = g.memory.copy()
+        g.update_memory(step, sim.pos, sim.grid)
+        np.testing.assert_array_equal(g.memory, want)
+    # Some members see their leader, others (behind the wall) one of its breadcrumbs.
+    at_leader = (g.memory == sim.pos[:, g.leader_of]).all(axis=0)
+    on_trail = (g.memory[:, :, None] == g.trail[:, g.slot, :]).all(axis=0).any(axis=1) & ~at_leader
+    assert at_leader.sum() > 20 and on_trail.sum() > 3, (at_leader.sum(), on_trail.sum())
+    assert (g.memory != before).any()

@@ -26,6 +26,10 @@ from . import kernels
 from . import params as P
 
 
+# Samples along a line of sight at most (longer lines are sampled more coarsely).
+LOS_MAX_SAMPLES = 96
+
+
 def polygon_table(obstacles: Obstacles) -> np.ndarray:
     """Obstacle polygons padded to a common vertex count.
 
@@ -67,6 +71,9 @@ class WalkGrid:
         The fields in flat cell order (:meth:`flat_index`), as the compiled loops read them.
     lookup : tuple
         ``(origin_x, origin_y, 1 / cell, w, h)``: what the compiled loops need to find a point's cell.
+    sight : tuple
+        ``(samples per metre, LOS_MAX_SAMPLES) + lookup + (flat_solid,)``: what they need for a line
+        of sight.
     """
 
     def __init__(self, scenario: Scenario, cell: float | None = None):
@@ -119,6 +126,7 @@ class WalkGrid:
         self.flat_solid = self.solid.ravel()
         self.flat_label = self.label.ravel()
         self.lookup = (float(self.origin[0]), float(self.origin[1]), 1.0 / self.cell, self.w, self.h)
+        self.sight = (1.0 / (0.7 * self.cell), LOS_MAX_SAMPLES) + self.lookup + (self.flat_solid,)
 
     # -- rasterisation -------------------------------------------------------
     def _raster_polygon(self, poly: np.ndarray, index: int, label: np.ndarray) -> None:
@@ -196,7 +204,7 @@ class WalkGrid:
         """(n,) int32: nearest obstacle polygon per point (-1: none / forbidden)."""
         return self.flat_label[self.flat_index(x, y)]
 
-    def line_of_sight(self, ax, ay, bx, by, max_samples: int = 96) -> np.ndarray:
+    def line_of_sight(self, ax, ay, bx, by, max_samples: int = LOS_MAX_SAMPLES) -> np.ndarray:
         """Whether segments a->b cross no solid cell.
 
         Samples each segment strictly inside at (up to) 0.7 cell spacing, at
@@ -220,7 +228,7 @@ class WalkGrid:
             return np.ones(n, dtype=bool)
         # Strictly inside: the end points are agents' positions, which may touch a wall's cell.
         return kernels.line_of_sight(np.asarray(ax), np.asarray(ay), np.asarray(bx), np.asarray(by),
-                                     1.0 / (0.7 * self.cell), max_samples, *self.lookup, self.flat_solid)
+                                     *self.sight[:1], max_samples, *self.sight[2:])
 
     def cell_centers(self) -> np.ndarray:
         """(2, h*w) float64 centres of all cells, flat order."""

@@ -28,6 +28,7 @@ import numpy as np
 from ..core.model import AgentTable, GroupTable, ROLES, CONDITIONS, code
 from . import params as P
 from .grid import WalkGrid
+from .kernels import remember_leaders
 from .steering import arrive, cohesion, alignment
 
 
@@ -106,26 +107,9 @@ class Groups:
             sub = np.arange(step % P.LOS_EVERY, f, P.LOS_EVERY)
         if sub.size == 0:
             return
-        me = self.followers[sub]
-        mx, my = pos[0, me], pos[1, me]
-        todo = np.ones(sub.size, dtype=bool)
-        r2 = np.float32(P.PERCEPTION_RANGE ** 2)
-        slot = self.slot[sub]
-        candidates = [pos[:, self.leader_of[sub]]]
-        if grid.has_solid:
-            candidates += [self.trail[:, slot, (self.head - o) % P.TRAIL_LENGTH] for o in P.TRAIL_PROBES]
-        for cand in candidates:  # a handful of probes, newest first
-            w = np.where(todo)[0]
-            if w.size == 0:
-                break
-            cx, cy = cand[0, w], cand[1, w]
-            dx, dy = cx - mx[w], cy - my[w]
-            ok = dx * dx + dy * dy < r2
-            ok &= grid.line_of_sight(mx[w], my[w], cx, cy)
-            hit = w[ok]
-            self.memory[0, sub[hit]] = cx[ok]
-            self.memory[1, sub[hit]] = cy[ok]
-            todo[hit] = False
+        remember_leaders(pos, sub, self.followers, self.leader_of, self.slot, self.trail,
+                         (self.head - np.asarray(P.TRAIL_PROBES)) % P.TRAIL_LENGTH,
+                         np.float32(P.PERCEPTION_RANGE ** 2), self.memory, grid.has_solid, *grid.sight)
 
     def follower_velocity(self, pos: np.ndarray, speed: np.ndarray):
         """Desired velocity of followers: arrive at the remembered leader position.

@@ -305,6 +305,21 @@ def clearance(x, y, ox, oy, inv_cell, w, h, sdf, nx, ny):
     return s, ux, uy
 
 
+@njit(cache=True, nogil=True)
+def _visible(ax, ay, bx, by, per_metre, max_samples, ox, oy, inv_cell, w, h, solid):
+    # One segment of line_of_sight: its own sample count, stopping at the first solid sample.
+    dx = bx - ax
+    dy = by - ay
+    length = np.sqrt(np.float64(dx) * dx + np.float64(dy) * dy)
+    samples = min(max_samples, max(2, np.int64(np.ceil(length * per_metre)) + 1))
+    s32 = np.float32(samples)
+    for q in range(samples):
+        t = (np.float32(q) + np.float32(0.5)) / s32
+        if solid[_cell(ax + dx * t, ay + dy * t, ox, oy, inv_cell, w, h)]:
+            return False
+    return True
+
+
 @njit(cache=True, nogil=True, parallel=True)
 def line_of_sight(ax, ay, bx, by, per_metre, max_samples, ox, oy, inv_cell, w, h, solid):
     """Whether segments a->b cross no solid cell (WalkGrid.line_of_sight).
@@ -317,19 +332,37 @@ def line_of_sight(ax, ay, bx, by, per_metre, max_samples, ox, oy, inv_cell, w, h
     (m,) bool
     """
     m = ax.shape[0]
-    out = np.ones(m, np.bool_)
+    out = np.empty(m, np.bool_)
     for i in prange(m):
-        dx = bx[i] - ax[i]
-        dy = by[i] - ay[i]
-        length = np.sqrt(np.float64(dx) * dx + np.float64(dy) * dy)
-        samples = min(max_samples, max(2, np.int64(np.ceil(length * per_metre)) + 1))
-        s32 = np.float32(samples)
-        for q in range(samples):
-            t = (np.float32(q) + np.float32(0.5)) / s32
-            if solid[_cell(ax[i] + dx * t, ay[i] + dy * t, ox, oy, inv_cell, w, h)]:
-                out[i] = False
-                break
+        out[i] = _visible(ax[i], ay[i], bx[i], by[i], per_metre, max_samples, ox, oy, inv_cell, w, h, solid)
     return out
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def remember_leaders(pos, sub, followers, leader_of, slot, trail, probes, range2, memory, walls, per_metre,
+                     max_samples, ox, oy, inv_cell, w, h, solid):
+    """Seed 003's x_hat_l, in place: for the followers ``sub`` (indices into ``followers``), the
+    position of their leader if in range and in sight, else of the first breadcrumb in ``probes``
+    (columns of ``trail`` (2, l, T), newest first) that is; unchanged where none is. Without
+    ``walls`` only the leader is tried, and range alone decides (groups.Groups.update_memory)."""
+    for q in prange(sub.shape[0]):
+        f = sub[q]
+        me = followers[f]
+        mx, my = pos[0, me], pos[1, me]
+        lead = leader_of[f]
+        for c in range(probes.shape[0] + 1 if walls else 1):
+            if c == 0:
+                cx, cy = pos[0, lead], pos[1, lead]
+            else:
+                cx, cy = trail[0, slot[f], probes[c - 1]], trail[1, slot[f], probes[c - 1]]
+            dx, dy = cx - mx, cy - my
+            if not dx * dx + dy * dy < range2:
+                continue
+            if walls and not _visible(mx, my, cx, cy, per_metre, max_samples, ox, oy, inv_cell, w, h, solid):
+                continue
+            memory[0, f] = cx
+            memory[1, f] = cy
+            break
 
 
 @njit(cache=True, nogil=True, parallel=True)
