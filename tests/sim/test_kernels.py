@@ -385,3 +385,33 @@ def test_members_remember_their_leader_as_the_probe_by_probe_search_did(groups_r
     on_trail = (g.memory[:, :, None] == g.trail[:, g.slot, :]).all(axis=0).any(axis=1) & ~at_leader
     assert at_leader.sum() > 20 and on_trail.sum() > 3, (at_leader.sum(), on_trail.sum())
     assert (g.memory != before).any()
+
+
+@pytest.mark.parametrize("spread", [12.0, 400.0, 1.0e5], ids=["packed", "sparse", "far-flung"])
+def test_the_neighbour_table_holds_the_k_nearest_within_reach(spread):
+    """Against all pairs: the distances of each agent's neighbours are the k smallest within reach, nearest
+    first (ties may name either agent); pinned bodies, far-flung crowds and coincident pairs included."""
+    rng = np.random.default_rng(13)
+    n = 700
+    pos = np.empty((2, n + 1), np.float32)
+    pos[:, :n] = rng.uniform(-spread / 2, spread / 2, (2, n))
+    pos[:, 10:14] = pos[:, 20:24]
+    pos[:, n] = P.GHOST_POSITION
+    members = np.setdiff1d(np.arange(n), np.arange(0, n, 50))       # some take no part
+    nl = NeighborList(n, members)
+    nl.update(pos)
+    p = pos[:, members].T.astype(np.float64)
+    d2 = ((p[:, None] - p[None]) ** 2).sum(-1)
+    np.fill_diagonal(d2, np.inf)
+    reach2 = (nl.radius + nl.skin) ** 2
+    row = {a: i for i, a in enumerate(members)}
+    found = 0
+    for a in members:
+        want = np.sort(d2[row[a]])[:nl.k]
+        want = want[want <= reach2]
+        got = [b for b in nl.idx[a] if b != n]
+        assert all(b in row for b in got)
+        np.testing.assert_array_equal([d2[row[a], row[b]] for b in got], want)
+        found += len(got)
+    assert (nl.idx[np.arange(0, n, 50)] == n).all()
+    assert found > {12.0: 4000, 400.0: 100, 1.0e5: 4}[spread]     # far-flung: the coincident pairs

@@ -175,6 +175,87 @@ def forces(pos, vel, v_des, radius, idx, mates, walls, ox, oy, inv_cell, w, h, s
     return out
 
 
+@njit(cache=True, nogil=True)
+def _bins(x, y, reach):
+    """Points (m,) sorted into square cells (a counting sort) about one point each, at most ``reach``
+    wide: the cell side, the grid's corner, width and height in cells, each cell's first slot in
+    ``order``, and the points in cell order."""
+    m = x.shape[0]
+    x0, x1, y0, y1 = x.min(), x.max(), y.min(), y.max()
+    side = min(reach, max(np.sqrt((x1 - x0) * (y1 - y0) / m), 1e-3))
+    side = max(side, np.sqrt((x1 - x0 + side) * (y1 - y0 + side) / (4.0 * m + 64.0)))  # cells <= 4 per point
+    nx = np.int64((x1 - x0) / side) + 1
+    ny = np.int64((y1 - y0) / side) + 1
+    cell = np.empty(m, np.int64)
+    start = np.zeros(nx * ny + 1, np.int64)
+    for i in range(m):
+        cell[i] = np.int64((y[i] - y0) / side) * nx + np.int64((x[i] - x0) / side)
+        start[cell[i] + 1] += 1
+    for c in range(nx * ny):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    order = np.empty(m, np.int64)
+    for i in range(m):
+        order[fill[cell[i]]] = i
+        fill[cell[i]] += 1
+    return side, x0, y0, nx, ny, start, order
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def nearest_within(x, y, k, reach):
+    """The ``k`` nearest other points within ``reach`` of each point, nearest first, through a grid of
+    cells searched ring by ring outward until no nearer point can remain.
+
+    Parameters
+    ----------
+    x, y : (m,) float64
+    k : int
+    reach : float
+
+    Returns
+    -------
+    (m, k) int64
+        Indices into the points, -1 where fewer than ``k`` are within reach.
+    """
+    m = x.shape[0]
+    out = np.full((m, k), -1, np.int64)
+    if m == 0:
+        return out
+    side, x0, y0, nx, ny, start, order = _bins(x, y, reach)
+    best = np.full((m, k), np.inf)
+    r2 = reach * reach
+    rings = np.int64(reach / side) + 2
+    for i in prange(m):
+        cx = np.int64((x[i] - x0) / side)
+        cy = np.int64((y[i] - y0) / side)
+        for ring in range(rings):
+            # Points in this ring's cells are at least (ring - 1) cells away.
+            near = max(ring - 1, 0) * side
+            if near * near > min(best[i, k - 1], r2):
+                break
+            for gy in range(cy - ring, cy + ring + 1):
+                if gy < 0 or gy >= ny:
+                    continue
+                edge = gy == cy - ring or gy == cy + ring
+                for gx in range(cx - ring, cx + ring + 1, 1 if edge else 2 * ring):
+                    if gx < 0 or gx >= nx:
+                        continue
+                    c = gy * nx + gx
+                    for s in range(start[c], start[c + 1]):
+                        j = order[s]
+                        d2 = (x[j] - x[i]) * (x[j] - x[i]) + (y[j] - y[i]) * (y[j] - y[i])
+                        if j == i or d2 > r2 or d2 >= best[i, k - 1]:
+                            continue
+                        q = k - 1
+                        while q > 0 and best[i, q - 1] > d2:
+                            best[i, q] = best[i, q - 1]
+                            out[i, q] = out[i, q - 1]
+                            q -= 1
+                        best[i, q] = d2
+                        out[i, q] = j
+    return out
+
+
 @njit(cache=True, nogil=True, parallel=True)
 def overlap_corrections(pos, idx, radius, movable, half_relax, out):
     """One Jacobi pass of overlap corrections (collision.resolve_overlaps), into ``out`` (2, n).

@@ -1,7 +1,8 @@
 """Neighbour lists through a spatial index (never all pairs).
 
 A Verlet-style list: the k nearest agents within ``radius + skin`` are found
-with a scipy ``cKDTree`` (queried on all cores) and kept for several steps.
+through a grid of cells (:func:`.kernels.nearest_within`, on all cores) and
+kept for several steps.
 The list is rebuilt when some agent has moved more than half the skin since
 the last build, or after ``max_age`` steps. Rows are padded with the index
 ``n`` of a far-away "ghost" agent, so that the force code needs no masks for
@@ -14,10 +15,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from . import params as P
-
-# Agents from which a neighbour query is split over all cores (measured on 2: 10,000 agents 7.0 ms on
-# both, 9.3 on one).
-PARALLEL_QUERY_MIN = 5000
+from .kernels import nearest_within
 
 
 class NeighborList:
@@ -85,25 +83,9 @@ class NeighborList:
         self._ref = pos[:, m].copy()
         if len(m) < 2:
             return
-        pts = pos[:, m].T.astype(np.float64)
-        tree = cKDTree(pts, balanced_tree=False, compact_nodes=False)
-        # Threads pay for themselves only on large crowds (1,000 agents: 0.29 ms on one, 0.41 on all).
-        workers = -1 if len(m) >= PARALLEL_QUERY_MIN else 1
-        _, j = tree.query(pts, k=self.k + 1, distance_upper_bound=self.radius + self.skin, workers=workers)
-        j = j.astype(np.int64)
-        # The agent itself is normally column 0; with coincident agents it
-        # may sit elsewhere: swap it into column 0, then drop that column.
-        own = np.arange(len(m))
-        at0 = j[:, 0] == own
-        if not at0.all():
-            rows = np.where(~at0)[0]
-            hit = j[rows] == own[rows, None]
-            has = hit.any(axis=1)
-            col = hit.argmax(axis=1)
-            r, c = rows[has], col[has]
-            j[r, c] = j[r, 0]
-        j = j[:, 1:]
-        # Map tree indices to agent rows; "missing" (== len(m)) to the ghost.
+        j = nearest_within(pos[0, m].astype(np.float64), pos[1, m].astype(np.float64), self.k,
+                           self.radius + self.skin)
+        # Map point indices to agent rows; "none" (-1) to the ghost.
         lut = np.append(m, self.n).astype(np.int32)
         self.idx[m] = lut[j]
 
