@@ -73,6 +73,8 @@ class Groups:
         self.follow_dist = (P.FOLLOW_DISTANCE + P.FOLLOW_DISTANCE_PER_MATE * np.sqrt(count))[self.slot]
         self.follow_dist = self.follow_dist.astype(np.float32)
         self._count = np.maximum(count, 1.0)
+        self._mean_follow_dist = np.bincount(self.slot, weights=self.follow_dist,
+                                             minlength=len(self.leaders)) / self._count
         self.memory = pos[:, self.leader_of].copy()
         self.trail = np.repeat(pos[:, self.leaders][:, :, None], P.TRAIL_LENGTH, axis=2)  # (2, l, T)
         self.head = 0
@@ -143,8 +145,7 @@ class Groups:
         d = pos[:, self.followers] - pos[:, self.leader_of]
         dist = np.sqrt(d[0] * d[0] + d[1] * d[1])
         mean = np.bincount(self.slot, weights=dist, minlength=len(self.leaders)) / self._count
-        fd = np.bincount(self.slot, weights=self.follow_dist, minlength=len(self.leaders)) / self._count
-        pace = 1.0 - (mean - fd - 1.0) / P.LEADER_WAIT_SPREAD
+        pace = 1.0 - (mean - self._mean_follow_dist - 1.0) / P.LEADER_WAIT_SPREAD
         return np.minimum(np.maximum(pace, P.LEADER_MIN_PACE), 1.0).astype(np.float32)
 
 

@@ -18,6 +18,8 @@ constraints still keep bodies out of them.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from . import params as P
@@ -28,6 +30,16 @@ from .kernels import free_distances, standing_gaps
 _WALL_SAMPLES = np.array([0.25, 0.5, 1.0, 2.0, 4.0], np.float32)
 # Nearer a wall than now by this much is getting nearer (not walking along it), metres.
 _WALL_APPROACH = 0.05
+
+
+@functools.lru_cache(maxsize=16)
+def _directions(fov_deg: float, directions: int):
+    """(1, d) float32 offsets of the directions tried from the goal's, radians, and their cosines."""
+    offsets = np.radians(np.linspace(-fov_deg, fov_deg, directions)).astype(np.float32)[None, :]
+    offsets.flags.writeable = False
+    cos = np.cos(offsets)
+    cos.flags.writeable = False
+    return offsets, cos
 
 
 def _wall_hit(grid, p: np.ndarray, ux: np.ndarray, uy: np.ndarray, radius: np.ndarray,
@@ -81,7 +93,7 @@ def heuristic_velocity(pos: np.ndarray, vel: np.ndarray, goal_dir: np.ndarray, v
         return np.zeros((2, 0), np.float32), np.zeros(0, bool)
     nb = idx[rows]                                            # (m, k)
     base = np.arctan2(goal_dir[1], goal_dir[0]).astype(np.float32)[:, None]
-    offsets = np.radians(np.linspace(-fov_deg, fov_deg, directions)).astype(np.float32)[None, :]
+    offsets, cos_offsets = _directions(float(fov_deg), int(directions))
     ang = base + offsets                                       # (m, d)
     ux, uy = np.cos(ang), np.sin(ang)                          # (m, d)
     # The discs' (neighbours') hits, walker by walker (:func:`.kernels.free_distances`).
@@ -90,7 +102,7 @@ def heuristic_velocity(pos: np.ndarray, vel: np.ndarray, goal_dir: np.ndarray, v
         f_wall = _wall_hit(grid, pos[:, rows], ux, uy, radius[rows], horizon)
         f = np.minimum(f, f_wall)
     # Distance left to the goal (at the horizon) after walking f along each direction.
-    left = f * f - np.float32(2.0 * horizon) * f * np.cos(offsets)        # + horizon^2, the same for all
+    left = f * f - np.float32(2.0 * horizon) * f * cos_offsets        # + horizon^2, the same for all
     best = np.argmin(left, axis=1)
     pick = np.arange(m)
     ux, uy = ux[pick, best], uy[pick, best]
