@@ -95,7 +95,11 @@ def _section_figures(section: str, found) -> dict:
         return {"usdcrowd": {str(r["agents"]): r["steps_per_s"] for r in found},
                 "jupedsim": {str(r["agents"]): r["jupedsim_steps_per_s"] for r in found},
                 "ratio": {str(r["agents"]): r["ratio"] for r in found}, "jupedsim_version": jps,
-                **{"over_a_run": r["over_a_run"] for r in found if "over_a_run" in r}}
+                "one_thread": {str(r["agents"]): r["one_thread_steps_per_s"] for r in found},
+                "one_thread_ratio": {str(r["agents"]): r["one_thread_ratio"] for r in found},
+                "threads": found[0]["threads"] if found else None,
+                **{"over_a_run": r["over_a_run"] for r in found if "over_a_run" in r},
+                **{"cold_start": r["cold_start"] for r in found if "cold_start" in r}}
     if section == "cameras":
         return {f"{r['cameras']}x{r['characters']}": r for r in found}
     if section == "preview":
@@ -221,7 +225,8 @@ def main(argv=None) -> int:
     if args.section in ("all", "author"):
         measure("author", bench_section, "author", agents=args.agents, frames=args.frames)
     if args.section in ("all", "sim"):
-        measure("sim", bench_section, "sim", sizes=tuple(int(s) for s in args.sizes.split(",")), jupedsim=peers)
+        measure("sim", bench_section, "sim", sizes=tuple(int(s) for s in args.sizes.split(",")), jupedsim=peers,
+                cold=True)
     for name in ("cameras", "moe", "preview", "render", "dataset", "realism"):
         if args.section in ("all", name):
             measure(name, bench_section, name, **({"jupedsim": peers} if name in ("realism", "cameras") else {}))

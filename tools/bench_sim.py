@@ -85,18 +85,28 @@ def scene(n: int, seed: int = 0, maps: bool = True) -> Scenario:
                     np.array([[-h - t, -h - t], [h + t, h + t]]))
 
 
-def bench_usdcrowd(n: int, steps: int, warmup: int = 3) -> dict:
-    """Steps per second and peak traced memory (MiB) of usdcrowd.sim on the scene."""
+def bench_usdcrowd(n: int, steps: int, warmup: int = 3, threads: int | None = None) -> dict:
+    """Steps per second and peak traced memory (MiB) of usdcrowd.sim on the scene, its compiled loops on
+    ``threads`` cores (default all)."""
+    import numba
+
     sc = scene(n)
     t0 = time.perf_counter()
     sim = Simulation(sc, SimSettings(fps=1.0 / DT, substeps=1))
     setup = time.perf_counter() - t0
     for _ in range(warmup):
         sim.step()
-    t0 = time.perf_counter()
-    for _ in range(steps):
-        sim.step()
-    el = time.perf_counter() - t0
+    every = numba.get_num_threads()
+    numba.set_num_threads(threads or every)
+    try:
+        t0 = time.perf_counter()
+        for _ in range(steps):
+            sim.step()
+        el = time.perf_counter() - t0
+    finally:
+        numba.set_num_threads(every)
+    if threads is not None:
+        return {"agents": n, "steps_per_s": steps / el, "threads": threads}
     assert np.all(np.isfinite(sim.pos))
     # Peak memory in a separate pass: tracemalloc slows numpy's allocations.
     tracemalloc.start()
@@ -106,7 +116,28 @@ def bench_usdcrowd(n: int, steps: int, warmup: int = 3) -> dict:
     _, peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
     return {"agents": n, "steps_per_s": steps / el, "setup_s": setup, "peak_mib": peak / 2 ** 20,
-            "rebuilds": sim.nl.rebuilds}
+            "rebuilds": sim.nl.rebuilds, "threads": every}
+
+
+def cold_start(n: int = 1000) -> dict:
+    """Seconds to a first step in a fresh interpreter: with nothing compiled yet (an empty numba cache, as
+    on a machine's first run) and with the cache filled by it. Returns ``compile_s`` and ``cached_s``."""
+    import subprocess
+    import tempfile
+
+    code = ("import sys, time; sys.path[:0] = [{root!r}, {tools!r}]; t = time.perf_counter(); import bench_sim; "
+            "from usdcrowd.sim import SimSettings, Simulation; "
+            "Simulation(bench_sim.scene({n}), SimSettings(fps=100.0, substeps=1)).step(); "
+            "print(time.perf_counter() - t)")
+    here = os.path.dirname(os.path.abspath(__file__))
+    code = code.format(root=os.path.dirname(here), tools=here, n=n)
+    out = {}
+    with tempfile.TemporaryDirectory() as cache:
+        for key in ("compile_s", "cached_s"):
+            done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                                  env={**os.environ, "NUMBA_CACHE_DIR": cache})
+            out[key] = float(done.stdout.split()[-1])
+    return out
 
 
 def over_a_run(n: int = 1000, steps: int = 900, block: int = 100, jupedsim: bool = True) -> dict:
@@ -183,7 +214,8 @@ def bench_jupedsim(n: int, steps: int, warmup: int = 3) -> float | None:
     return steps / (time.perf_counter() - t0)
 
 
-def run(sizes=(1000, 10000, 100000), steps=None, jupedsim: bool = True, rounds: int = 3) -> list[dict]:
+def run(sizes=(1000, 10000, 100000), steps=None, jupedsim: bool = True, rounds: int = 3,
+        cold: bool = False) -> list[dict]:
     """Benchmark usdcrowd.sim (and JuPedSim) at each size in interleaved rounds; print and return a table.
 
     Parameters
@@ -197,36 +229,47 @@ def run(sizes=(1000, 10000, 100000), steps=None, jupedsim: bool = True, rounds: 
         (:func:`require_jupedsim`), not a column of n/a.
     rounds : int
         usdcrowd then JuPedSim, this many times per size: the machine's speed drifts, so the
-        rates are medians and the ratio is the median of each round's ratio.
+        rates are medians and the ratio is the median of each round's ratio. Each round times
+        usdcrowd twice, on all cores and on one (JuPedSim runs on one).
+    cold : bool
+        Also time a first run's compilation of the step's loops (:func:`cold_start`).
 
     Returns
     -------
     list of dict
-        Keys: agents, steps_per_s, setup_s, peak_mib, rebuilds, jupedsim_steps_per_s, ratio, rounds
-        (each round's usdcrowd and JuPedSim rates).
+        Keys: agents, steps_per_s, one_thread_steps_per_s, threads, setup_s, peak_mib, rebuilds,
+        jupedsim_steps_per_s, ratio, one_thread_ratio, rounds (each round's usdcrowd, JuPedSim and
+        one-thread rates); the first row also cold_start.
     """
     if jupedsim:
         require_jupedsim("sim")
+    import numba
+
     rows = []
-    print(f"{'agents':>8} {'steps/s':>9} {'setup s':>8} {'peak MiB':>9} {'JuPedSim/s':>11} {'ratio':>7}  "
-          f"(medians of {rounds} interleaved rounds)")
+    print(f"usdcrowd's compiled loops on {numba.get_num_threads()} threads (and on 1), JuPedSim on its one")
+    print(f"{'agents':>8} {'steps/s':>9} {'1 thread':>9} {'setup s':>8} {'peak MiB':>9} {'JuPedSim/s':>11} "
+          f"{'ratio':>7} {'1 thread':>9}  (medians of {rounds} interleaved rounds)")
     for n in sizes:
         k = steps if isinstance(steps, int) else (steps or {}).get(n, 200 if n <= 2000 else 60 if n <= 20000 else 12)
         seen = []
         for _ in range(rounds):
             r = bench_usdcrowd(n, k)
+            one = bench_usdcrowd(n, k, threads=1)["steps_per_s"]
             j = bench_jupedsim(n, max(3, k // 2 if n > 20000 else k)) if jupedsim else None
-            seen.append((r, j))
+            seen.append((r, j, one))
         r = dict(seen[-1][0])
-        r["steps_per_s"] = float(np.median([a["steps_per_s"] for a, _ in seen]))
-        r["rounds"] = [[a["steps_per_s"], b] for a, b in seen]
-        j = float(np.median([b for _, b in seen])) if jupedsim else None
+        r["steps_per_s"] = float(np.median([a["steps_per_s"] for a, _, _ in seen]))
+        r["one_thread_steps_per_s"] = float(np.median([o for _, _, o in seen]))
+        r["rounds"] = [[a["steps_per_s"], b, o] for a, b, o in seen]
+        j = float(np.median([b for _, b, _ in seen])) if jupedsim else None
         r["jupedsim_steps_per_s"] = j
-        r["ratio"] = float(np.median([a["steps_per_s"] / b for a, b in seen])) if jupedsim else None
+        r["ratio"] = float(np.median([a["steps_per_s"] / b for a, b, _ in seen])) if jupedsim else None
+        r["one_thread_ratio"] = float(np.median([o / b for _, b, o in seen])) if jupedsim else None
         rows.append(r)
         js = f"{j:11.1f}" if j else f"{'n/a':>11}"
-        rt = f"{r['ratio']:7.2f}" if j else f"{'n/a':>7}"
-        print(f"{n:8d} {r['steps_per_s']:9.1f} {r['setup_s']:8.2f} {r['peak_mib']:9.1f} {js} {rt}", flush=True)
+        rt = f"{r['ratio']:7.2f} {r['one_thread_ratio']:9.2f}" if j else f"{'n/a':>7} {'n/a':>9}"
+        print(f"{n:8d} {r['steps_per_s']:9.1f} {r['one_thread_steps_per_s']:9.1f} {r['setup_s']:8.2f} "
+              f"{r['peak_mib']:9.1f} {js} {rt}", flush=True)
     if 1000 in sizes:
         long = over_a_run(1000, jupedsim=jupedsim)
         rows[list(sizes).index(1000)]["over_a_run"] = long
@@ -235,6 +278,11 @@ def run(sizes=(1000, 10000, 100000), steps=None, jupedsim: bool = True, rounds: 
                 rates = long[name]
                 print(f"   {name}, 1,000 agents over {long['steps']} steps, steps/s per {long['block']}: "
                       f"{' '.join(f'{x:.0f}' for x in rates)} (last / first {rates[-1] / rates[0]:.2f})")
+    if cold:
+        c = cold_start()
+        rows[0]["cold_start"] = c
+        print(f"   a first run on a machine: {c['compile_s']:.1f} s to the first step, compiling the step's loops "
+              f"(cached after: {c['cached_s']:.2f} s)")
     return rows
 
 
