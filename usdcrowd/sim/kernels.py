@@ -48,6 +48,7 @@ GOLDEN_ANGLE = np.pi * (3.0 - np.sqrt(5.0))
 _INF32 = np.float32(np.inf)
 _TINY2 = np.float32(1e-12)
 _A_MIN = np.float32(1e-9)
+_WALL_APPROACH = np.float32(0.05)  # nearer a wall than now by this much is getting nearer, m
 _STEER = np.float32(1.0 / P.TAU_RELAX)
 _WALL_EXP = np.float32(-0.5 / (P.WALL_AVOID_TAU * P.WALL_AVOID_TAU))
 _WALL_GAIN = np.float32(P.WALL_AVOID_GAIN)
@@ -559,53 +560,77 @@ def _ray(ox, oy, ux, uy, speed, rvx, rvy, reach):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def free_distances(pos, vel, radius, nb, rows, ux, uy, speed, horizon):
-    """(m, d) how far each walker can walk along each direction before touching someone, capped at
-    ``horizon`` (vision.heuristic_velocity's first heuristic).
+def choose_ways(pos, vel, radius, nb, rows, ux, uy, speed, cos_offsets, horizon, tau, walls, steps, ox, oy,
+                inv_cell, w, h, sdf):
+    """Moussaid, Helbing and Theraulaz's two heuristics for each walker (vision.heuristic_velocity): the
+    direction that brings it nearest its goal, given how far it can walk each way before touching
+    someone (or a wall), and a speed that keeps the time gap ``tau`` to whoever stands that way.
 
     Parameters
     ----------
     pos, vel : (2, N) float32
-    radius : (N,) float32
+    radius : (N,) float
     nb : (m, k) int
         The walkers' neighbours.
     rows : (m,) int
         The walkers.
     ux, uy : (m, d) float32
-        Unit directions tried.
+        Unit directions tried, the goal's in the middle.
     speed : (m,) float32
         Desired speeds.
+    cos_offsets : (1, d) float32
+        Cosines of the directions' angles from the goal's.
+    horizon, tau : float32
+    walls : bool
+        Whether to look for walls too, at ``steps`` (s,) float32 metres along each direction, in the
+        grid's clearance (``ox`` ... ``sdf``: WalkGrid.lookup and flat_sdf).
+
+    Returns
+    -------
+    velocity : (2, m) float32
+    free : (m,) bool
+        Straight toward the goal at the desired speed.
     """
     m, d = ux.shape
     k = nb.shape[1]
-    out = np.empty((m, d), np.float32)
+    out = np.empty((2, m), np.float32)
+    free = np.empty(m, np.bool_)
+    wall = np.full((m, d), horizon, np.float32)
     for i in prange(m):
         r = rows[i]
+        # One already near a wall is stopped only where it would get nearer still.
+        limit = min(radius[r], sdf[_cell(pos[0, r], pos[1, r], ox, oy, inv_cell, w, h)] - _WALL_APPROACH)
+        best_q = 0
+        best_left = _INF32
         for q in range(d):
-            best = _INF32
+            f = _INF32
             for c in range(k):
                 j = nb[i, c]
-                h = _ray(pos[0, j] - pos[0, r], pos[1, j] - pos[1, r], ux[i, q], uy[i, q], speed[i],
-                         vel[0, j], vel[1, j], radius[r] + radius[j])
-                best = min(best, h)
-            out[i, q] = min(best, horizon)
-    return out
-
-
-@njit(cache=True, nogil=True, parallel=True)
-def standing_gaps(pos, radius, nb, rows, ux, uy, horizon):
-    """(m,) distance along each walker's chosen direction to the first person, were everyone to stop,
-    capped at ``horizon`` (vision.heuristic_velocity's time-gap heuristic)."""
-    m = ux.shape[0]
-    k = nb.shape[1]
-    out = np.empty(m, np.float32)
-    for i in prange(m):
-        r = rows[i]
-        best = _INF32
+                f = min(f, _ray(pos[0, j] - pos[0, r], pos[1, j] - pos[1, r], ux[i, q], uy[i, q], speed[i],
+                                vel[0, j], vel[1, j], radius[r] + radius[j]))
+            f = min(f, horizon)
+            if walls:
+                for s in range(steps.shape[0]):
+                    cell = _cell(pos[0, r] + ux[i, q] * steps[s], pos[1, r] + uy[i, q] * steps[s], ox, oy,
+                                 inv_cell, w, h)
+                    if sdf[cell] < limit:      # where the wall begins, taken as a quarter metre before
+                        wall[i, q] = steps[s] - np.float32(0.25)
+                        break
+                f = min(f, wall[i, q])
+            # Distance left to the goal (at the horizon) after walking f this way, less horizon^2.
+            left = f * f - (np.float32(2.0) * horizon) * f * cos_offsets[0, q]
+            if left < best_left:
+                best_left, best_q = left, q
+        gap = _INF32
         for c in range(k):
             j = nb[i, c]
-            h = _ray(pos[0, j] - pos[0, r], pos[1, j] - pos[1, r], ux[i], uy[i], _F1, _F0, _F0,
-                     radius[r] + radius[j])
-            best = min(best, h)
-        out[i] = min(best, horizon)
-    return out
+            gap = min(gap, _ray(pos[0, j] - pos[0, r], pos[1, j] - pos[1, r], ux[i, best_q], uy[i, best_q], _F1,
+                                _F0, _F0, radius[r] + radius[j]))
+        gap = min(min(gap, horizon), wall[i, best_q])
+        v = min(speed[i], max(gap, _F0) / tau)
+        out[0, i] = ux[i, best_q] * v
+        out[1, i] = uy[i, best_q] * v
+        free[i] = best_q == d // 2 and v >= speed[i]
+    return out, free
+
+

@@ -12,8 +12,10 @@ A walker heading for a goal looks over its field of view and
 
 Here the people seen are the neighbour list's (``NEIGHBOR_K`` nearest within
 ``NEIGHBOR_RADIUS``); walls are seen along each direction by sampling the
-walkable grid's distance to them (:func:`_wall_hit`), and the wall forces and
-constraints still keep bodies out of them.
+walkable grid's distance to them at a few points (a wall begins a quarter metre
+before the first point nearer it than the walker's radius), and the wall forces
+and constraints still keep bodies out of them. The loops over walkers,
+directions and neighbours are compiled (:func:`.kernels.choose_ways`).
 """
 
 from __future__ import annotations
@@ -23,13 +25,13 @@ import functools
 import numpy as np
 
 from . import params as P
-from .kernels import free_distances, standing_gaps
+from .kernels import choose_ways
 
 
 # Distances along a direction at which walls are looked for, metres (to the horizon).
 _WALL_SAMPLES = np.array([0.25, 0.5, 1.0, 2.0, 4.0], np.float32)
-# Nearer a wall than now by this much is getting nearer (not walking along it), metres.
-_WALL_APPROACH = 0.05
+# A grid lookup for walkers with no walls to look for (never read).
+_NO_WALLS = (0.0, 0.0, 1.0, 1, 1, np.ones(1, np.float32))
 
 
 @functools.lru_cache(maxsize=16)
@@ -40,18 +42,6 @@ def _directions(fov_deg: float, directions: int):
     cos = np.cos(offsets)
     cos.flags.writeable = False
     return offsets, cos
-
-
-def _wall_hit(grid, p: np.ndarray, ux: np.ndarray, uy: np.ndarray, radius: np.ndarray,
-              horizon: float) -> np.ndarray:
-    """(m, d) how far walkers at ``p`` (2, m) can walk along each direction ``u`` (m, d) before a wall
-    comes within their ``radius``: the first sample that does, less 0.25 m, taken as where the wall
-    begins (``horizon`` if none does). One already that near
-    a wall is stopped only where it would get nearer still: it may walk along the wall or away."""
-    s = _WALL_SAMPLES[_WALL_SAMPLES <= horizon]
-    limit = np.minimum(radius, grid.clearance(p[0], p[1])[0] - _WALL_APPROACH)
-    first = grid.march(p[0], p[1], ux, uy, s, limit)
-    return np.where(np.isfinite(first), first - 0.25, horizon)
 
 
 def heuristic_velocity(pos: np.ndarray, vel: np.ndarray, goal_dir: np.ndarray, v0: np.ndarray,
@@ -96,20 +86,7 @@ def heuristic_velocity(pos: np.ndarray, vel: np.ndarray, goal_dir: np.ndarray, v
     offsets, cos_offsets = _directions(float(fov_deg), int(directions))
     ang = base + offsets                                       # (m, d)
     ux, uy = np.cos(ang), np.sin(ang)                          # (m, d)
-    # The discs' (neighbours') hits, walker by walker (:func:`.kernels.free_distances`).
-    f = free_distances(pos, vel, radius, nb, rows, ux, uy, np.asarray(v0, np.float32), np.float32(horizon))
-    if grid is not None:
-        f_wall = _wall_hit(grid, pos[:, rows], ux, uy, radius[rows], horizon)
-        f = np.minimum(f, f_wall)
-    # Distance left to the goal (at the horizon) after walking f along each direction.
-    left = f * f - np.float32(2.0 * horizon) * f * cos_offsets        # + horizon^2, the same for all
-    best = np.argmin(left, axis=1)
-    pick = np.arange(m)
-    ux, uy = ux[pick, best], uy[pick, best]
-    # The time gap to whoever stands in the chosen direction now (they might stop).
-    gap = standing_gaps(pos, radius, nb, rows, ux, uy, np.float32(horizon))
-    if grid is not None:
-        gap = np.minimum(gap, f_wall[pick, best])
-    v0 = np.asarray(v0, np.float32)
-    v = np.minimum(v0, np.maximum(gap, 0.0) / np.float32(tau))
-    return np.stack([ux * v, uy * v]).astype(np.float32), (best == directions // 2) & (v >= v0)
+    steps = _WALL_SAMPLES[_WALL_SAMPLES <= horizon]
+    where = (grid.lookup + (grid.flat_sdf,)) if grid is not None else _NO_WALLS
+    return choose_ways(pos, vel, radius, nb, rows, ux, uy, np.asarray(v0, np.float32), cos_offsets,
+                       np.float32(horizon), np.float32(tau), grid is not None, steps, *where)
