@@ -272,8 +272,11 @@ def test_walking_by_sight_gives_the_reference_bits(packed_crowd, pillars_among_t
         gap = np.minimum(gap, f_wall[pick, best])
     v = np.minimum(v0.astype(np.float32), np.maximum(gap, 0.0) / np.float32(P.VISION_TAU))
     want = np.stack([ux * v, uy * v]).astype(np.float32)
-    assert 0 < free.sum() < len(rows)                     # some walkers blocked, some not
+    want_free = (best == d // 2) & (v >= v0.astype(np.float32))
+    assert 0 < want_free.sum() < len(rows)                # some walkers blocked, some not
+    assert ((best == d // 2) & ~want_free).any()          # some ahead, slowed by someone in the way
     np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(free, want_free)
 
 
 def test_the_compiled_step_gives_the_same_bytes_run_to_run():
