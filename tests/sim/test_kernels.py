@@ -418,3 +418,14 @@ def test_the_neighbour_table_holds_the_k_nearest_within_reach(spread):
         found += len(got)
     assert (nl.idx[np.arange(0, n, 50)] == n).all()
     assert found > {12.0: 4000, 400.0: 100, 1.0e5: 4}[spread]     # far-flung: the coincident pairs
+
+
+def test_leaders_wait_for_their_group_as_the_bincount_said(groups_round_a_wall):
+    sim = groups_round_a_wall
+    g = sim.groups
+    d = sim.pos[:, g.followers] - sim.pos[:, g.leader_of]
+    spread = np.bincount(g.slot, weights=np.sqrt(d[0] * d[0] + d[1] * d[1]), minlength=len(g.leaders))
+    np.testing.assert_array_equal(K.group_spread(sim.pos, g.followers, g.leader_of, g.slot, len(g.leaders)),
+                                  spread)
+    pace = g.leader_pace(sim.pos)
+    assert (pace < 1.0).any() and (pace == 1.0).any()            # some leaders wait, some need not

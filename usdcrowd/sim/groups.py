@@ -28,7 +28,7 @@ import numpy as np
 from ..core.model import AgentTable, GroupTable, ROLES, CONDITIONS, code
 from . import params as P
 from .grid import WalkGrid
-from .kernels import remember_leaders
+from .kernels import group_spread, remember_leaders
 from .steering import arrive, cohesion, alignment
 
 
@@ -142,9 +142,7 @@ class Groups:
         """
         if len(self.leaders) == 0:
             return np.ones(0, np.float32)
-        d = pos[:, self.followers] - pos[:, self.leader_of]
-        dist = np.sqrt(d[0] * d[0] + d[1] * d[1])
-        mean = np.bincount(self.slot, weights=dist, minlength=len(self.leaders)) / self._count
+        mean = group_spread(pos, self.followers, self.leader_of, self.slot, len(self.leaders)) / self._count
         pace = 1.0 - (mean - self._mean_follow_dist - 1.0) / P.LEADER_WAIT_SPREAD
         return np.minimum(np.maximum(pace, P.LEADER_MIN_PACE), 1.0).astype(np.float32)
 

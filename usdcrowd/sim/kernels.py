@@ -420,6 +420,18 @@ def line_of_sight(ax, ay, bx, by, per_metre, max_samples, ox, oy, inv_cell, w, h
     return out
 
 
+@njit(cache=True, nogil=True)
+def group_spread(pos, followers, leader_of, slot, groups):
+    """(groups,) float64 sum over each group's followers of their distance to their leader, added in
+    follower order (as numpy's bincount adds its weights)."""
+    out = np.zeros(groups)
+    for f in range(followers.shape[0]):
+        dx = pos[0, followers[f]] - pos[0, leader_of[f]]
+        dy = pos[1, followers[f]] - pos[1, leader_of[f]]
+        out[slot[f]] += np.float64(np.sqrt(dx * dx + dy * dy))
+    return out
+
+
 @njit(cache=True, nogil=True, parallel=True)
 def remember_leaders(pos, sub, followers, leader_of, slot, trail, probes, range2, memory, walls, per_metre,
                      max_samples, ox, oy, inv_cell, w, h, solid):
