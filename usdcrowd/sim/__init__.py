@@ -21,11 +21,12 @@ Simulation
 
 Module map: ``params`` (constants with units), ``steering`` (Reynolds'
 behaviours), ``vision`` (way and pace by sight), ``collision``
-(time-to-impact avoidance, overlap and wall constraints), ``neighbors`` (kd-tree Verlet lists), ``groups`` (leaders,
+(time-to-impact avoidance, overlap and wall constraints), ``neighbors`` (Verlet lists), ``groups`` (leaders,
 memory, flocking), ``interest`` (interest fields), ``behavior_maps``
 (generated layers, reactions, health), ``paths`` (Bezier, slope, rule),
 ``grid`` (walkable grid), ``distance_maps`` (Dijkstra / Algorithm 1),
-``simulation`` (state, integration, frames), ``validate``.
+``simulation`` (state, integration, frames), ``kernels`` (the step's loops,
+compiled), ``validate``.
 """
 
 from __future__ import annotations

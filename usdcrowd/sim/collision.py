@@ -188,7 +188,7 @@ def room_for_piles(start, radius) -> np.ndarray | None:
 def _spread_coincident(pos, radius, movable) -> None:
     """Bodies on exactly one point, set out on a sunflower spiral around it (Vogel's: the k-th at
     ``sqrt(k)`` body widths, turned by the golden angle), in place. A neighbour search cannot tell
-    identical points apart, and a KD-tree of thousands of them degenerates into one leaf."""
+    identical points apart, and thousands of them in one cell make it quadratic."""
     n = movable.size
     _, inverse, counts = np.unique(pos[:, :n].T, axis=0, return_inverse=True, return_counts=True)
     inverse = inverse.reshape(-1)
