@@ -429,3 +429,49 @@ def test_leaders_wait_for_their_group_as_the_bincount_said(groups_round_a_wall):
                                   spread)
     pace = g.leader_pace(sim.pos)
     assert (pace < 1.0).any() and (pace == 1.0).any()            # some leaders wait, some need not
+
+
+def test_on_one_thread_or_spread_over_the_cores_the_loops_give_the_same_bytes(packed_crowd, pillars_among_the_crowd):
+    pos, vel, radius, idx, mates = packed_crowd
+    grid = pillars_among_the_crowd
+    n = idx.shape[0]
+    v_des = np.random.default_rng(1).normal(0.0, 1.0, (2, n)).astype(np.float32)
+    lo, hi = np.array([-5.0, -5.0], np.float32), np.array([5.0, 5.0], np.float32)
+    args = (pos, vel, v_des, radius, idx, mates, True, *grid.lookup, grid.flat_sdf, grid.flat_nx, grid.flat_ny, lo, hi)
+    np.testing.assert_array_equal(K.forces.serial(*args), K.forces.parallel(*args))
+    x, y = pos[0, :n].astype(np.float64), pos[1, :n].astype(np.float64)
+    np.testing.assert_array_equal(K.nearest_within.serial(x, y, 8, 4.6), K.nearest_within.parallel(x, y, 8, 4.6))
+    a, b = pos.copy(), pos.copy()
+    K.push_out_of_walls.serial(a, radius, 2, np.float32(0.6), grid.polygons, *grid.lookup, grid.flat_sdf,
+                               grid.flat_nx, grid.flat_ny, grid.flat_label)
+    K.push_out_of_walls.parallel(b, radius, 2, np.float32(0.6), grid.polygons, *grid.lookup, grid.flat_sdf,
+                                 grid.flat_nx, grid.flat_ny, grid.flat_label)
+    assert not np.array_equal(a, pos)
+    np.testing.assert_array_equal(a, b)
+
+
+def test_a_process_forked_after_the_loops_ran_on_threads_still_steps_its_crowd():
+    """GNU OpenMP cannot start threads in a child forked from a process that used it (numba would end the
+    child): there the loops run on one thread, with the same result."""
+    import multiprocessing as mp
+
+    sc = S.room_with_pillars(n=120, seed=4)
+    sim = Simulation(sc, SimSettings())
+    assert sim.n >= K.PARALLEL_MIN
+    for _ in range(5):
+        sim.step()                                        # on threads, in this process
+    ctx = mp.get_context("fork")
+    queue = ctx.Queue()
+
+    def child():
+        for _ in range(20):
+            sim.step()
+        queue.put(sim.pos.tobytes())
+
+    proc = ctx.Process(target=child)
+    proc.start()
+    proc.join(120)
+    assert proc.exitcode == 0
+    for _ in range(20):
+        sim.step()
+    assert queue.get(timeout=5) == sim.pos.tobytes()

@@ -174,28 +174,6 @@ class WalkGrid:
         return kernels.clearance(np.asarray(x), np.asarray(y), *self.lookup, self.flat_sdf, self.flat_nx,
                                  self.flat_ny)
 
-    def march(self, x: np.ndarray, y: np.ndarray, ux: np.ndarray, uy: np.ndarray, steps: np.ndarray,
-              limit: np.ndarray) -> np.ndarray:
-        """How far along each direction the clearance first falls below a limit.
-
-        Parameters
-        ----------
-        x, y : (m,) float32
-            Start points, metres.
-        ux, uy : (m, d) float32
-            Unit directions from each.
-        steps : (s,) float32
-            Distances looked at along each, increasing, metres.
-        limit : (m,) float
-            Clearance below which a point's cell counts, metres.
-
-        Returns
-        -------
-        (m, d) float32
-            The first step whose cell's clearance is below the limit, inf where none is.
-        """
-        return kernels.march(x, y, ux, uy, steps, limit, *self.lookup, self.flat_sdf)
-
     def is_solid(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """(n,) bool: points whose cell is solid."""
         return self.flat_solid[self.flat_index(x, y)]

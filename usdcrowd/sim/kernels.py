@@ -1,22 +1,33 @@
 """Compiled loops of the crowd step (numba).
 
-The step's pair interactions and grid queries, written as one loop over
-agents each instead of a chain of ``(n, k)`` numpy temporaries: the same
-formulas as the vectorised building blocks they replace
-(:func:`.collision.agent_avoidance`, :func:`.steering.separation`,
-:func:`.groups.flocking`, :func:`.collision.resolve_overlaps`,
-:meth:`.grid.WalkGrid.clearance` and ``line_of_sight``, the time to touch a
-disc of :mod:`.vision`). The numpy forms stay as the readable reference
-(in the package, or in ``tests/sim/test_kernels.py``) the tests compare
-these against.
+The step's per-agent and per-pair work, written as one loop over the agents
+each instead of chains of ``(n, k)`` numpy temporaries:
 
-All arithmetic is float32 where the reference's is (module constants are
+- the force on each agent (:func:`forces`: steering, time-to-impact
+  avoidance of neighbours and walls, personal space, flocking, containment);
+- the neighbour table (:func:`nearest_within`, a grid of cells);
+- integration and the constraints (:func:`integrate`,
+  :func:`overlap_corrections`, :func:`limit_moves`,
+  :func:`push_out_of_walls`, :func:`settle_velocities`);
+- grid queries (:func:`cells`, :func:`clearance`, :func:`line_of_sight`);
+- members' memory of their leader (:func:`remember_leaders`,
+  :func:`group_spread`) and walking by sight (:func:`choose_ways`).
+
+Each follows a numpy form: the package's building blocks where they remain
+(:func:`.collision.agent_avoidance`, :func:`.steering.separation`,
+:func:`.groups.flocking`, :func:`.collision.wall_avoidance`,
+:func:`.steering.containment`, :func:`.steering.clip_norm`), the former
+vectorised code otherwise, kept in ``tests/sim/test_kernels.py``, which
+compares the two.
+
+All arithmetic is float32 where the numpy form's is (module constants are
 ``np.float32``: a Python float literal would make numba compute in float64).
-The grid and vision kernels give the reference's bits exactly; the pair
-forces sum each agent's neighbours in order, where numpy's ``einsum`` and
-``sum`` group them differently, so forces agree to float32 rounding
-(``tests/sim/test_kernels.py``), not bit for bit. Every kernel is
-deterministic: the same seed gives the same bytes run to run.
+Every loop but the forces gives the numpy form's bits exactly; the forces sum
+each agent's neighbours in order, where numpy's ``einsum`` and ``sum``
+group them differently, so they agree to float32 rounding, not bit for bit.
+Each agent's result depends on its own loop alone, so spreading the agents
+over the cores (``prange``) changes nothing: a seed gives the same bytes run
+to run.
 
 Compiled once per machine (``cache=True`` keeps the machine code beside
 this file, or in numba's user cache where that is read-only).
@@ -24,10 +35,50 @@ this file, or in numba's user cache where that is read-only).
 
 from __future__ import annotations
 
+import functools
+import os
+import types
+
 import numpy as np
 from numba import njit, prange
 
 from . import params as P
+
+# Items (agents, points, segments) from which a loop is spread over the cores. Starting the threads
+# costs about a microsecond (2 cores): below a few dozen items even the heavy loops lose by it.
+PARALLEL_MIN = 64
+_threads_pid = None     # the process whose loops started threads
+
+
+def _may_use_threads() -> bool:
+    """False in a process forked from one whose loops ran on threads: numba's usual threading layer on
+    Linux (GNU OpenMP) cannot start threads again there, and would end the process."""
+    global _threads_pid
+    if _threads_pid is None:
+        _threads_pid = os.getpid()
+    return _threads_pid == os.getpid()
+
+
+def _loop(size):
+    """Compile a loop over items (``prange``) twice, as one thread and spread over the cores, and run
+    the second when ``size(*args)`` items reach PARALLEL_MIN (and threads may be used). Each item's
+    result depends on its own iteration alone, so both give the same bytes. The two have their own
+    entries in numba's cache (the second's name ends ``_on_threads``)."""
+    def wrap(fn):
+        serial = njit(cache=True, nogil=True)(fn)
+        twin = types.FunctionType(fn.__code__, fn.__globals__, fn.__name__, fn.__defaults__, fn.__closure__)
+        twin.__qualname__ = f"{fn.__qualname__}_on_threads"
+        parallel = njit(cache=True, nogil=True, parallel=True)(twin)
+
+        @functools.wraps(fn)
+        def run(*args):
+            if size(*args) >= PARALLEL_MIN and _may_use_threads():
+                return parallel(*args)
+            return serial(*args)
+
+        run.serial, run.parallel = serial, parallel
+        return run
+    return wrap
 
 _F0 = np.float32(0.0)
 _F1 = np.float32(1.0)
@@ -125,7 +176,7 @@ def _wall_terms(px, py, vx, vy, r, sdf, nx, ny):
     return nx * mag + tx * side * avoid, ny * mag + ty * side * avoid
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@_loop(lambda pos, vel, v_des, *rest: v_des.shape[1])
 def forces(pos, vel, v_des, radius, idx, mates, walls, ox, oy, inv_cell, w, h, sdf, nx, ny, lo, hi):
     """The force on each agent (m/s^2, before its clip): steering toward the desired velocity, then
     avoidance of the neighbours, personal space, flocking, avoidance of walls and containment in the
@@ -202,7 +253,7 @@ def _bins(x, y, reach):
     return side, x0, y0, nx, ny, start, order
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@_loop(lambda x, *rest: x.shape[0])
 def nearest_within(x, y, k, reach):
     """The ``k`` nearest other points within ``reach`` of each point, nearest first, through a grid of
     cells searched ring by ring outward until no nearer point can remain.
@@ -257,7 +308,7 @@ def nearest_within(x, y, k, reach):
     return out
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@_loop(lambda pos, idx, *rest: idx.shape[0])
 def overlap_corrections(pos, idx, radius, movable, half_relax, out):
     """One Jacobi pass of overlap corrections (collision.resolve_overlaps), into ``out`` (2, n).
 
@@ -304,7 +355,7 @@ def _clip2(x, y, limit):
     return x, y
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@_loop(lambda pos, vel, F, *rest: F.shape[1])
 def integrate(pos, vel, F, alive, max_accel, vmax, dt):
     """Seed 003's step for each agent, in place: the force clipped to its maximum (none for the dead),
     ``x += v dt + F dt^2 / 2``, ``v += F dt``, the speed clipped to ``vmax``.
@@ -329,7 +380,7 @@ def integrate(pos, vel, F, alive, max_accel, vmax, dt):
         vel[0, i], vel[1, i] = _clip2(vx + fx * dt, vy + fy * dt, vmax[i])
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@_loop(lambda pos, old, vmax, dt: vmax.shape[0])
 def limit_moves(pos, old, vmax, dt):
     """Shorten each agent's move since ``old`` (2, n + 1) to at most ``vmax * dt``, in place."""
     n = vmax.shape[0]
@@ -339,7 +390,7 @@ def limit_moves(pos, old, vmax, dt):
         pos[1, i] = old[1, i] + my
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@_loop(lambda pos, vel, integrated, inv_dt, vmax: vmax.shape[0])
 def settle_velocities(pos, vel, integrated, inv_dt, vmax):
     """Constraint displacements (``pos`` less ``integrated`` (2, n)) count as velocity, clipped to
     ``vmax`` (position-based dynamics), in place."""
@@ -367,7 +418,7 @@ def cells(x, y, ox, oy, inv_cell, w, h):
     return out
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@_loop(lambda x, *rest: x.shape[0])
 def clearance(x, y, ox, oy, inv_cell, w, h, sdf, nx, ny):
     """Nearest-cell clearance and wall normal at points (WalkGrid.clearance).
 
@@ -402,7 +453,7 @@ def _visible(ax, ay, bx, by, per_metre, max_samples, ox, oy, inv_cell, w, h, sol
     return True
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@_loop(lambda ax, *rest: ax.shape[0])
 def line_of_sight(ax, ay, bx, by, per_metre, max_samples, ox, oy, inv_cell, w, h, solid):
     """Whether segments a->b cross no solid cell (WalkGrid.line_of_sight).
 
@@ -432,7 +483,7 @@ def group_spread(pos, followers, leader_of, slot, groups):
     return out
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@_loop(lambda pos, sub, *rest: sub.shape[0])
 def remember_leaders(pos, sub, followers, leader_of, slot, trail, probes, range2, memory, walls, per_metre,
                      max_samples, ox, oy, inv_cell, w, h, solid):
     """Seed 003's x_hat_l, in place: for the followers ``sub`` (indices into ``followers``), the
@@ -457,23 +508,6 @@ def remember_leaders(pos, sub, followers, leader_of, slot, trail, probes, range2
             memory[0, f] = cx
             memory[1, f] = cy
             break
-
-
-@njit(cache=True, nogil=True, parallel=True)
-def march(x, y, ux, uy, steps, limit, ox, oy, inv_cell, w, h, sdf):
-    """(m, d) the first of ``steps`` (s,) along each direction (m, d) from each point (m,) whose cell's
-    clearance is below the point's ``limit`` (m,); inf where none is (WalkGrid.march)."""
-    m, d = ux.shape
-    out = np.empty((m, d), np.float32)
-    for i in prange(m):
-        for q in range(d):
-            out[i, q] = _INF32
-            for j in range(steps.shape[0]):
-                f = _cell(x[i] + ux[i, q] * steps[j], y[i] + uy[i, q] * steps[j], ox, oy, inv_cell, w, h)
-                if sdf[f] < limit[i]:
-                    out[i, q] = steps[j]
-                    break
-    return out
 
 
 @njit(cache=True, nogil=True)
@@ -518,7 +552,7 @@ def _out_of_convex(px, py, poly, r):
     return cbx + ux * (r + 1e-4), cby + uy * (r + 1e-4)
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@_loop(lambda pos, *rest: pos.shape[1])
 def push_out_of_walls(pos, radius, passes, margin, polys, ox, oy, inv_cell, w, h, sdf, nx, ny, label):
     """Push bodies out of obstacle polygons (exact) and forbidden cells (along the clearance gradient),
     in place (collision.project_out_of_walls).
@@ -571,7 +605,7 @@ def _ray(ox, oy, ux, uy, speed, rvx, rvy, reach):
     return _INF32
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@_loop(lambda pos, vel, radius, nb, rows, *rest: rows.shape[0])
 def choose_ways(pos, vel, radius, nb, rows, ux, uy, speed, cos_offsets, horizon, tau, walls, steps, ox, oy,
                 inv_cell, w, h, sdf):
     """Moussaid, Helbing and Theraulaz's two heuristics for each walker (vision.heuristic_velocity): the
