@@ -19,6 +19,11 @@ pass-on-the-right bias that breaks the symmetry of exact head-on encounters.
 Hard constraints applied after each integration step (so tests can bound
 them): a position-based overlap correction between neighbours, and an
 *exact* projection out of obstacle polygons for agents near them.
+
+The step evaluates these formulas in compiled loops
+(:func:`.kernels.forces`, :func:`.kernels.overlap_corrections`,
+:func:`.kernels.push_out_of_walls`); the array forms here are their
+readable statement, which the tests compare the loops with.
 """
 
 from __future__ import annotations

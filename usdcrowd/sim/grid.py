@@ -206,7 +206,7 @@ class WalkGrid:
             return np.ones(n, dtype=bool)
         # Strictly inside: the end points are agents' positions, which may touch a wall's cell.
         return kernels.line_of_sight(np.asarray(ax), np.asarray(ay), np.asarray(bx), np.asarray(by),
-                                     *self.sight[:1], max_samples, *self.sight[2:])
+                                     self.sight[0], max_samples, *self.lookup, self.flat_solid)
 
     def cell_centers(self) -> np.ndarray:
         """(2, h*w) float64 centres of all cells, flat order."""

@@ -11,9 +11,14 @@ behavior maps, reactions      :mod:`usdcrowd.sim.behavior_maps`
 Bezier / slope paths          :mod:`usdcrowd.sim.paths`
 walkable grid, distance maps  :mod:`usdcrowd.sim.grid`, :mod:`usdcrowd.sim.distance_maps`
 neighbour lists               :mod:`usdcrowd.sim.neighbors`
-pair and grid loops, compiled :mod:`usdcrowd.sim.kernels` (same formulas)
 integration, limits, heading  :meth:`Simulation.step` (below)
 ===========================  ===============================================
+
+The per-agent and per-pair loops of the step run compiled, in
+:mod:`usdcrowd.sim.kernels`: the force on each agent (:func:`.kernels.forces`
+adds up the terms whose numpy forms are in ``steering``, ``collision`` and
+``groups``), the neighbour table, integration and constraints, grid queries,
+leader memory and walking by sight.
 
 Dynamics (seed 003): second order, ``x += v dt + F dt^2 / 2``, ``v += F dt``
 with ``F = -grad E(x, v, t)`` the sum of the components above, clipped to
