@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.model import ANIM_CLASSES, CrowdFrames
-from .rig import (EYE_HEIGHT, HEAD_TOP, PELVIS_HEIGHT, REST_TRANSLATIONS, quat_conjugate,
+from .rig import (EYE_HEIGHT, HEAD_TOP, quat_conjugate,
                   quat_from_axis_angle, quat_multiply, quat_rotate, quat_slerp, wrap_angle)
 
 IDLE, WALK, RUN, STRIDE_LEFT, STRIDE_RIGHT = range(len(ANIM_CLASSES))
@@ -144,30 +144,23 @@ def pose(anim_class: np.ndarray, phase: np.ndarray, speed: np.ndarray):
     translations : (..., 3, 3) float64
         Local joint translations, metres; the legs joint carries the pelvis
         height and bob.
+
+    Notes
+    -----
+    With ``s = sin(2 pi phase)`` and the stride scale ``k`` (1 when idle),
+    the legs turn by ``Rz(LEG_YAW k s) Ry(LEG_PITCH k s) Rx(LEG_ROLL k s)``,
+    the torso by ``Rz(-TORSO_TWIST k s) Ry(TORSO_LEAN k + BREATH s)
+    Rx(-TORSO_SIDE_LEAN)`` and the head by ``Rz(HEAD_SWAY s) Ry(HEAD_NOD
+    sin(4 pi phase) + TORSO_LEAN k / 4)``, all in skeleton space (each joint's
+    local rotation is its parent's inverse times its own, so the torso and
+    head counter-rotate whatever the legs do); the pelvis is lifted by the
+    legs' tilt so the feet stay on the ground, and bobs twice per cycle by
+    ``BOB k``. Computed per pose in one compiled loop
+    (:func:`usdcrowd.character.kernels.pose`).
     """
-    cls = np.asarray(anim_class, dtype=np.int64)
-    ph = 2.0 * np.pi * np.asarray(phase, dtype=np.float64)
-    k = np.where(cls == IDLE, 1.0, _stride_scale(speed, cls))
-    s, s2 = np.sin(ph), np.sin(2.0 * ph)
-    # Skeleton-space orientation of each bone; locals are derived below so
-    # that torso and head counter-rotate whatever the legs do.
-    legs = quat_multiply(quat_multiply(quat_from_axis_angle(_Z, LEG_YAW[cls] * k * s),
-                                       quat_from_axis_angle(_Y, LEG_PITCH[cls] * k * s)),
-                         quat_from_axis_angle(_X, LEG_ROLL[cls] * k * s))
-    torso = quat_multiply(quat_multiply(quat_from_axis_angle(_Z, -TORSO_TWIST[cls] * k * s),
-                                        quat_from_axis_angle(_Y, TORSO_LEAN[cls] * k + BREATH[cls] * s)),
-                          quat_from_axis_angle(_X, -TORSO_SIDE_LEAN[cls]))
-    head = quat_multiply(quat_from_axis_angle(_Z, HEAD_SWAY[cls] * s),
-                         quat_from_axis_angle(_Y, HEAD_NOD[cls] * s2 + 0.25 * TORSO_LEAN[cls] * k))
-    rotations = np.stack([legs,
-                          quat_multiply(quat_conjugate(legs), torso),
-                          quat_multiply(quat_conjugate(torso), head)], axis=-2)
-    translations = np.broadcast_to(REST_TRANSLATIONS, cls.shape + (3, 3)).copy()
-    # Lift the pelvis by the legs' tilt so the feet stay on the ground, then bob
-    # twice per cycle (once per step).
-    zz = 1.0 - 2.0 * (legs[..., 1] ** 2 + legs[..., 2] ** 2)       # the legs' rotated Z . Z
-    translations[..., 0, 2] = PELVIS_HEIGHT * zz + BOB[cls] * k * 0.5 * (1.0 - np.cos(2.0 * ph))
-    return rotations, translations
+    from .kernels import pose as compiled
+
+    return compiled(anim_class, phase, speed)
 
 
 def _ease(x):
@@ -306,6 +299,14 @@ def apply_look_at(rotations: np.ndarray, position: np.ndarray, heading: np.ndarr
         Local joint quaternions.
     """
     rot = np.array(rotations, dtype=np.float64)
+    if rot.ndim == 4:
+        # Agents with nothing to look at in the chunk and no head still turned keep their pose and hold
+        # their angles: the work runs on the others alone (usually few of a crowd).
+        looking = np.isfinite(np.asarray(target)).all(axis=-1).any(axis=0)
+        if state is not None and state.weight is not None:
+            looking |= state.weight > 0.0
+        if not looking.all():
+            return _look_at_some(rot, looking, position, heading, height, target, max_step, state)
     yaw, pitch, has = _look_angles(position, heading, height, target)
     weight = has.astype(np.float64)
     if max_step is not None:
@@ -316,6 +317,26 @@ def apply_look_at(rotations: np.ndarray, position: np.ndarray, heading: np.ndarr
     if not on.any():
         return rot
     rot[on] = _turn_torso_and_head(rot[on], yaw[on], pitch[on], weight[on])
+    return rot
+
+
+def _look_at_some(rot, looking, position, heading, height, target, max_step, state):
+    """:func:`apply_look_at` of the agents ``looking`` ((n,) bool); the others' angles held, weights 0."""
+    cols = np.flatnonzero(looking)
+    carried = state is not None and state.yaw is not None
+    sub = None if state is None else LookState(*((x[cols] if carried else None)
+                                                 for x in (state.yaw, state.pitch, state.weight)))
+    height = np.broadcast_to(np.asarray(height, dtype=np.float64), np.shape(heading))
+    if cols.size:
+        rot[:, cols] = apply_look_at(rot[:, cols], np.asarray(position)[:, cols], np.asarray(heading)[:, cols],
+                                     height[:, cols], np.asarray(target)[:, cols], max_step, sub)
+    if state is not None and max_step is not None and len(rot):
+        n = rot.shape[1]
+        yaw, pitch = (state.yaw.copy(), state.pitch.copy()) if carried else (np.zeros(n), np.zeros(n))
+        weight = np.zeros(n)
+        if cols.size:
+            yaw[cols], pitch[cols], weight[cols] = sub.yaw, sub.pitch, sub.weight
+        state.yaw, state.pitch, state.weight = yaw, pitch, weight
     return rot
 
 

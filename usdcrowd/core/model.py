@@ -391,7 +391,8 @@ class CrowdFrames:
         return self.position.shape[1]
 
     def agents(self, rows: np.ndarray) -> "CrowdFrames":
-        """The frames of the agents ``rows`` ((m,) int), in that order (contiguous copies)."""
+        """The frames of the agents ``rows`` ((m,) int, in that order, or a slice: cheaper), as contiguous
+        copies."""
         from dataclasses import fields, replace
 
         def pick(name):

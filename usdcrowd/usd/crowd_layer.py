@@ -25,6 +25,7 @@ dominates the cost (about 2 s per million samples here).
 
 from __future__ import annotations
 
+import functools
 import multiprocessing as mp
 import os
 
@@ -37,7 +38,8 @@ from ..character import appearance
 from ..character import body as body_mod
 from ..character import rig
 from ..character.animation import Animator
-from ..character.root import apply_root_motion, root_scale
+from ..character.kernels import root_motion
+from ..character.root import root_scale
 from ..scenario.parent_space import in_parent, is_identity, parent_key
 from ..scenario.stageio import StageFrame
 from ..schema import USER_PROPERTIES
@@ -60,15 +62,21 @@ _REACH = 0.6
 _TOP = 1.05 * rig.HEAD_TOP
 
 
-def _types():
+@functools.cache
+def _sdf():
+    """pxr's Sdf, imported once: an import statement in the per-attribute helpers cost a part writer
+    half a second (150,000 attributes)."""
     from pxr import Sdf
 
-    return Sdf.ValueTypeNames
+    return Sdf
+
+
+def _types():
+    return _sdf().ValueTypeNames
 
 
 def _attr(prim_spec, name, type_name, value=None, variability=None, custom=False):
-    from pxr import Sdf
-
+    Sdf = _sdf()
     spec = Sdf.AttributeSpec(prim_spec, name, type_name,
                              variability or Sdf.VariabilityVarying, custom)
     if value is not None:
@@ -77,8 +85,7 @@ def _attr(prim_spec, name, type_name, value=None, variability=None, custom=False
 
 
 def _prim(layer, path, type_name="", specifier=None):
-    from pxr import Sdf
-
+    Sdf = _sdf()
     spec = Sdf.CreatePrimInLayer(layer, path)
     spec.specifier = specifier if specifier is not None else Sdf.SpecifierOver
     if type_name:
@@ -255,6 +262,7 @@ class _AgentPart:
         self._paths: list = []
         self._slots = _TOKEN_SLOTS
         self._height = scenario.agents.height[self.rows]
+        self._scale = root_scale(self._height)
         self._animator = Animator(1.0 / scenario.time.fps, self._height)
         a = scenario.agents
         self._palette = a.palette if a.palette is not None else appearance.plain_palettes(a.color)
@@ -264,6 +272,11 @@ class _AgentPart:
         self._declared = None           # the attributes every clip layer declares (_clip_layer)
         from pxr import Sdf
 
+        self._same = self._shared_values()
+        self._placements: dict = {}
+        # Start positions in the stage's axes and units, all at once.
+        self._starts = dict(zip(self.rows.tolist(),
+                                frame.points_from_canonical(scenario.agents.start[self.rows]).tolist()))
         with Sdf.ChangeBlock():
             for i in self.rows:
                 self._paths.append(self._write_agent(int(i)))
@@ -275,10 +288,10 @@ class _AgentPart:
         from pxr import Gf, Sdf, Vt
 
         T, U = _types(), Sdf.VariabilityUniform
-        layer, sc, a = self.layer, self.scenario, self.scenario.agents
+        layer, sc, a, same = self.layer, self.scenario, self.scenario.agents, self._same
         path = a.path[i]
         spec = _prim(layer, path, "SkelRoot", Sdf.SpecifierOver if path in self.authored else Sdf.SpecifierDef)
-        spec.SetInfo("apiSchemas", Sdf.TokenListOp.Create(prependedItems=["CrowdAgentAPI", "SkelBindingAPI"]))
+        spec.SetInfo("apiSchemas", same["apiSchemas"])
         _attr(spec, "crowd:agentId", T.Int, int(a.agent_id[i]), U)
         _attr(spec, "crowd:role", T.Token, model.ROLES[a.role[i]], U)
         _attr(spec, "crowd:characterType", T.Token, model.CHARACTER_TYPES[a.character_type[i]], U)
@@ -300,14 +313,13 @@ class _AgentPart:
             _attr(spec, f"{USER_PROPERTIES}{name}", kind, value, U, custom=True)
         _attr(spec, "crowd:speed", T.Float, float(a.speed[i]), U)
         _attr(spec, "crowd:height", T.Float, float(a.height[i]), U)
-        start = self.frame.points_from_canonical(a.start[i])
-        _attr(spec, "crowd:startPosition", T.Point3f, Gf.Vec3f(*start.tolist()), U)
+        _attr(spec, "crowd:startPosition", T.Point3f, Gf.Vec3f(*self._starts[i]), U)
         Sdf.RelationshipSpec(spec, "crowd:group", custom=False).targetPathList.explicitItems = [sc.groups.path[a.group[i]]]
         if a.leader[i] >= 0:
             Sdf.RelationshipSpec(spec, "crowd:leader", custom=False).targetPathList.explicitItems = [a.path[a.leader[i]]]
         Sdf.RelationshipSpec(spec, "skel:skeleton", custom=False).targetPathList.explicitItems = [f"{path}/Skel"]
         Sdf.RelationshipSpec(spec, "skel:animationSource", custom=False).targetPathList.explicitItems = [f"{path}/Anim"]
-        if a.role[i] == model.ROLES.index("invisibleLeader"):
+        if a.role[i] == same["invisibleLeader"]:
             _attr(spec, "visibility", T.Token, "invisible")
         self._place(spec, path)
         for name in ("crowd:state:behavior", "crowd:state:animClass", "crowd:state:health"):
@@ -315,15 +327,15 @@ class _AgentPart:
         _attr(spec, "crowd:pathMethod", T.Token, None, U, custom=True)
 
         skel = _prim(layer, f"{path}/Skel", "Skeleton", Sdf.SpecifierDef)
-        skel.referenceList.prependedItems = [Sdf.Reference(primPath=self._protos[0])]
+        skel.referenceList.prependedItems = same["skeleton"]
         anim = _prim(layer, f"{path}/Anim", "SkelAnimation", Sdf.SpecifierDef)
-        _attr(anim, "joints", T.TokenArray, Vt.TokenArray(list(rig.JOINTS)), U)
+        _attr(anim, "joints", T.TokenArray, same["joints"], U)
         s = float(root_scale(a.height[i]))
         _attr(anim, "scales", T.Half3Array, Vt.Vec3hArray([Gf.Vec3h(s, s, s), Gf.Vec3h(1, 1, 1), Gf.Vec3h(1, 1, 1)]))
         _attr(anim, "rotations", T.QuatfArray)
         _attr(anim, "translations", T.Float3Array)
         body = _prim(layer, f"{path}/Body", "Mesh", Sdf.SpecifierDef)
-        body.referenceList.prependedItems = [Sdf.Reference(primPath=self._protos[1])]
+        body.referenceList.prependedItems = same["body"]
         _set_palette(body, self._palette[i])
         # Height for shaders and tools; the geometry is scaled by the root joint.
         _attr(body, "primvars:crowd:height", T.Float, float(a.height[i])).SetInfo("interpolation", "constant")
@@ -331,36 +343,61 @@ class _AgentPart:
                                            f"{path}.crowd:state:behavior", f"{path}.crowd:state:animClass",
                                            f"{path}.crowd:state:health"))
 
+    def _shared_values(self) -> dict:
+        """Values every agent of the part authors alike, made once (a Python-to-USD value costs as much
+        as the spec it goes in)."""
+        from pxr import Sdf, Vt
+
+        return {"apiSchemas": Sdf.TokenListOp.Create(prependedItems=["CrowdAgentAPI", "SkelBindingAPI"]),
+                "joints": Vt.TokenArray(list(rig.JOINTS)),
+                "skeleton": [Sdf.Reference(primPath=self._protos[0])],
+                "body": [Sdf.Reference(primPath=self._protos[1])],
+                "invisibleLeader": model.ROLES.index("invisibleLeader")}
+
     def _place(self, spec, path: str) -> None:
         """The agent's transform: the root joint holds its world motion in canonical metres, so the
         SkelRoot maps canonical metres to the stage's axes and units and undoes its parent's transform
         (:mod:`usdcrowd.scenario.parent_space`). The order replaces the placement the scenario may have
         authored, which only said where the agent starts."""
-        from pxr import Gf, Sdf, Vt
+        from pxr import Sdf
 
         T = Sdf.ValueTypeNames
-        m = in_parent(self.frame.from_canonical, self.parents.get(parent_key(path)))
-        ops = []
-        if m.ndim == 3:                     # an animated parent: the inverse follows it
+        key = parent_key(path)
+        if key not in self._placements:
+            self._placements[key] = self._placement(key)
+        ops, value = self._placements[key]
+        if isinstance(value, list):         # an animated parent: the inverse follows it
             attr = _attr(spec, "xformOp:transform:stageFrame", T.Matrix4d)
-            for t, mt in zip(self.scenario.time.codes, m):
-                self.layer.SetTimeSample(attr.path, float(t), Gf.Matrix4d(mt.tolist()))
-            ops.append("xformOp:transform:stageFrame")
+            for t, mt in value:
+                self.layer.SetTimeSample(attr.path, t, mt)
+        elif value is not None:
+            _attr(spec, "xformOp:transform:stageFrame", T.Matrix4d, value)
+        _attr(spec, "xformOpOrder", T.TokenArray, ops, Sdf.VariabilityUniform)
+
+    def _placement(self, key: str):
+        """``(xformOpOrder, the stage-frame op's value)`` of the agents under the parent ``key``: None
+        (no op), a Gf.Matrix4d, or ``[(time, Gf.Matrix4d), ...]`` for a parent that moves."""
+        from pxr import Gf, Vt
+
+        m = in_parent(self.frame.from_canonical, self.parents.get(key))
+        if m.ndim == 3:
+            value = [(float(t), Gf.Matrix4d(mt.tolist())) for t, mt in zip(self.scenario.time.codes, m)]
         elif not is_identity(m):
-            _attr(spec, "xformOp:transform:stageFrame", T.Matrix4d, Gf.Matrix4d(m.tolist()))
-            ops.append("xformOp:transform:stageFrame")
-        _attr(spec, "xformOpOrder", T.TokenArray, Vt.TokenArray(ops), Sdf.VariabilityUniform)
+            value = Gf.Matrix4d(m.tolist())
+        else:
+            return Vt.TokenArray([]), None
+        return Vt.TokenArray(["xformOp:transform:stageFrame"]), value
 
     def write_frames(self, frames: model.CrowdFrames) -> None:
         """Animate this part's agents over a chunk (``frames`` holds only them) and author it."""
         rot, trans = self._animator(frames)
-        rot, trans, _ = apply_root_motion(rot, trans, frames.position, frames.heading, self._height)
+        rot_usd, trans = root_motion(rot, trans, frames.position, frames.heading, self._scale)
         tokens = {key: getattr(frames, key) for key, _ in _TOKEN_SLOTS}
         if frames.present is not None:
             self._track_presence()
             leader = self.scenario.agents.role[self.rows] == model.ROLES.index("invisibleLeader")
             tokens["present"] = (~np.asarray(frames.present, bool) | leader[None, :]).astype(np.int8)
-        self.write_samples(frames.times, rig.to_usd_quat_order(rot), trans, tokens)
+        self.write_samples(frames.times, rot_usd, trans, tokens)
 
     def _track_presence(self) -> None:
         """From the first chunk that says who is present: visibility is sampled per agent (time samples
@@ -502,7 +539,10 @@ def _part_worker(conn):
 
     worker_ignores_interrupts()             # Ctrl-C is the coordinator's to handle: it stops this process
     try:
+        import time as _t, os as _o
+        _c0 = _t.process_time(); _w0 = _t.perf_counter()
         _part_work(conn, *conn.recv())
+        open(f"/tmp/adhoc/cpu_{_o.getpid()}.txt", "w").write(f"cpu {_t.process_time() - _c0:.2f} wall {_t.perf_counter() - _w0:.2f}")
     except _LOST:
         pass
     except Exception as exc:
@@ -535,7 +575,7 @@ def _part_work(conn, layer_paths, scenario, frame, row_sets, authored, default_p
         try:
             if cmd == "frames":
                 for part, lo, hi in zip(parts, bounds[:-1], bounds[1:]):
-                    part.write_frames(payload.agents(np.arange(lo, hi)) if len(parts) > 1 else payload)
+                    part.write_frames(payload.agents(slice(lo, hi)) if len(parts) > 1 else payload)
                 conn.send(("ok", None))
             elif cmd == "finish":
                 for part, path, lo, hi in zip(parts, layer_paths, bounds[:-1], bounds[1:]):
