@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from usdcrowd.character import animation as A
+from usdcrowd.character import gait as G
 from usdcrowd.character import kernels as K
 from usdcrowd.character.rig import (PELVIS_HEIGHT, REST_TRANSLATIONS, quat_conjugate, quat_from_axis_angle,
                                     quat_multiply, to_usd_quat_order)
@@ -24,19 +25,19 @@ def numpy_pose(anim_class, phase, speed):
     ph = 2.0 * np.pi * np.asarray(phase, dtype=np.float64)
     k = np.where(cls == A.IDLE, 1.0, A._stride_scale(speed, cls))
     s, s2 = np.sin(ph), np.sin(2.0 * ph)
-    legs = quat_multiply(quat_multiply(quat_from_axis_angle(_Z, A.LEG_YAW[cls] * k * s),
-                                       quat_from_axis_angle(_Y, A.LEG_PITCH[cls] * k * s)),
-                         quat_from_axis_angle(_X, A.LEG_ROLL[cls] * k * s))
-    torso = quat_multiply(quat_multiply(quat_from_axis_angle(_Z, -A.TORSO_TWIST[cls] * k * s),
-                                        quat_from_axis_angle(_Y, A.TORSO_LEAN[cls] * k + A.BREATH[cls] * s)),
-                          quat_from_axis_angle(_X, -A.TORSO_SIDE_LEAN[cls]))
-    head = quat_multiply(quat_from_axis_angle(_Z, A.HEAD_SWAY[cls] * s),
-                         quat_from_axis_angle(_Y, A.HEAD_NOD[cls] * s2 + 0.25 * A.TORSO_LEAN[cls] * k))
+    legs = quat_multiply(quat_multiply(quat_from_axis_angle(_Z, G.LEG_YAW[cls] * k * s),
+                                       quat_from_axis_angle(_Y, G.LEG_PITCH[cls] * k * s)),
+                         quat_from_axis_angle(_X, G.LEG_ROLL[cls] * k * s))
+    torso = quat_multiply(quat_multiply(quat_from_axis_angle(_Z, -G.TORSO_TWIST[cls] * k * s),
+                                        quat_from_axis_angle(_Y, G.TORSO_LEAN[cls] * k + G.BREATH[cls] * s)),
+                          quat_from_axis_angle(_X, -G.TORSO_SIDE_LEAN[cls]))
+    head = quat_multiply(quat_from_axis_angle(_Z, G.HEAD_SWAY[cls] * s),
+                         quat_from_axis_angle(_Y, G.HEAD_NOD[cls] * s2 + 0.25 * G.TORSO_LEAN[cls] * k))
     rotations = np.stack([legs, quat_multiply(quat_conjugate(legs), torso),
                           quat_multiply(quat_conjugate(torso), head)], axis=-2)
     translations = np.broadcast_to(REST_TRANSLATIONS, cls.shape + (3, 3)).copy()
     zz = 1.0 - 2.0 * (legs[..., 1] ** 2 + legs[..., 2] ** 2)
-    translations[..., 0, 2] = PELVIS_HEIGHT * zz + A.BOB[cls] * k * 0.5 * (1.0 - np.cos(2.0 * ph))
+    translations[..., 0, 2] = PELVIS_HEIGHT * zz + G.BOB[cls] * k * 0.5 * (1.0 - np.cos(2.0 * ph))
     return rotations, translations
 
 
@@ -57,7 +58,7 @@ def random_cycles():
     """Class codes, phases and speeds of 40 frames x 500 agents, float32 as the simulation hands them."""
     rng = np.random.default_rng(3)
     shape = (40, 500)
-    return (rng.integers(0, len(A.ANIM_CLASSES), shape).astype(np.int8),
+    return (rng.integers(0, len(G.ANIM_CLASSES), shape).astype(np.int8),
             rng.random(shape).astype(np.float32), (rng.random(shape) * 4.0).astype(np.float32))
 
 

@@ -128,11 +128,16 @@ def test_demo_runs_the_whole_chain(tmp_path, capsys):
     for name in ("shot.usda", "crowd.usdc", "cameras.usda", "trajectories.png"):
         assert (shot / name).stat().st_size > 0, name
     assert "validate  shot: 0 errors" in stdout
-    # The same command gives the same ground truth, byte for byte (tools/make_baselines.py --demo records it).
+    # The same command gives the same ground truth: the tracks byte for byte, the COCO file value for value
+    # (floats to a thousandth of a pixel); tools/make_baselines.py --demo records both.
     from tests.helpers.tools import load_tool
 
+    baselines = load_tool("make_baselines")
     expected = json.loads((BASELINES / "demo_ground_truth.json").read_text())
-    assert load_tool("make_baselines").demo_digests(tmp_path / "demo") == expected
+    assert baselines.demo_digests(tmp_path / "demo") == expected
+    coco = json.loads((tmp_path / "demo" / baselines.DEMO_COCO).read_text())
+    differences = baselines.coco_differences(coco, json.loads((BASELINES / "demo_coco.json").read_text()))
+    assert not differences, differences[:5]
     # One toric camera (seed 002) on the shot, filmed by the preview: two heads in each of its frames.
     from usdcrowd.scenario.shot_scene import ShotScene
 

@@ -4,7 +4,8 @@ Pure numpy (and trimesh for the body); :mod:`usdcrowd.usd` turns these arrays
 into UsdSkel prims.
 """
 
-from .animation import (ANIM_CLASSES, BLEND_FRAMES, IDLE_SPEED, RUN_SPEED, advance_phase, animate,
+from ..core.model import ANIM_CLASSES
+from .animation import (BLEND_FRAMES, IDLE_SPEED, RUN_SPEED, advance_phase, animate,
                         apply_look_at, blend_transitions, classify, head_forward, pose)
 from .body import Body, build_body
 from .rig import (BIND_SKEL, JOINTS, KEYPOINT_NAMES, PARENT, REST_LOCAL, compose_local,

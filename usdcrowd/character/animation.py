@@ -18,11 +18,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.model import ANIM_CLASSES, CrowdFrames
+from ..core.model import CrowdFrames
+from .gait import (IDLE, IDLE_FREQUENCY, REF_SPEED, RUN, STRIDE_LEFT, STRIDE_LENGTH, STRIDE_RIGHT,
+                   STRIDE_SCALE_RANGE, WALK)
 from .rig import (EYE_HEIGHT, HEAD_TOP, quat_conjugate,
                   quat_from_axis_angle, quat_multiply, quat_rotate, quat_slerp, wrap_angle)
-
-IDLE, WALK, RUN, STRIDE_LEFT, STRIDE_RIGHT = range(len(ANIM_CLASSES))
 
 # Below this speed feet stop cycling: sim jitter around a standstill would
 # otherwise flicker between walk and idle.
@@ -39,25 +39,6 @@ TORSO_SHARE = 0.4
 TORSO_YAW_LIMIT = np.radians(35.0)
 HEAD_YAW_LIMIT = np.radians(70.0)  # head yaw in the body frame, torso included
 HEAD_PITCH_LIMIT = np.radians(40.0)
-
-# Per-class cycle parameters, indexed by class code (idle, walk, run,
-# strideLeft, strideRight). Stride length = distance covered per full cycle
-# (two steps); idle "cycles" are breaths at a fixed rate.
-STRIDE_LENGTH = np.array([np.nan, 1.4, 2.2, 1.0, 1.0])  # m per cycle
-REF_SPEED = np.array([1.0, 1.3, 3.5, 1.0, 1.0])  # m/s at which amplitudes are nominal
-IDLE_FREQUENCY = 0.25  # Hz, a slow breath
-_D = np.radians
-LEG_PITCH = _D(np.array([0.0, 12.0, 20.0, 3.0, 3.0]))  # legs swing about Y
-LEG_YAW = _D(np.array([0.0, 6.0, 8.0, 0.0, 0.0]))  # hip twist about Z
-LEG_ROLL = _D(np.array([0.0, 0.0, 0.0, 10.0, 10.0]))  # sideways swing about X
-TORSO_TWIST = _D(np.array([0.0, 4.0, 6.0, 0.0, 0.0]))  # shoulders against hips
-TORSO_LEAN = _D(np.array([0.0, 3.0, 12.0, 0.0, 0.0]))  # forward lean, pitch
-TORSO_SIDE_LEAN = _D(np.array([0.0, 0.0, 0.0, 6.0, -6.0]))  # toward the stride side
-BREATH = _D(np.array([1.5, 0.5, 0.8, 0.5, 0.5]))  # torso pitch oscillation
-HEAD_NOD = _D(np.array([0.0, 1.5, 2.5, 1.0, 1.0]))  # residual head bob, twice per cycle
-HEAD_SWAY = _D(np.array([3.0, 0.0, 0.0, 0.0, 0.0]))  # idle glance left/right
-BOB = np.array([0.003, 0.025, 0.05, 0.015, 0.015])  # pelvis rise, metres
-STRIDE_SCALE_RANGE = (0.6, 1.25)  # amplitude scale of slow and fast strides, relative to REF_SPEED
 
 _X, _Y, _Z = np.eye(3)
 

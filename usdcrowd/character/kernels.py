@@ -22,7 +22,7 @@ import math
 import numpy as np
 from numba import njit
 
-from . import animation as A
+from . import gait as A
 from .rig import PELVIS_HEIGHT, REST_TRANSLATIONS
 
 _TWO_PI = 2.0 * np.pi

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .animation import (BLEND_FRAMES, BREATH, LEG_PITCH, LEG_ROLL, LEG_YAW, REF_SPEED, STRIDE_SCALE_RANGE,
-                        TORSO_LEAN, _ease, pose)
+from .animation import BLEND_FRAMES, _ease, pose
+from .gait import BREATH, LEG_PITCH, LEG_ROLL, LEG_YAW, REF_SPEED, STRIDE_SCALE_RANGE, TORSO_LEAN
 from .rig import HEAD_TOP, quat_from_axis_angle, quat_multiply, quat_rotate, quat_slerp, wrap_angle
 
 
