@@ -539,10 +539,7 @@ def _part_worker(conn):
 
     worker_ignores_interrupts()             # Ctrl-C is the coordinator's to handle: it stops this process
     try:
-        import time as _t, os as _o
-        _c0 = _t.process_time(); _w0 = _t.perf_counter()
         _part_work(conn, *conn.recv())
-        open(f"/tmp/adhoc/cpu_{_o.getpid()}.txt", "w").write(f"cpu {_t.process_time() - _c0:.2f} wall {_t.perf_counter() - _w0:.2f}")
     except _LOST:
         pass
     except Exception as exc:
