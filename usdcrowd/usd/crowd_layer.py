@@ -673,20 +673,23 @@ class CrowdLayerWriter:
         self.part_paths = [os.path.join(os.path.dirname(self.final), f"{stem}.part{k:03d}{ext}")
                            for k in range(sum(map(len, layer_rows)))]
         ctx = mp.get_context("spawn")      # a fresh interpreter: pxr and fork do not mix
-        first = 0
-        for rows, row_sets in zip(self._splits, layer_rows):
+        for _ in self._splits:
             here, there = ctx.Pipe()
-            paths = self.part_paths[first:first + len(row_sets)]
-            first += len(row_sets)
             proc = ctx.Process(target=_part_worker, daemon=True, args=(there,))
             _start_ignoring_sigint(proc)
             # Only the worker may hold its end: were it also open here, a send to
             # a worker that died would block on a full pipe instead of failing.
             there.close()
             self._workers.append((proc, here))
-            # Its work goes over the pipe, not in the start-up pickle: while a start-up pickle is
-            # written, the parent itself holds the pipe's other end, so a worker that died at its
-            # start would leave a large one blocked forever; a send to it fails at once.
+        # Every worker is started before any is sent its work: a send waits for its worker to start up
+        # and read it, and the others start up meanwhile. The work goes over the pipe, not in the
+        # start-up pickle: while a start-up pickle is written, the parent itself holds the pipe's other
+        # end, so a worker that died at its start would leave a large one blocked forever; a send to it
+        # fails at once.
+        first = 0
+        for (proc, here), rows, row_sets in zip(self._workers, self._splits, layer_rows):
+            paths = self.part_paths[first:first + len(row_sets)]
+            first += len(row_sets)
             try:
                 here.send((paths, scenario, frame, row_sets, {scenario.agents.path[i] for i in rows} & authored,
                            default_prim, self.clip_plan, parents))
