@@ -13,10 +13,15 @@ median of the per-round ratios are reported):
   crowd's frames a chunk at a time: the same split, plus what usdcrowd
   writes beside the samples (every agent's attributes, prototypes,
   materials) and the animation that makes the samples.
+- **crowd layer, one window**: the same with every sample in the part layers
+  (no value clips: what the time windows cost, and what they save in memory).
 - **shot**: ``author_shot``, what ``simulate`` does after simulating: the
   crowd layer, the camera agents, the overview and the trajectory map (the
   crowd's frames come from a straight walk, not a simulation); once more
   with event detection (``simulate``'s default), measured once after the rounds.
+
+Then, each timed alone in one process, what a writer does besides the floor's
+work: its agents' prims and attributes, and their animation.
 
 Targets: the crowd layer within 1.25x of the floor; the shot in 20 s and
 4 GiB (10,000 agents x 300 frames on two cores).
@@ -174,8 +179,9 @@ def floor_once(folder: str, agents: int) -> dict:
     return {"seconds": seconds, "peak_mib": _peak_mib(), "size_mib": _size_mib(out)}
 
 
-def crowd_layer_once(folder: str, agents: int, frames: int) -> dict:
-    """usdcrowd's CrowdLayerWriter over the same frames (timed from the writer's start to its save)."""
+def crowd_layer_once(folder: str, agents: int, frames: int, clip_frames: int | None = None) -> dict:
+    """usdcrowd's CrowdLayerWriter over the same frames (timed from the writer's start to its save);
+    ``clip_frames=frames`` writes every sample into the part layers, in one window (no value clips)."""
     from usdcrowd.scenario import stage_frame
     from usdcrowd.usd import CrowdLayerWriter
 
@@ -184,7 +190,7 @@ def crowd_layer_once(folder: str, agents: int, frames: int) -> dict:
     default_prim = stage.GetDefaultPrim().GetName()
     t0 = time.perf_counter()
     writer = CrowdLayerWriter(out / "crowd.usdc", scenario, stage_frame(stage), default_prim, "scenario.usda",
-                              set(), workers=WORKERS)
+                              set(), workers=WORKERS, clip_frames=clip_frames)
     for chunk in _chunks(scenario, whole):
         writer.write_chunk(chunk)
     writer.save()
@@ -206,6 +212,36 @@ def shot_once(folder: str, agents: int, frames: int, events: bool = False) -> di
                 progress=False, events=events)
     seconds = time.perf_counter() - t0
     return {"seconds": seconds, "peak_mib": _peak_mib(), "size_mib": _size_mib(out)}
+
+
+def extras_once(folder: str, agents: int, frames: int) -> dict:
+    """What one writer does besides the floor's work, each timed alone in this process: its agents' prims
+    and attributes (as its part layers hold them, not saved) and their animation (pose, blends, look-at and
+    root motion over every chunk)."""
+    from pxr import Sdf
+
+    from usdcrowd.character.animation import Animator
+    from usdcrowd.character.kernels import root_motion
+    from usdcrowd.character.root import root_scale
+    from usdcrowd.scenario import stage_frame
+    from usdcrowd.usd.crowd_layer import _AgentPart
+
+    stage, scenario, whole = _read(Path(folder), agents, frames)
+    share = np.array_split(np.arange(len(scenario.agents)), WORKERS)[0]
+    parts = np.array_split(share, max(1, round(len(share) / PER_LAYER)))
+    t0 = time.perf_counter()
+    for rows in parts:
+        _AgentPart(Sdf.Layer.CreateAnonymous(".usdc"), scenario, stage_frame(stage), rows, set(),
+                   default_prim=stage.GetDefaultPrim().GetName())
+    prims = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    for rows in parts:
+        animator = Animator(1.0 / scenario.time.fps, scenario.agents.height[rows])
+        scale = root_scale(scenario.agents.height[rows])
+        for chunk in _chunks(scenario, whole):
+            part = chunk.agents(rows)
+            root_motion(*animator(part), part.position, part.heading, scale)
+    return {"agents": int(len(share)), "prims_s": prims, "animation_s": time.perf_counter() - t0}
 
 
 def _size_mib(folder: Path) -> float:
@@ -231,7 +267,7 @@ def run(agents: int = 10_000, frames: int = 300, rounds: int = 3) -> dict:
         ``floor``, ``crowd_layer``, ``shot``: median seconds, peak MiB, file MiB and every round's
         seconds; ``ratio_crowd_layer`` / ``ratio_shot``: medians of the per-round ratios to the floor.
     """
-    rows = ("floor", "crowd_layer", "shot")
+    rows = ("floor", "crowd_layer", "crowd_layer_one_window", "shot")
     with tempfile.TemporaryDirectory() as tmp:
         size = _child("write_samples", folder=tmp, agents=agents, frames=frames)
         print(f"   {size['agents']:,} agents x {size['frames']} frames, {2 * size['agents'] * size['frames']:,} "
@@ -240,23 +276,29 @@ def run(agents: int = 10_000, frames: int = 300, rounds: int = 3) -> dict:
         for _ in range(rounds):
             seen["floor"].append(_child("floor_once", folder=tmp, agents=size["agents"]))
             seen["crowd_layer"].append(_child("crowd_layer_once", folder=tmp, agents=agents, frames=frames))
+            seen["crowd_layer_one_window"].append(_child("crowd_layer_once", folder=tmp, agents=agents, frames=frames,
+                                                         clip_frames=frames))
             seen["shot"].append(_child("shot_once", folder=tmp, agents=agents, frames=frames))
         events = _child("shot_once", folder=tmp, agents=agents, frames=frames, events=True)
+        extras = _child("extras_once", folder=tmp, agents=agents, frames=frames)
     found = {"agents": size["agents"], "frames": size["frames"], "rounds": rounds}
     for row in rows:
         s = [r["seconds"] for r in seen[row]]
         found[row] = {"seconds": float(np.median(s)), "each_s": s, "peak_mib": max(r["peak_mib"] for r in seen[row]),
                       "size_mib": seen[row][-1]["size_mib"]}
-    for row in ("crowd_layer", "shot"):
+    for row in ("crowd_layer", "crowd_layer_one_window", "shot"):
         found[f"ratio_{row}"] = float(np.median([a["seconds"] / f["seconds"]
                                                  for a, f in zip(seen[row], seen["floor"])]))
-    print(f"   {'row':<13} {'median s':>9} {'rounds (s)':<22} {'peak MiB':>9} {'files MiB':>10} {'x floor':>8}")
+    print(f"   {'row':<22} {'median s':>9} {'rounds (s)':<22} {'peak MiB':>9} {'files MiB':>10} {'x floor':>8}")
     for row in rows:
         r = found[row]
         ratio = f"{found[f'ratio_{row}']:8.2f}" if row != "floor" else f"{1.0:8.2f}"
-        print(f"   {row:<13} {r['seconds']:9.2f} {', '.join(f'{x:.1f}' for x in r['each_s']):<22} "
+        print(f"   {row:<22} {r['seconds']:9.2f} {', '.join(f'{x:.1f}' for x in r['each_s']):<22} "
               f"{r['peak_mib']:9,.0f} {r['size_mib']:10.1f} {ratio}")
     found["shot_with_events"] = {k: events[k] for k in ("seconds", "peak_mib", "size_mib")}
+    found["extras"] = extras
+    print(f"   what one writer ({extras['agents']:,} agents) does besides the floor's work, each timed alone: "
+          f"its agents' prims and attributes {extras['prims_s']:.2f} s, their animation {extras['animation_s']:.2f} s")
     print(f"   shot with event detection (simulate's default): {events['seconds']:.2f} s "
           f"({events['seconds'] / found['shot']['seconds']:.2f}x the shot without), peak {events['peak_mib']:,.0f} MiB")
     print(f"   target: crowd layer within {TARGET_RATIO}x of the floor: {found['ratio_crowd_layer']:.2f}x "
