@@ -12,7 +12,10 @@ the loops give numpy's bits; ``tests/character/test_animation_kernels.py``
 compares them with the numpy forms it keeps. They run on one thread: the
 part writers that call them already take a core each.
 
-Compiled once per machine (``cache=True``, as :mod:`usdcrowd.sim.kernels`).
+Compiled once per machine (``cache=True``, as :mod:`usdcrowd.sim.kernels`;
+after editing :mod:`usdcrowd.character.gait` or the rig's heights, delete
+``usdcrowd/character/__pycache__/kernels.*.nb[ci]``: numba keeps the
+constants it froze).
 """
 
 from __future__ import annotations

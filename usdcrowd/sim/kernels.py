@@ -30,7 +30,11 @@ over the cores (``prange``) changes nothing: a seed gives the same bytes run
 to run.
 
 Compiled once per machine (``cache=True`` keeps the machine code beside
-this file, or in numba's user cache where that is read-only).
+this file, or in numba's user cache where that is read-only). numba keys
+that cache on this file alone and freezes the constants it reads from
+:mod:`usdcrowd.sim.params`: after editing those, delete
+``usdcrowd/sim/__pycache__/kernels.*.nb[ci]`` (or touch this file), or the
+loops keep the old values.
 """
 
 from __future__ import annotations

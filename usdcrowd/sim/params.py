@@ -2,6 +2,9 @@
 
 Per-character-type tables are tuples indexed by the codes of
 :data:`usdcrowd.core.model.CHARACTER_TYPES` (human, herbivore, ant, bird).
+
+The step's compiled loops freeze these values into numba's cache, which
+only notices edits to their own file: see :mod:`usdcrowd.sim.kernels`.
 """
 
 from __future__ import annotations
