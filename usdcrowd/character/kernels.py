@@ -12,10 +12,9 @@ the loops give numpy's bits; ``tests/character/test_animation_kernels.py``
 compares them with the numpy forms it keeps. They run on one thread: the
 part writers that call them already take a core each.
 
-Compiled once per machine (``cache=True``, as :mod:`usdcrowd.sim.kernels`;
-after editing :mod:`usdcrowd.character.gait` or the rig's heights, delete
-``usdcrowd/character/__pycache__/kernels.*.nb[ci]``: numba keeps the
-constants it froze).
+Compiled once per machine (``cache=True``, as :mod:`usdcrowd.sim.kernels`),
+and again when the gait's or the rig's constants change
+(:mod:`usdcrowd.compiled`).
 """
 
 from __future__ import annotations
@@ -25,8 +24,12 @@ import math
 import numpy as np
 from numba import njit
 
+from ..compiled import forget_stale_machine_code
 from . import gait as A
+from . import rig
 from .rig import PELVIS_HEIGHT, REST_TRANSLATIONS
+
+forget_stale_machine_code(__file__, A, rig)
 
 _TWO_PI = 2.0 * np.pi
 _IDLE = A.IDLE

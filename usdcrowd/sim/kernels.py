@@ -30,11 +30,8 @@ over the cores (``prange``) changes nothing: a seed gives the same bytes run
 to run.
 
 Compiled once per machine (``cache=True`` keeps the machine code beside
-this file, or in numba's user cache where that is read-only). numba keys
-that cache on this file alone and freezes the constants it reads from
-:mod:`usdcrowd.sim.params`: after editing those, delete
-``usdcrowd/sim/__pycache__/kernels.*.nb[ci]`` (or touch this file), or the
-loops keep the old values.
+this file, or in numba's user cache where that is read-only); built again
+when :mod:`usdcrowd.sim.params` changes (:mod:`usdcrowd.compiled`).
 """
 
 from __future__ import annotations
@@ -46,7 +43,10 @@ import types
 import numpy as np
 from numba import njit, prange
 
+from ..compiled import forget_stale_machine_code
 from . import params as P
+
+forget_stale_machine_code(__file__, P)
 
 # Items (agents, points, segments) from which a loop is spread over the cores. Starting the threads
 # costs about a microsecond (2 cores): below a few dozen items even the heavy loops lose by it.

@@ -3,8 +3,8 @@
 Per-character-type tables are tuples indexed by the codes of
 :data:`usdcrowd.core.model.CHARACTER_TYPES` (human, herbivore, ant, bird).
 
-The step's compiled loops freeze these values into numba's cache, which
-only notices edits to their own file: see :mod:`usdcrowd.sim.kernels`.
+The step's compiled loops freeze these values; an edit here has them built
+again (:mod:`usdcrowd.compiled`).
 """
 
 from __future__ import annotations
