@@ -39,6 +39,7 @@ def test_the_digest_sees_every_upper_case_value_and_nothing_else():
     base = constants_digest(_constants())
     assert constants_digest(_constants(gain=3.0000001)) != base
     assert constants_digest(_constants(table=(1.0, 2.0, 3.0))) != base
+    assert constants_digest(_constants(table=(1.0, 2.0 + 1e-12))) != base      # below numpy's printed digits
     changed = _constants()
     changed.lower_case = "something else"
     assert constants_digest(changed) == base
