@@ -81,6 +81,11 @@ class Tracks:
         """(m,) seconds of each row after the file's first frame."""
         return (self.frame - self.frame.min()) / self.fps
 
+    @property
+    def row_bounds(self) -> np.ndarray:
+        """(n + 1,) int: person ``i``'s rows are ``row_bounds[i]:row_bounds[i + 1]`` (rows run person by person)."""
+        return np.searchsorted(self.person, np.arange(len(self) + 1))
+
 
 def guess_format(path: str) -> str:
     """The layout of ``path``: by extension, then by its first line."""

@@ -68,7 +68,7 @@ class TrackSampler:
         self._s, self._xy = tracks.seconds, tracks.xy
         facing = tracks.facing if tracks.facing is not None else np.full(len(tracks.frame), np.nan)
         self._facing = facing if np.isfinite(facing).any() else None
-        self._rows = np.searchsorted(tracks.person, np.arange(self.n + 1))
+        self._rows = tracks.row_bounds
         # Whether each person's every row says which way they face (persons are 0..n-1, each with rows).
         self._facing_everywhere = (np.logical_and.reduceat(np.isfinite(facing), self._rows[:-1]) if len(facing)
                                    else np.zeros(self.n, bool))

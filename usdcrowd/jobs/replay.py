@@ -51,7 +51,7 @@ def body_heights(tracks, height_from: str) -> np.ndarray | None:
     z = tracks.head
     heights = np.full(len(tracks), np.nan)
     if np.isfinite(z).any():
-        bounds = np.searchsorted(tracks.person, np.arange(len(tracks) + 1))     # rows run person by person
+        bounds = tracks.row_bounds
         for i, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):
             mine = z[a:b][np.isfinite(z[a:b])]
             heights[i] = np.median(mine) if len(mine) else np.nan
