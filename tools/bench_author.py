@@ -217,7 +217,7 @@ def shot_once(folder: str, agents: int, frames: int, events: bool = False) -> di
 def extras_once(folder: str, agents: int, frames: int) -> dict:
     """What one writer does besides the floor's work, each timed alone in this process: its agents' prims
     and attributes (as its part layers hold them, not saved) and their animation (pose, blends, look-at and
-    root motion over every chunk)."""
+    root motion over every chunk; the first call's loading of the compiled code included, as in a writer)."""
     from pxr import Sdf
 
     from usdcrowd.character.animation import Animator
