@@ -238,13 +238,15 @@ def _reference_wall_hit(grid, p, ux, uy, radius, horizon):
 @pytest.mark.parametrize("walls", [False, True], ids=["open", "walls"])
 def test_walking_by_sight_gives_the_reference_bits(packed_crowd, pillars_among_the_crowd, walls):
     pos, vel, radius, idx, _ = packed_crowd
+    vel = vel * np.float32(0.3)     # a crowd at a walking pace: some stand in line, some walk against
     grid = pillars_among_the_crowd if walls else None
-    rows = np.arange(0, idx.shape[0], 3)
+    rows = np.arange(0, idx.shape[0], 2)
     rng = np.random.default_rng(5)
     a = rng.uniform(-np.pi, np.pi, len(rows))
     goal = np.stack([np.cos(a), np.sin(a)])
     v0 = rng.uniform(1.0, 1.5, len(rows))
-    got, free = heuristic_velocity(pos, vel, goal, v0, idx, radius, rows, grid=grid)
+    queued = rng.uniform(size=len(rows)) < 0.5
+    got, free, follows = heuristic_velocity(pos, vel, goal, v0, idx, radius, rows, grid=grid, queued=queued)
     # The reference: every walker x direction x neighbour as broadcast arrays.
     nb = idx[rows]
     ox = (pos[0, nb] - pos[0, rows, None])[:, None, :]
@@ -267,14 +269,27 @@ def test_walking_by_sight_gives_the_reference_bits(packed_crowd, pillars_among_t
     ux, uy = ux[pick, best, 0], uy[pick, best, 0]
     still = _reference_ray_hit(ox[:, 0], oy[:, 0], ux[:, None], uy[:, None], np.float32(1.0), 0.0, 0.0,
                                reach[:, 0])
+    first = np.argmin(still, axis=1)
     gap = np.minimum(still.min(axis=1), P.VISION_HORIZON)
+    person = gap < (np.minimum(f_wall[pick, best], P.VISION_HORIZON) if walls else P.VISION_HORIZON)
     if walls:
         gap = np.minimum(gap, f_wall[pick, best])
-    v = np.minimum(v0.astype(np.float32), np.maximum(gap, 0.0) / np.float32(P.VISION_TAU))
+    # In line: the first person that way is not coming toward the walker, and no neighbour walks
+    # against its goal's way faster than COUNTERFLOW_SPEED.
+    j = nb[pick, first]
+    along_way = vel[0, j] * ux + vel[1, j] * uy >= 0.0
+    gx, gy = np.cos(base[:, 0]), np.sin(base[:, 0])
+    against = (vel[0, nb] * gx[:, None] + vel[1, nb] * gy[:, None] < -P.COUNTERFLOW_SPEED).any(axis=1)
+    want_follows = person & along_way & ~against
+    tau = np.where(queued & want_follows, np.float32(P.QUEUE_TAU), np.float32(P.VISION_TAU))
+    v = np.minimum(v0.astype(np.float32), np.maximum(gap, 0.0) / tau)
     want = np.stack([ux * v, uy * v]).astype(np.float32)
     want_free = (best == d // 2) & (v >= v0.astype(np.float32))
     assert 0 < want_free.sum() < len(rows)                # some walkers blocked, some not
     assert ((best == d // 2) & ~want_free).any()          # some ahead, slowed by someone in the way
+    assert 0 < (queued & want_follows).sum() < len(rows)  # some closing up in line, some not
+    assert (queued & want_follows & (gap > 0.0) & (gap / P.VISION_TAU < v0)).any()  # ... nearer than else
+    np.testing.assert_array_equal(follows, want_follows)
     np.testing.assert_array_equal(got, want)
     np.testing.assert_array_equal(free, want_free)
 

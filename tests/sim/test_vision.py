@@ -13,17 +13,18 @@ from usdcrowd.sim.vision import heuristic_velocity
 RADIUS = 0.25
 
 
-def _sight(others, others_vel=None, v0=1.3, **kw):
-    """The desired velocity of a walker at the origin heading +X with people at ``others`` (k, 2)."""
+def _sight(others, others_vel=None, v0=1.3, in_line=False, **kw):
+    """The desired velocity of a walker at the origin heading +X with people at ``others`` (k, 2); with
+    ``in_line`` also whether it stands in line behind the first of them."""
     others = np.asarray(others, np.float64).reshape(-1, 2)
     k = len(others)
     pos = np.concatenate([[[0.0, 0.0]], others]).T.astype(np.float32)
     vel = np.zeros_like(pos) if others_vel is None else np.concatenate([[[v0, 0.0]], others_vel]).T.astype(
         np.float32)
     idx = np.arange(1, k + 1)[None, :]
-    v, _ = heuristic_velocity(pos, vel, np.array([[1.0], [0.0]]), np.array([v0]), idx,
-                              np.full(k + 1, RADIUS), np.array([0]), **kw)
-    return v[:, 0]
+    v, _, follows = heuristic_velocity(pos, vel, np.array([[1.0], [0.0]]), np.array([v0]), idx,
+                                       np.full(k + 1, RADIUS), np.array([0]), **kw)
+    return (v[:, 0], bool(follows[0])) if in_line else v[:, 0]
 
 
 def test_a_walker_slows_to_keep_its_time_gap_to_the_person_ahead():
@@ -32,6 +33,32 @@ def test_a_walker_slows_to_keep_its_time_gap_to_the_person_ahead():
     v = _sight([[1.0, 0.0]], fov_deg=0.0, directions=1)
     np.testing.assert_allclose(v, [0.5 / P.VISION_TAU, 0.0], rtol=1e-5)
     np.testing.assert_allclose(_sight([[3.0, 0.0]], fov_deg=0.0, directions=1), [1.3, 0.0], rtol=1e-5)
+
+
+def test_a_walker_waiting_its_turn_closes_up_on_the_one_ahead_but_not_on_someone_coming_toward_it():
+    """Queued, the same walker keeps QUEUE_TAU instead of VISION_TAU to a person standing 1 m ahead
+    (0.5 m between the bodies); it stands in line behind someone standing or walking on, not behind
+    someone coming toward it, nor where a neighbour walks against its way faster than COUNTERFLOW_SPEED."""
+    ahead = dict(fov_deg=0.0, directions=1)
+    v, in_line = _sight([[1.0, 0.0]], in_line=True, queued=[True], **ahead)
+    assert in_line
+    np.testing.assert_allclose(v, [min(1.3, 0.5 / P.QUEUE_TAU), 0.0], rtol=1e-5)
+    v, _ = _sight([[1.0, 0.0]], in_line=True, queued=[False], **ahead)
+    np.testing.assert_allclose(v, [0.5 / P.VISION_TAU, 0.0], rtol=1e-5)
+    # Coming toward it: the time gap stays VISION_TAU however long it waited.
+    v, in_line = _sight([[1.0, 0.0]], others_vel=[[-0.2, 0.0]], in_line=True, queued=[True], **ahead)
+    assert not in_line
+    np.testing.assert_allclose(v, [0.5 / P.VISION_TAU, 0.0], rtol=1e-5)
+    # Behind someone walking on, beside someone walking the other way: a standoff, not a queue.
+    slow = P.COUNTERFLOW_SPEED
+    _, in_line = _sight([[1.0, 0.0], [0.0, 1.0]], others_vel=[[0.2, 0.0], [-0.9 * slow, 0.0]], in_line=True,
+                        **ahead)
+    assert in_line
+    _, in_line = _sight([[1.0, 0.0], [0.0, 1.0]], others_vel=[[0.2, 0.0], [-1.1 * slow, 0.0]], in_line=True,
+                        **ahead)
+    assert not in_line
+    # Nobody that way: nothing to stand in line behind.
+    assert not _sight([[0.0, 2.0]], in_line=True, **ahead)[1]
 
 
 def test_a_walker_turns_just_enough_to_pass_someone_standing_in_its_way():
@@ -75,3 +102,35 @@ def test_a_fast_walker_overtakes_a_slow_one_where_there_is_room_and_follows_wher
     pace = np.diff(narrow[late, 1, 0]).mean() * 24
     assert abs(pace - 0.7) < 0.05, pace
     assert abs(gap[late].mean() - 0.7 * P.VISION_TAU) < 0.05, gap[late].mean()
+
+
+
+def _through_a_door(seconds=60.0, n=60):
+    """Sixty people packed in a 5 m x 6 m room leave through a passage 0.8 m wide and 2 m long for a
+    goal beyond: the times (s) at which each has passed its middle, sorted (inf: not yet), and the
+    bodies' deepest overlap (m)."""
+    rng = np.random.default_rng(4)
+    cols, rows = np.meshgrid(np.arange(10), np.arange(6))
+    start = np.column_stack([-5.3 + 0.5 * cols.ravel(), -2.6 + 0.95 * rows.ravel()]) + rng.uniform(-0.05, 0.05, (n, 2))
+    walls = [S.box(1.0, 1.7, 1.0, 1.3), S.box(1.0, -1.7, 1.0, 1.3), S.box(-2.75, 3.2, 2.75, 0.2),
+             S.box(-2.75, -3.2, 2.75, 0.2), S.box(-5.7, 0.0, 0.2, 3.4)]
+    a = S.agents(start, group=np.arange(n), speed=rng.uniform(1.1, 1.5, n), condition="isolated")
+    g = S.groups(np.tile([[9.0, 0.0, 0.0]], (n, 1)))
+    frames = int(seconds * 24)
+    sc = S.scenario(a, g, obstacles=walls, bounds=((-6, -4), (11, 4)), frames=frames)
+    xy = Simulation(sc, SimSettings()).frames(frames, 1.0).position[:, :, :2].astype(np.float64)
+    passed = np.where((xy[..., 0] > 1.0).any(axis=0), np.argmax(xy[..., 0] > 1.0, axis=0) / 24.0, np.inf)
+    d = np.linalg.norm(xy[:, :, None] - xy[:, None], axis=-1) + np.eye(n) * 9.0
+    return np.sort(passed), float(2 * RADIUS - d.min())
+
+
+def test_people_waiting_their_turn_at_a_door_close_up_and_pass_it_sooner(monkeypatch):
+    """Held up behind one another at a narrow door, people close up (QUEUE_TAU) and so pass it sooner
+    than if they kept VISION_TAU to the one ahead, without their bodies going into each other."""
+    queued, overlap = _through_a_door()
+    monkeypatch.setattr(P, "QUEUE_TAU", P.VISION_TAU)
+    spaced, _ = _through_a_door()
+    assert np.isfinite(queued[:36]).all() and np.isfinite(spaced[:36]).all()
+    first, last = queued[[5, 35]], spaced[[5, 35]]
+    assert (last[1] - last[0]) > 1.1 * (first[1] - first[0]), (first, last)
+    assert overlap < 0.02, overlap

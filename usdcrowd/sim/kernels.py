@@ -112,6 +112,7 @@ _CONTACT_GAIN = np.float32(P.WALL_CONTACT_GAIN)
 _SLIDE = np.float32(P.WALL_SLIDE)
 _LOOKAHEAD = np.float32(P.CONTAIN_LOOKAHEAD)
 _CONTAIN = np.float32(-P.CONTAIN_GAIN)
+_COUNTERFLOW = np.float32(P.COUNTERFLOW_SPEED)
 
 
 @njit(cache=True, nogil=True)
@@ -610,8 +611,8 @@ def _ray(ox, oy, ux, uy, speed, rvx, rvy, reach):
 
 
 @_loop(lambda pos, vel, radius, nb, rows, *rest: rows.shape[0])
-def choose_ways(pos, vel, radius, nb, rows, ux, uy, speed, cos_offsets, horizon, tau, walls, steps, ox, oy,
-                inv_cell, w, h, sdf):
+def choose_ways(pos, vel, radius, nb, rows, ux, uy, speed, cos_offsets, horizon, tau, queued, queue_tau, walls,
+                steps, ox, oy, inv_cell, w, h, sdf):
     """Moussaid, Helbing and Theraulaz's two heuristics for each walker (vision.heuristic_velocity): the
     direction that brings it nearest its goal, given how far it can walk each way before touching
     someone (or a wall), and a speed that keeps the time gap ``tau`` to whoever stands that way.
@@ -631,6 +632,9 @@ def choose_ways(pos, vel, radius, nb, rows, ux, uy, speed, cos_offsets, horizon,
     cos_offsets : (1, d) float32
         Cosines of the directions' angles from the goal's.
     horizon, tau : float32
+    queued : (m,) bool
+        Waiting their turn: they keep ``queue_tau`` (float32) instead of ``tau`` to someone ahead who is
+        not coming toward them.
     walls : bool
         Whether to look for walls too, at ``steps`` (s,) float32 metres along each direction, in the
         grid's clearance (``ox`` ... ``sdf``: WalkGrid.lookup and flat_sdf).
@@ -640,11 +644,15 @@ def choose_ways(pos, vel, radius, nb, rows, ux, uy, speed, cos_offsets, horizon,
     velocity : (2, m) float32
     free : (m,) bool
         Straight toward the goal at the desired speed.
+    follows : (m,) bool
+        In line: the first body that way is a person not coming toward the walker (standing, or walking
+        on), and no neighbour walks against the walker's way faster than COUNTERFLOW_SPEED.
     """
     m, d = ux.shape
     k = nb.shape[1]
     out = np.empty((2, m), np.float32)
     free = np.empty(m, np.bool_)
+    follows = np.empty(m, np.bool_)
     wall = np.full((m, d), horizon, np.float32)
     for i in prange(m):
         r = rows[i]
@@ -672,15 +680,23 @@ def choose_ways(pos, vel, radius, nb, rows, ux, uy, speed, cos_offsets, horizon,
             if left < best_left:
                 best_left, best_q = left, q
         gap = _INF32
+        ahead = -1
+        against = False
         for c in range(k):
             j = nb[i, c]
-            gap = min(gap, _ray(pos[0, j] - pos[0, r], pos[1, j] - pos[1, r], ux[i, best_q], uy[i, best_q], _F1,
-                                _F0, _F0, radius[r] + radius[j]))
+            g = _ray(pos[0, j] - pos[0, r], pos[1, j] - pos[1, r], ux[i, best_q], uy[i, best_q], _F1,
+                     _F0, _F0, radius[r] + radius[j])
+            if g < gap:
+                gap, ahead = g, j
+            against |= vel[0, j] * ux[i, d // 2] + vel[1, j] * uy[i, d // 2] < -_COUNTERFLOW
+        person = gap < min(horizon, wall[i, best_q])
         gap = min(min(gap, horizon), wall[i, best_q])
-        v = min(speed[i], max(gap, _F0) / tau)
+        follows[i] = (person and not against
+                      and vel[0, ahead] * ux[i, best_q] + vel[1, ahead] * uy[i, best_q] >= _F0)
+        v = min(speed[i], max(gap, _F0) / (queue_tau if queued[i] and follows[i] else tau))
         out[0, i] = ux[i, best_q] * v
         out[1, i] = uy[i, best_q] * v
         free[i] = best_q == d // 2 and v >= speed[i]
-    return out, free
+    return out, free, follows
 
 

@@ -91,6 +91,15 @@ VISION_DIRECTIONS = 11  # directions tried across it
 VISION_HORIZON = NEIGHBOR_RADIUS  # m, farthest a collision is looked for (the neighbour range)
 VISION_TAU = 0.5  # s, time gap kept to the first person ahead
 VISION_INTERVAL = 0.1  # s between a walker's looks (about a reaction time); kept in between
+# Waiting one's turn (a door, a queue): a walker held below QUEUE_SPEED for QUEUE_AFTER seconds behind
+# someone who is not coming toward them closes up, keeping QUEUE_TAU instead of VISION_TAU to the one
+# ahead, until QUEUE_HOLD seconds after they last waited so long.
+QUEUE_SPEED = 0.15  # m/s
+QUEUE_AFTER = 0.5  # s
+QUEUE_HOLD = 10.0  # s
+QUEUE_TAU = 0.05  # s
+# ... and only with no one near walking against their way faster than this (a standoff is not a queue).
+COUNTERFLOW_SPEED = 0.3  # m/s
 
 # --- flocking, velocity matching, leaders (seed 003, E_F, E_V, E_L) -------
 FLOCK_RADIUS = 4.0  # m, group-mates closer than this are "visible"

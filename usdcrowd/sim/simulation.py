@@ -418,19 +418,31 @@ class Simulation:
         if self._sight is None:
             self._sight = np.full((2, self.n), np.nan, np.float32)
             self._sight_free = np.zeros(self.n, bool)
+            self._follows = np.zeros(self.n, bool)
+            self._waited = np.zeros(self.n, np.float32)       # s held up behind someone, in a row
+            self._queued_until = np.full(self.n, -np.inf)     # s, waiting their turn until then
         self._sight[:, ~walking] = np.nan
+        self._wait_turns(walking)
         rows = np.flatnonzero(walking)
         if len(rows) == 0:
             return
         every = max(1, int(round(P.VISION_INTERVAL / self.dt)))
         due = rows[((self.steps + rows) % every == 0) | ~np.isfinite(self._sight[0, rows])]
         if len(due):
-            self._sight[:, due], self._sight_free[due] = heuristic_velocity(
+            self._sight[:, due], self._sight_free[due], self._follows[due] = heuristic_velocity(
                 self.pos, self.vel, v[:, due] / speed[due], speed[due], self.nl.idx, self.radius, due,
-                grid=self.grid if self.grid.has_solid else None)
+                grid=self.grid if self.grid.has_solid else None, queued=self._queued_until[due] > self.time)
         # Nothing in their way at their last look: they walk as they meant to, to the bit.
         held = rows[~self._sight_free[rows]]
         v[:, held] = self._sight[:, held]
+
+    def _wait_turns(self, walking: np.ndarray) -> None:
+        """Who waits their turn: held below QUEUE_SPEED behind someone not coming toward them (as last
+        seen) for QUEUE_AFTER seconds in a row; they count as waiting for QUEUE_HOLD seconds after."""
+        vx, vy = self.vel[0, :self.n], self.vel[1, :self.n]
+        held = walking & self._follows & (vx * vx + vy * vy < np.float32(P.QUEUE_SPEED ** 2))
+        self._waited = np.where(held, self._waited + np.float32(self.dt), np.float32(0.0))
+        self._queued_until[self._waited >= P.QUEUE_AFTER] = self.time + P.QUEUE_HOLD
 
     def _look_at_exhibits(self, it, rows, dom):
         ip = self.interest

@@ -47,7 +47,7 @@ def _directions(fov_deg: float, directions: int):
 def heuristic_velocity(pos: np.ndarray, vel: np.ndarray, goal_dir: np.ndarray, v0: np.ndarray,
                        idx: np.ndarray, radius: np.ndarray, rows: np.ndarray, fov_deg: float | None = None,
                        directions: int | None = None, horizon: float | None = None,
-                       tau: float | None = None, grid=None) -> np.ndarray:
+                       tau: float | None = None, grid=None, queued: np.ndarray | None = None) -> tuple:
     """The heuristics' desired velocity of the walkers ``rows``.
 
     Parameters
@@ -66,6 +66,9 @@ def heuristic_velocity(pos: np.ndarray, vel: np.ndarray, goal_dir: np.ndarray, v
         The walkers.
     grid : WalkGrid, optional
         Where the walls are (its clearance, looked at along each direction).
+    queued : (m,) bool, optional
+        Walkers waiting their turn: they keep ``QUEUE_TAU`` to someone ahead who is not coming toward
+        them (none by default).
 
     Returns
     -------
@@ -73,6 +76,8 @@ def heuristic_velocity(pos: np.ndarray, vel: np.ndarray, goal_dir: np.ndarray, v
         Desired velocity.
     free : (m,) bool
         Nothing in the way: straight toward the goal at the desired speed.
+    follows : (m,) bool
+        The first body in the chosen direction is a person not coming toward the walker.
     """
     fov_deg = P.VISION_FIELD_DEG if fov_deg is None else fov_deg
     directions = P.VISION_DIRECTIONS if directions is None else directions
@@ -80,7 +85,8 @@ def heuristic_velocity(pos: np.ndarray, vel: np.ndarray, goal_dir: np.ndarray, v
     tau = P.VISION_TAU if tau is None else tau
     m = len(rows)
     if m == 0:
-        return np.zeros((2, 0), np.float32), np.zeros(0, bool)
+        return np.zeros((2, 0), np.float32), np.zeros(0, bool), np.zeros(0, bool)
+    queued = np.zeros(m, bool) if queued is None else np.asarray(queued, bool)
     nb = idx[rows]                                            # (m, k)
     base = np.arctan2(goal_dir[1], goal_dir[0]).astype(np.float32)[:, None]
     offsets, cos_offsets = _directions(float(fov_deg), int(directions))
@@ -89,4 +95,5 @@ def heuristic_velocity(pos: np.ndarray, vel: np.ndarray, goal_dir: np.ndarray, v
     steps = _WALL_SAMPLES[_WALL_SAMPLES <= horizon]
     where = (grid.lookup + (grid.flat_sdf,)) if grid is not None else _NO_WALLS
     return choose_ways(pos, vel, radius, nb, rows, ux, uy, np.asarray(v0, np.float32), cos_offsets,
-                       np.float32(horizon), np.float32(tau), grid is not None, steps, *where)
+                       np.float32(horizon), np.float32(tau), queued, np.float32(P.QUEUE_TAU), grid is not None,
+                       steps, *where)
