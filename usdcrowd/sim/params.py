@@ -96,7 +96,7 @@ VISION_INTERVAL = 0.1  # s between a walker's looks (about a reaction time); kep
 # ahead, until QUEUE_HOLD seconds after they last waited so long.
 QUEUE_SPEED = 0.15  # m/s
 QUEUE_AFTER = 0.5  # s
-QUEUE_HOLD = 10.0  # s
+QUEUE_HOLD = 20.0  # s
 QUEUE_TAU = 0.05  # s
 # ... and only with no one near walking against their way faster than this (a standoff is not a queue).
 COUNTERFLOW_SPEED = 0.3  # m/s
