@@ -279,13 +279,14 @@ class _AgentPart:
         self._starts = dict(zip(self.rows.tolist(),
                                 frame.points_from_canonical(scenario.agents.start[self.rows]).tolist()))
         with Sdf.ChangeBlock():
-            for i in self.rows:
-                self._paths.append(self._write_agent(int(i)))
+            for i, scale in zip(self.rows.tolist(), self._scale.tolist()):
+                self._paths.append(self._write_agent(i, scale))
             if clip_plan is not None and len(self.rows):
                 clips.author_clip_sets(layer, stem.replace(".", "_"), clip_plan, stem,
                                        clips.anchor_roots(scenario.agents.path[i] for i in self.rows))
 
-    def _write_agent(self, i: int):
+    def _write_agent(self, i: int, s: float):
+        """Agent ``i``'s static prims (``s``: its root joint's scale, the part's ``_scale`` entry)."""
         from pxr import Gf, Sdf, Vt
 
         T, U = _types(), Sdf.VariabilityUniform
@@ -331,7 +332,6 @@ class _AgentPart:
         skel.referenceList.prependedItems = same["skeleton"]
         anim = _prim(layer, f"{path}/Anim", "SkelAnimation", Sdf.SpecifierDef)
         _attr(anim, "joints", T.TokenArray, same["joints"], U)
-        s = float(root_scale(a.height[i]))
         _attr(anim, "scales", T.Half3Array, Vt.Vec3hArray([Gf.Vec3h(s, s, s), Gf.Vec3h(1, 1, 1), Gf.Vec3h(1, 1, 1)]))
         _attr(anim, "rotations", T.QuatfArray)
         _attr(anim, "translations", T.Float3Array)
