@@ -610,6 +610,24 @@ def _ray(ox, oy, ux, uy, speed, rvx, rvy, reach):
     return _INF32
 
 
+@njit(cache=True, nogil=True)
+def _first_ahead(pos, vel, radius, nb, r, ux, uy, gx, gy, reach):
+    # Walker r's distance to the first body standing in direction u (a person, else whatever nearer
+    # than `reach`: a wall, the horizon), and whether it stands in line there: that person is not coming
+    # toward it and no neighbour walks against its goal's way g faster than COUNTERFLOW_SPEED.
+    gap = _INF32
+    ahead = -1
+    against = False
+    for c in range(nb.shape[0]):
+        j = nb[c]
+        g = _ray(pos[0, j] - pos[0, r], pos[1, j] - pos[1, r], ux, uy, _F1, _F0, _F0, radius[r] + radius[j])
+        if g < gap:
+            gap, ahead = g, j
+        against |= vel[0, j] * gx + vel[1, j] * gy < -_COUNTERFLOW
+    in_line = gap < reach and not against and vel[0, ahead] * ux + vel[1, ahead] * uy >= _F0
+    return min(gap, reach), in_line
+
+
 @_loop(lambda pos, vel, radius, nb, rows, *rest: rows.shape[0])
 def choose_ways(pos, vel, radius, nb, rows, ux, uy, speed, cos_offsets, horizon, tau, queued, queue_tau, walls,
                 steps, ox, oy, inv_cell, w, h, sdf):
@@ -679,20 +697,8 @@ def choose_ways(pos, vel, radius, nb, rows, ux, uy, speed, cos_offsets, horizon,
             left = f * f - (np.float32(2.0) * horizon) * f * cos_offsets[0, q]
             if left < best_left:
                 best_left, best_q = left, q
-        gap = _INF32
-        ahead = -1
-        against = False
-        for c in range(k):
-            j = nb[i, c]
-            g = _ray(pos[0, j] - pos[0, r], pos[1, j] - pos[1, r], ux[i, best_q], uy[i, best_q], _F1,
-                     _F0, _F0, radius[r] + radius[j])
-            if g < gap:
-                gap, ahead = g, j
-            against |= vel[0, j] * ux[i, d // 2] + vel[1, j] * uy[i, d // 2] < -_COUNTERFLOW
-        person = gap < min(horizon, wall[i, best_q])
-        gap = min(min(gap, horizon), wall[i, best_q])
-        follows[i] = (person and not against
-                      and vel[0, ahead] * ux[i, best_q] + vel[1, ahead] * uy[i, best_q] >= _F0)
+        gap, follows[i] = _first_ahead(pos, vel, radius, nb[i], r, ux[i, best_q], uy[i, best_q], ux[i, d // 2],
+                                       uy[i, d // 2], min(horizon, wall[i, best_q]))
         v = min(speed[i], max(gap, _F0) / (queue_tau if queued[i] and follows[i] else tau))
         out[0, i] = ux[i, best_q] * v
         out[1, i] = uy[i, best_q] * v
