@@ -10,6 +10,12 @@ A walker heading for a goal looks over its field of view and
    direction: ``v = min(v0, d_h / tau)``, which gives the crowd its
    speed-density relation (the fundamental diagram) without it being put in.
 
+One addition for queues (a door, a bottleneck): a walker who has waited its
+turn (held below ``QUEUE_SPEED`` behind someone who is not coming toward it,
+see ``Simulation._wait_turns``) keeps the shorter ``QUEUE_TAU`` to the person
+ahead while it stands in line, so it steps into the space as it opens; with
+people walking against it nearby it is in a standoff, not a queue.
+
 Here the people seen are the neighbour list's (``NEIGHBOR_K`` nearest within
 ``NEIGHBOR_RADIUS``); walls are seen along each direction by sampling the
 walkable grid's distance to them at a few points (a wall begins a quarter metre
