@@ -1,6 +1,6 @@
 """Does usdcrowd's crowd move like people? Corridors and bottlenecks against the field's data and JuPedSim.
 
-    python tools/bench_realism.py [--record] [--quick]
+    python tools/bench_realism.py [--record] [--quick] [--tune]
 
 The same scenes, the same start positions and free speeds, are simulated by
 usdcrowd (every force on, as `usdcrowd simulate` runs) and, in the same
@@ -26,6 +26,9 @@ measures experiments):
 Free speeds are drawn from Weidmann's N(1.34, 0.26) m/s, clipped to
 0.8-2.0. Writes docs/images/realism.png and, with --record (or
 `python tools/bench.py realism --record`), docs/data/bench_realism.json.
+With --tune it runs usdcrowd alone and prints, beside the RMSE, the mean
+residual against Weidmann per density bin: for tuning the crowd's parameters
+(it draws and records nothing).
 """
 
 from __future__ import annotations
@@ -305,15 +308,16 @@ def run(quick: bool = False, jupedsim: bool = True) -> dict:
     return summary
 
 
-def measure(quick: bool = False) -> dict:
-    """Every scene by both simulators, through PedPy: density and speed pairs, flows, overspeeds."""
+def measure(quick: bool = False, sims=("usdcrowd", "jupedsim")) -> dict:
+    """Every scene by both simulators (or those named), through PedPy: density and speed pairs, flows,
+    overspeeds."""
     python = pedpy_python()
     corridor_counts = (40, 160, 320) if quick else (40, 80, 160, 240, 320)
     widths = WIDTHS[::2] if quick else WIDTHS
     results = {"corridor_uni": {}, "corridor_bi": {}, "bottleneck": {}, "overspeed": {}}
     for both in (False, True):
         key = "corridor_bi" if both else "corridor_uni"
-        for sim_name in ("usdcrowd", "jupedsim"):
+        for sim_name in sims:
             pairs = {"density": [], "speed": []}
             for n in corridor_counts:
                 scene = corridor(n, both)
@@ -333,7 +337,7 @@ def measure(quick: bool = False) -> dict:
     for w in widths:
         scene = bottleneck(w)
         row = {}
-        for sim_name in ("usdcrowd", "jupedsim"):
+        for sim_name in sims:
             xy = (run_usdcrowd if sim_name == "usdcrowd" else run_jupedsim)(scene, 150.0)
             got = analyse(scene, xy, python)
             row[sim_name] = specific_flow(got["crossing_frames"], w)
@@ -342,6 +346,33 @@ def measure(quick: bool = False) -> dict:
                 results["overspeed"][scene.name] = overspeed(xy, scene.speed)
         results["bottleneck"][width_key(w)] = {"width_m": w, **row}
         print(f"bottleneck {w:g} m: {row}", flush=True)
+    return results
+
+
+def residuals_by_density(density, speed, edges=(0.5, 1.0, 1.5, 2.0, 2.5, 3.0)) -> list:
+    """(low, high, mean measured minus Weidmann's speed in m/s, frames) per density bin that has frames."""
+    density, speed = np.asarray(density), np.asarray(speed)
+    out = []
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        sel = (density >= lo) & (density < hi)
+        if sel.any():
+            out.append((lo, hi, float(np.mean(speed[sel] - weidmann(density[sel]))), int(sel.sum())))
+    return out
+
+
+def tune(quick: bool = False) -> dict:
+    """usdcrowd alone, for tuning its parameters: each corridor's RMSE and its mean residual per density
+    bin, each bottleneck's flow, the overspeed. Nothing drawn or recorded (the peer is not run)."""
+    results = measure(quick, sims=("usdcrowd",))
+    for key in ("corridor_uni", "corridor_bi"):
+        r = results[key]["usdcrowd"]
+        bins = "  ".join(f"{lo:g}-{hi:g}: {d:+.2f} ({n})" for lo, hi, d, n in
+                         residuals_by_density(r["density"], r["speed"]))
+        print(f"{key}: RMSE {r['rmse']:.3f} m/s; mean residual per density bin (1/m2), frames: {bins}")
+    flows = {row["width_m"]: row["usdcrowd"] for row in results["bottleneck"].values()}
+    print("bottleneck specific flows:", ", ".join(f"{w:g} m {f:.2f}" for w, f in sorted(flows.items())),
+          f"(band {JULICH_BAND[0]:g}-{JULICH_BAND[1]:g})")
+    print(f"fastest agent / its free speed: {max(results['overspeed'].values()):.4f}")
     return results
 
 
@@ -382,7 +413,14 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--record", action="store_true", help="record the figures to docs/data/bench_realism.json")
     p.add_argument("--quick", action="store_true", help="three corridor fillings and three widths")
+    p.add_argument("--tune", action="store_true",
+                   help="usdcrowd alone, with the residuals per density bin (for tuning; draws and records nothing)")
     a = p.parse_args(argv)
+    if a.tune:
+        if a.record:
+            p.error("--tune runs usdcrowd alone: nothing to record")
+        tune(a.quick)
+        return 0
     summary = run(a.quick)
     if a.record:
         sys.path.insert(0, str(ROOT / "tools"))

@@ -48,3 +48,13 @@ def test_overspeed_is_one_at_the_free_speed_and_sees_a_jump(realism):
     assert realism.overspeed(xy, speed) == pytest.approx(1.0)
     xy[40:, 0, 0] += 3.0                                        # a 3 m jump in one frame
     assert realism.overspeed(xy, speed) > 3.0
+
+
+def test_residuals_by_density_are_the_mean_distance_to_weidmann_in_each_bin(realism):
+    """A crowd 0.1 m/s faster than Weidmann at 0.5-1 per square metre and 0.2 slower at 2-2.5: two bins,
+    with their frame counts; an empty bin is left out."""
+    density = np.array([0.6, 0.8, 0.9, 2.2, 2.4])
+    speed = realism.weidmann(density) + np.array([0.1, 0.1, 0.1, -0.2, -0.2])
+    got = realism.residuals_by_density(density, speed)
+    assert [(lo, hi, n) for lo, hi, _, n in got] == [(0.5, 1.0, 3), (2.0, 2.5, 2)]
+    np.testing.assert_allclose([d for _, _, d, _ in got], [0.1, -0.2], atol=1e-12)
