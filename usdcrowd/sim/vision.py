@@ -83,7 +83,8 @@ def heuristic_velocity(pos: np.ndarray, vel: np.ndarray, goal_dir: np.ndarray, v
     free : (m,) bool
         Nothing in the way: straight toward the goal at the desired speed.
     follows : (m,) bool
-        The first body in the chosen direction is a person not coming toward the walker.
+        In line: the first body in the chosen direction is a person not coming toward the walker, and no
+        neighbour walks against the walker's goal direction faster than ``COUNTERFLOW_SPEED``.
     """
     fov_deg = P.VISION_FIELD_DEG if fov_deg is None else fov_deg
     directions = P.VISION_DIRECTIONS if directions is None else directions
