@@ -58,3 +58,11 @@ def test_residuals_by_density_are_the_mean_distance_to_weidmann_in_each_bin(real
     got = realism.residuals_by_density(density, speed)
     assert [(lo, hi, n) for lo, hi, _, n in got] == [(0.5, 1.0, 3), (2.0, 2.5, 2)]
     np.testing.assert_allclose([d for _, _, d, _ in got], [0.1, -0.2], atol=1e-12)
+
+
+def test_tuning_runs_record_nothing(realism, capsys):
+    """--tune runs usdcrowd alone, so there is no peer to record beside it: refused in one line, exit 2."""
+    with pytest.raises(SystemExit) as stop:
+        realism.main(["--tune", "--record"])
+    assert stop.value.code == 2
+    assert "nothing to record" in capsys.readouterr().err
