@@ -306,6 +306,45 @@ def test_the_compiled_step_gives_the_same_bytes_run_to_run():
     assert runs[0] == runs[1]
 
 
+def _reference_turn(heading, want, vel, face, turn_rate, dt):
+    n = heading.shape[0]
+    vx, vy = vel[0, :n], vel[1, :n]
+    move = (vx * vx + vy * vy > P.HEADING_MIN_SPEED ** 2) | face
+    delta = np.mod(want - heading + np.pi, 2 * np.pi) - np.pi
+    lim = turn_rate * dt
+    heading = heading + np.where(move, np.minimum(np.maximum(delta, -lim), lim), 0.0).astype(np.float32)
+    return (np.mod(heading + np.pi, 2 * np.pi) - np.pi).astype(np.float32)
+
+
+def test_headings_turn_and_wrap_as_numpys_mod_does(packed_crowd):
+    """Rate-limited turns toward the velocity or a faced point, wrapped to [-pi, pi), bit for bit, for
+    headings at the wrap, on it, and authored turns away (the compiled loop wraps those in full)."""
+    _, vel, _, _, _ = packed_crowd
+    n = vel.shape[1] - 1
+    rng = np.random.default_rng(5)
+    pi = np.float32(np.pi)
+    heading = rng.uniform(-np.pi, np.pi, n).astype(np.float32)
+    heading[:40] = np.float32(-pi)                                   # on the wrap
+    heading[40:80] = np.nextafter(pi, np.float32(0.0))               # just inside it
+    heading[80:90] = rng.uniform(-30.0, 30.0, 10).astype(np.float32)  # authored far out
+    heading[90:100] = np.float32(0.0)
+    vel = vel.copy()
+    vel[:, 100:200] *= np.float32(0.01)                               # too slow to turn...
+    heading[100:110] = pi                                             # ...but wrapped: pi + pi is 2 pi
+    face = np.zeros(n, bool)
+    face[150:170] = True                                              # ...unless facing something
+    want = np.arctan2(rng.normal(size=n), rng.normal(size=n)).astype(np.float32)
+    want[90:100] = np.float32(-pi)
+    turn_rate = np.where(np.arange(n) % 3 == 0, 2.0, 6.0).astype(np.float32)
+    for dt in (np.float32(0.01), np.float32(0.04)):
+        expect = _reference_turn(heading, want, vel, face, turn_rate, dt)
+        got = heading.copy()
+        K.turn_headings(got, want, vel, face, turn_rate, dt)
+        np.testing.assert_array_equal(got.view(np.int32), expect.view(np.int32))
+        assert (got != heading).sum() > n // 2 and (got == heading)[100:150].any()
+        assert ((got >= -pi) & (got < pi)).all() and (np.abs(heading[80:90]) > 2 * np.pi).any()
+
+
 def test_integration_and_move_limits_are_the_numpy_steps_they_replace(packed_crowd):
     """Seed 003's integration with its clips, the overlap move limit and the position-based velocity,
     against the same steps written with steering.clip_norm on whole arrays."""

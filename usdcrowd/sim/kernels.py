@@ -9,6 +9,7 @@ each instead of chains of ``(n, k)`` numpy temporaries:
 - integration and the constraints (:func:`integrate`,
   :func:`overlap_corrections`, :func:`limit_moves`,
   :func:`push_out_of_walls`, :func:`settle_velocities`);
+- headings turned toward the velocity (:func:`turn_headings`);
 - grid queries (:func:`cells`, :func:`clearance`, :func:`line_of_sight`);
 - members' memory of their leader (:func:`remember_leaders`,
   :func:`group_spread`) and walking by sight (:func:`choose_ways`).
@@ -113,6 +114,9 @@ _SLIDE = np.float32(P.WALL_SLIDE)
 _LOOKAHEAD = np.float32(P.CONTAIN_LOOKAHEAD)
 _CONTAIN = np.float32(-P.CONTAIN_GAIN)
 _COUNTERFLOW = np.float32(P.COUNTERFLOW_SPEED)
+_MIN_SPEED2 = np.float32(P.HEADING_MIN_SPEED ** 2)
+_PI = np.float32(np.pi)
+_TWO_PI = np.float32(2 * np.pi)
 
 
 @njit(cache=True, nogil=True)
@@ -404,6 +408,68 @@ def settle_velocities(pos, vel, integrated, inv_dt, vmax):
         vx = vel[0, i] + (pos[0, i] - integrated[0, i]) * inv_dt
         vy = vel[1, i] + (pos[1, i] - integrated[1, i]) * inv_dt
         vel[0, i], vel[1, i] = _clip2(vx, vy, max(vmax[i], _F0))
+
+
+@njit(cache=True, nogil=True)
+def turn_headings(heading, want, vel, face, turn_rate, dt):
+    """Turn each heading toward ``want`` by at most ``turn_rate * dt``, in place, for agents moving
+    faster than HEADING_MIN_SPEED or facing something; every heading wrapped to [-pi, pi) as
+    ``np.mod(h + pi, 2 pi) - pi`` gives it.
+
+    Parameters
+    ----------
+    heading, want : (n,) float32
+        Radians; ``want`` as numpy's ``arctan2`` gives it (numba's differs in the last bits).
+    vel : (2, n + 1) float32
+    face : (n,) bool
+    turn_rate : (n,) float32, rad/s
+    dt : float32
+    """
+    n = heading.shape[0]
+    far = np.zeros(n, np.bool_)
+    for i in range(n):
+        out = _turn(heading[i], want[i], vel[0, i], vel[1, i], face[i], turn_rate[i] * dt, False)
+        if np.isnan(out):
+            far[i] = True
+        else:
+            heading[i] = out
+    # Angles a full turn or more out of range (a heading authored as 7 rad): numpy's mod in full. Its own
+    # loop, so that the compiler does not compute the costly remainder for every agent on the off chance.
+    if far.any():
+        for i in range(n):
+            if far[i]:
+                heading[i] = _turn(heading[i], want[i], vel[0, i], vel[1, i], face[i], turn_rate[i] * dt, True)
+
+
+@njit(cache=True, nogil=True)
+def _turn(h, want, vx, vy, face, lim, full):
+    # One heading turned and wrapped; NaN where a wrap needs the full remainder and `full` is off.
+    if vx * vx + vy * vy > _MIN_SPEED2 or face:
+        x = want - h + _PI
+        if not full and not _near_turn(x):
+            return np.float32(np.nan)
+        delta = (np.mod(x, _TWO_PI) if full else _wrap_near(x)) - _PI
+        h = h + np.minimum(np.maximum(delta, -lim), lim)
+    x = h + _PI
+    if full:
+        return np.mod(x, _TWO_PI) - _PI
+    return _wrap_near(x) - _PI if _near_turn(x) else np.float32(np.nan)
+
+
+@njit(cache=True, nogil=True)
+def _near_turn(x):
+    return x >= -_TWO_PI and x < _TWO_PI + _TWO_PI
+
+
+@njit(cache=True, nogil=True)
+def _wrap_near(x):
+    # np.mod(x, 2 pi) for x in [-2 pi, 4 pi), float32: fmod is x itself or x - 2 pi (exact), and numpy
+    # then adds 2 pi to a negative remainder and makes a zero one +0.
+    if x > _F0:
+        return x if x < _TWO_PI else x - _TWO_PI
+    if x < _F0:
+        return x + _TWO_PI
+    return _F0
 
 
 @njit(cache=True, nogil=True)

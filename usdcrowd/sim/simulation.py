@@ -47,7 +47,7 @@ from .distance_maps import DistanceMaps
 from .grid import WalkGrid
 from .groups import Groups, mate_mask
 from .interest import InterestFields
-from .kernels import forces, integrate, limit_moves, settle_velocities
+from .kernels import forces, integrate, limit_moves, settle_velocities, turn_headings
 from .neighbors import NeighborList
 from .paths import BEZIER, GRADIENT, BezierPaths, SlopeSteering, Terrain, choose_path_method, enforce_slope
 from .steering import arrive, unit, wander
@@ -552,17 +552,12 @@ class Simulation:
         """Turn headings toward the velocity (or the attended point), rate-limited."""
         n = self.n
         vx, vy = self.vel[0, :n], self.vel[1, :n]
-        sp2 = vx * vx + vy * vy
         want = np.arctan2(vy, vx)
         face = it.face & np.isfinite(it.look[0])
         if face.any():
             px, py = self.pos[0, :n], self.pos[1, :n]
             want[face] = np.arctan2(it.look[1, face] - py[face], it.look[0, face] - px[face])
-        move = (sp2 > P.HEADING_MIN_SPEED ** 2) | face
-        delta = np.mod(want - self.heading + np.pi, 2 * np.pi) - np.pi
-        lim = self.turn_rate * np.float32(self.dt)
-        self.heading += np.where(move, np.minimum(np.maximum(delta, -lim), lim), 0.0).astype(np.float32)
-        self.heading = (np.mod(self.heading + np.pi, 2 * np.pi) - np.pi).astype(np.float32)
+        turn_headings(self.heading, want, self.vel, face, self.turn_rate, np.float32(self.dt))
 
     # -- frames ---------------------------------------------------------------------
     def _frame(self):
