@@ -474,6 +474,28 @@ def test_the_neighbour_table_holds_the_k_nearest_within_reach(spread):
     assert found > {12.0: 4000, 400.0: 100, 1.0e5: 4}[spread]     # far-flung: the coincident pairs
 
 
+def test_the_neighbour_table_is_built_again_once_someone_moved_half_the_skin():
+    """Kept while every member stays under half the skin from where the table was built (others may go
+    anywhere), built again when one reaches it or the table reaches its age."""
+    rng = np.random.default_rng(3)
+    n = 300
+    pos = np.empty((2, n + 1), np.float32)
+    pos[:, :n] = rng.uniform(-20.0, 20.0, (2, n))
+    pos[:, n] = P.GHOST_POSITION
+    members = np.arange(1, n)                                          # agent 0 takes no part
+    nl = NeighborList(n, members, max_age=1000)
+    assert nl.update(pos) and nl.rebuilds == 1
+    half = np.float32(0.5 * nl.skin)
+    moved = pos.copy()
+    moved[0, 1:n] += np.float32(0.95) * half                          # everyone under half the skin
+    moved[:, 0] += np.float32(50.0)
+    assert not nl.update(moved) and nl.rebuilds == 1
+    moved[:, 77] = pos[:, 77] + np.array([0.0, 1.02 * half], np.float32)  # one of them just over it
+    assert nl.update(moved) and nl.rebuilds == 2
+    aged = NeighborList(n, members, max_age=3)
+    assert [aged.update(pos) for _ in range(7)] == [True, False, False, True, False, False, True]
+
+
 def test_leaders_wait_for_their_group_as_the_bincount_said(groups_round_a_wall):
     sim = groups_round_a_wall
     g = sim.groups

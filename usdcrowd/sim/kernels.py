@@ -5,7 +5,8 @@ each instead of chains of ``(n, k)`` numpy temporaries:
 
 - the force on each agent (:func:`forces`: steering, time-to-impact
   avoidance of neighbours and walls, personal space, flocking, containment);
-- the neighbour table (:func:`nearest_within`, a grid of cells);
+- the neighbour table (:func:`nearest_within`, a grid of cells, and
+  :func:`moved_beyond`, when to build it again);
 - integration and the constraints (:func:`integrate`,
   :func:`overlap_corrections`, :func:`limit_moves`,
   :func:`push_out_of_walls`, :func:`settle_velocities`);
@@ -315,6 +316,18 @@ def nearest_within(x, y, k, reach):
                         best[i, q] = d2
                         out[i, q] = j
     return out
+
+
+@njit(cache=True, nogil=True)
+def moved_beyond(pos, rows, ref, limit2):
+    """Whether any agent of ``rows`` stands ``limit2`` (float64, squared metres) or more from its
+    place in ``ref`` (2, m) (float32 differences and squares, as on whole arrays); NaN counts as moved."""
+    for q in range(rows.shape[0]):
+        dx = pos[0, rows[q]] - ref[0, q]
+        dy = pos[1, rows[q]] - ref[1, q]
+        if not np.float64(dx * dx + dy * dy) < limit2:
+            return True
+    return False
 
 
 @_loop(lambda pos, idx, *rest: idx.shape[0])

@@ -15,7 +15,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from . import params as P
-from .kernels import nearest_within
+from .kernels import moved_beyond, nearest_within
 
 
 class NeighborList:
@@ -68,10 +68,8 @@ class NeighborList:
             refreshed).
         """
         self.age += 1
-        m = self.members
         if self._ref is not None and self.age < self.max_age:
-            d = pos[:, m] - self._ref
-            if float(np.max(d[0] * d[0] + d[1] * d[1], initial=0.0)) < (0.5 * self.skin) ** 2:
+            if not moved_beyond(pos, self.members, self._ref, (0.5 * self.skin) ** 2):
                 return False
         self._build(pos)
         return True
