@@ -154,16 +154,41 @@ def test_grid_lookups_give_the_reference_bits(walled_grid):
         np.testing.assert_array_equal(ny, g.flat_ny[f])
         bx, by = rng.uniform(-104.0, 104.0, (2, 5000)).astype(dtype)
         bx[:2500], by[:2500] = x[:2500] + (bx[:2500] - x[:2500]) * 0.02, y[:2500] + (by[:2500] - y[:2500]) * 0.02
-        length = np.hypot((bx - x).astype(np.float64), (by - y).astype(np.float64))
-        want = np.empty(len(x), bool)
-        for i in range(len(x)):                           # each segment at its own spacing
-            s = int(min(96, max(2, np.ceil(length[i] / (0.7 * g.cell)) + 1)))
-            t = (np.arange(s, dtype=np.float32) + np.float32(0.5)) / np.float32(s)
-            px, py = x[i] + (bx[i] - x[i]) * t, y[i] + (by[i] - y[i]) * t
-            want[i] = not g.flat_solid[_reference_cells(g, px, py)].any()
+        want = _reference_sight(g, x, y, bx, by)
         got = g.line_of_sight(x, y, bx, by)
         assert 0 < want.sum() < len(want)
         np.testing.assert_array_equal(got, want)
+
+
+def _reference_sight(g, x, y, bx, by):
+    """Every segment sampled at its own spacing, every sample's cell looked at."""
+    length = np.hypot((bx - x).astype(np.float64), (by - y).astype(np.float64))
+    want = np.empty(len(x), bool)
+    for i in range(len(x)):
+        s = int(min(96, max(2, np.ceil(length[i] / (0.7 * g.cell)) + 1)))
+        t = (np.arange(s, dtype=np.float32) + np.float32(0.5)) / np.float32(s)
+        px, py = x[i] + (bx[i] - x[i]) * t, y[i] + (by[i] - y[i]) * t
+        want[i] = not g.flat_solid[_reference_cells(g, px, py)].any()
+    return want
+
+
+@pytest.mark.parametrize("where", ["bench square", "pillars"])
+def test_sight_lines_clear_of_walls_by_their_length_need_no_sampling(walled_grid, pillars_among_the_crowd, where):
+    """Lines a wall's clearance long, give or take two cells, every way from points all over the grid
+    (some outside it): the answer without sampling where the start is clear by the length is the one
+    sampling gives."""
+    g = walled_grid if where == "bench square" else pillars_among_the_crowd
+    rng = np.random.default_rng(8)
+    lo, hi = g.origin, g.origin + g.cell * np.array([g.w, g.h])
+    x, y = rng.uniform(lo - 1.0, hi + 1.0, (6000, 2)).T.astype(np.float32)
+    sdf = g.clearance(x, y)[0].astype(np.float64)
+    length = np.maximum(sdf + rng.uniform(-2.0, 2.0, len(x)) * g.cell, 0.0)
+    a = rng.uniform(0.0, 2 * np.pi, len(x))
+    bx, by = (x + length * np.cos(a)).astype(np.float32), (y + length * np.sin(a)).astype(np.float32)
+    want = _reference_sight(g, x, y, bx, by)
+    unsampled = sdf > length + 1.5 * g.cell
+    assert unsampled.sum() > 500 and (~unsampled & want).sum() > 500 and (~want).sum() > 150
+    np.testing.assert_array_equal(g.line_of_sight(x, y, bx, by), want)
 
 
 @pytest.fixture

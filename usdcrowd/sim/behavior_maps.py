@@ -238,25 +238,27 @@ class Reactions:
         o = threat.origin
         R = threat.radius
         d = np.hypot(pos[0, rows] - o[0], pos[1, rows] - o[1])
-        alarm = max(P.ALARM_FACTOR * R, P.ALARM_MIN)
-        rows = rows[d < alarm]
-        d = d[d < alarm]
+        near = d < max(P.ALARM_FACTOR * R, P.ALARM_MIN)
+        rows, d = rows[near], d[near]
         if rows.size == 0:
             return
         _, dirs = self.dmaps.direction(o[None, :], key=("threat", id(threat)))
-        toward = sample_grid(self.grid, dirs, pos[0, rows], pos[1, rows])  # (2, m)
-        away = -toward
-        radial, _ = unit(np.stack([pos[0, rows] - o[0], pos[1, rows] - o[1]]).astype(np.float32))
+        px, py = pos[0, rows], pos[1, rows]
+        away = -sample_grid(self.grid, dirs, px, py)  # (2, m)
         # Where the distance map has no gradient (at the origin) run radially.
         flat = (away[0] == 0) & (away[1] == 0)
-        away[:, flat] = radial[:, flat]
+        if flat.any():
+            radial, _ = unit(np.stack([px[flat] - o[0], py[flat] - o[1]]).astype(np.float32))
+            away[:, flat] = radial
         # Panic speed inside the safe distance, walking pace up to the alarm radius.
-        sp = np.where(d < P.SAFE_FACTOR * R, speed[rows] * P.PANIC_SPEED_FACTOR, speed[rows])
+        panic = d < P.SAFE_FACTOR * R
+        sp = np.where(panic, speed[rows] * P.PANIC_SPEED_FACTOR, speed[rows])
         v = away * sp
         frz = self.freeze[rows]
         v[:, frz] = 0.0
-        beh = np.where(frz, _B["rest"], np.where(d < P.SAFE_FACTOR * R, _B["run"], _B["walk"])).astype(np.int8)
-        look = np.broadcast_to(o[:, None], (2, rows.size)).astype(np.float32)
+        beh = np.where(frz, _B["rest"], np.where(panic, _B["run"], _B["walk"])).astype(np.int8)
+        look = np.empty((2, rows.size), np.float32)
+        look[0], look[1] = o[0], o[1]
         self._blend(intent, rows, v, beh, look=look, face=False)
         intent.face[rows[frz]] = True
 

@@ -72,8 +72,8 @@ class WalkGrid:
     lookup : tuple
         ``(origin_x, origin_y, 1 / cell, w, h)``: what the compiled loops need to find a point's cell.
     sight : tuple
-        ``(samples per metre, LOS_MAX_SAMPLES) + lookup + (flat_solid,)``: what they need for a line
-        of sight.
+        ``(samples per metre, LOS_MAX_SAMPLES) + lookup + (flat_solid, flat_sdf)``: what they need for
+        a line of sight.
     """
 
     def __init__(self, scenario: Scenario, cell: float | None = None):
@@ -126,7 +126,7 @@ class WalkGrid:
         self.flat_solid = self.solid.ravel()
         self.flat_label = self.label.ravel()
         self.lookup = (float(self.origin[0]), float(self.origin[1]), 1.0 / self.cell, self.w, self.h)
-        self.sight = (1.0 / (0.7 * self.cell), LOS_MAX_SAMPLES) + self.lookup + (self.flat_solid,)
+        self.sight = (1.0 / (0.7 * self.cell), LOS_MAX_SAMPLES) + self.lookup + (self.flat_solid, self.flat_sdf)
 
     # -- rasterisation -------------------------------------------------------
     def _raster_polygon(self, poly: np.ndarray, index: int, label: np.ndarray) -> None:
@@ -206,7 +206,7 @@ class WalkGrid:
             return np.ones(n, dtype=bool)
         # Strictly inside: the end points are agents' positions, which may touch a wall's cell.
         return kernels.line_of_sight(np.asarray(ax), np.asarray(ay), np.asarray(bx), np.asarray(by),
-                                     self.sight[0], max_samples, *self.lookup, self.flat_solid)
+                                     self.sight[0], max_samples, *self.lookup, self.flat_solid, self.flat_sdf)
 
     def cell_centers(self) -> np.ndarray:
         """(2, h*w) float64 centres of all cells, flat order."""

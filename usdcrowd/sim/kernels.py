@@ -118,6 +118,7 @@ _COUNTERFLOW = np.float32(P.COUNTERFLOW_SPEED)
 _MIN_SPEED2 = np.float32(P.HEADING_MIN_SPEED ** 2)
 _PI = np.float32(np.pi)
 _TWO_PI = np.float32(2 * np.pi)
+_SIGHT_MARGIN = 1.5  # cells: sqrt(2) and room for rounding
 
 
 @njit(cache=True, nogil=True)
@@ -523,11 +524,16 @@ def clearance(x, y, ox, oy, inv_cell, w, h, sdf, nx, ny):
 
 
 @njit(cache=True, nogil=True)
-def _visible(ax, ay, bx, by, per_metre, max_samples, ox, oy, inv_cell, w, h, solid):
+def _visible(ax, ay, bx, by, per_metre, max_samples, ox, oy, inv_cell, w, h, solid, sdf):
     # One segment of line_of_sight: its own sample count, stopping at the first solid sample.
     dx = bx - ax
     dy = by - ay
     length = np.sqrt(np.float64(dx) * dx + np.float64(dy) * dy)
+    # Every sample's cell centre lies within length + sqrt(2) cells of a's (clamping to the grid only
+    # brings points nearer), and sdf is the distance from a's centre to the nearest solid centre less
+    # half a cell: clear by more than that, no sample can be solid (the answer sampling would give).
+    if sdf[_cell(ax, ay, ox, oy, inv_cell, w, h)] > length + _SIGHT_MARGIN / inv_cell:
+        return True
     samples = min(max_samples, max(2, np.int64(np.ceil(length * per_metre)) + 1))
     s32 = np.float32(samples)
     for q in range(samples):
@@ -538,11 +544,13 @@ def _visible(ax, ay, bx, by, per_metre, max_samples, ox, oy, inv_cell, w, h, sol
 
 
 @_loop(lambda ax, *rest: ax.shape[0])
-def line_of_sight(ax, ay, bx, by, per_metre, max_samples, ox, oy, inv_cell, w, h, solid):
+def line_of_sight(ax, ay, bx, by, per_metre, max_samples, ox, oy, inv_cell, w, h, solid, sdf):
     """Whether segments a->b cross no solid cell (WalkGrid.line_of_sight).
 
     Segment ``i`` is sampled at ``s = min(max_samples, max(2, ceil(length * per_metre) + 1))``
-    points ``a + (b - a) (q + 0.5) / s`` (float32 fractions), and stops at its first solid one.
+    points ``a + (b - a) (q + 0.5) / s`` (float32 fractions), and stops at its first solid one;
+    one that starts farther from every solid cell (``sdf``, the grid's clearance) than it is long
+    is clear without sampling.
 
     Returns
     -------
@@ -551,7 +559,7 @@ def line_of_sight(ax, ay, bx, by, per_metre, max_samples, ox, oy, inv_cell, w, h
     m = ax.shape[0]
     out = np.empty(m, np.bool_)
     for i in prange(m):
-        out[i] = _visible(ax[i], ay[i], bx[i], by[i], per_metre, max_samples, ox, oy, inv_cell, w, h, solid)
+        out[i] = _visible(ax[i], ay[i], bx[i], by[i], per_metre, max_samples, ox, oy, inv_cell, w, h, solid, sdf)
     return out
 
 
@@ -569,7 +577,7 @@ def group_spread(pos, followers, leader_of, slot, groups):
 
 @_loop(lambda pos, sub, *rest: sub.shape[0])
 def remember_leaders(pos, sub, followers, leader_of, slot, trail, probes, range2, memory, walls, per_metre,
-                     max_samples, ox, oy, inv_cell, w, h, solid):
+                     max_samples, ox, oy, inv_cell, w, h, solid, sdf):
     """Seed 003's x_hat_l, in place: for the followers ``sub`` (indices into ``followers``), the
     position of their leader if in range and in sight, else of the first breadcrumb in ``probes``
     (columns of ``trail`` (2, l, T), newest first) that is; unchanged where none is. Without
@@ -587,7 +595,8 @@ def remember_leaders(pos, sub, followers, leader_of, slot, trail, probes, range2
             dx, dy = cx - mx, cy - my
             if not dx * dx + dy * dy < range2:
                 continue
-            if walls and not _visible(mx, my, cx, cy, per_metre, max_samples, ox, oy, inv_cell, w, h, solid):
+            if walls and not _visible(mx, my, cx, cy, per_metre, max_samples, ox, oy, inv_cell, w, h, solid,
+                                      sdf):
                 continue
             memory[0, f] = cx
             memory[1, f] = cy
