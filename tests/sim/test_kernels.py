@@ -260,6 +260,54 @@ def _reference_wall_hit(grid, p, ux, uy, radius, horizon):
     return np.where(near.any(axis=2), s[np.argmax(near, axis=2)] - 0.25, horizon)
 
 
+def _reference_sight_rounds(v, behavior, walk, ctype, human, vel, follows, waited, queued_until, sight, time, dt,
+                            steps, every):
+    """The bookkeeping as whole-array numpy (the former Simulation._walk_by_sight and _wait_turns)."""
+    n = behavior.shape[0]
+    speed = np.sqrt(v[0] * v[0] + v[1] * v[1])
+    walking = (behavior == walk) & (ctype == human) & (speed > 1e-3)
+    sight = sight.copy()
+    sight[:, ~walking] = np.nan
+    held = walking & follows & (vel[0, :n] * vel[0, :n] + vel[1, :n] * vel[1, :n] < np.float32(P.QUEUE_SPEED ** 2))
+    waited = np.where(held, waited + dt, np.float32(0.0))
+    queued_until = queued_until.copy()
+    queued_until[waited >= P.QUEUE_AFTER] = time + P.QUEUE_HOLD
+    rows = np.flatnonzero(walking)
+    due = rows[((steps + rows) % every == 0) | ~np.isfinite(sight[0, rows])]
+    return speed, rows, due, waited, queued_until, sight
+
+
+def test_the_bookkeeping_of_walking_by_sight_is_the_numpy_it_replaces(packed_crowd):
+    """Who walks by sight, who has waited long enough in line to wait their turn, whose look is due: the
+    same rows, seconds and looks as the whole-array form, over a few steps of a crowd where some stand."""
+    _, vel, _, _, _ = packed_crowd
+    n = vel.shape[1] - 1
+    rng = np.random.default_rng(21)
+    vel = vel * np.where(rng.uniform(size=n + 1) < 0.4, 0.05, 1.0).astype(np.float32)   # some stand in line
+    v = rng.normal(0.0, 1.0, (2, n)).astype(np.float32)
+    v[:, :30] = 0.0                                                                    # some mean to stay
+    behavior = rng.choice(np.array([0, 1, 2], np.int8), n, p=[0.1, 0.8, 0.1])
+    ctype = np.where(rng.uniform(size=n) < 0.95, 0, 3).astype(np.int8)
+    follows = rng.uniform(size=n) < 0.6
+    sight = rng.normal(0.0, 1.0, (2, n)).astype(np.float32)
+    sight[:, rng.uniform(size=n) < 0.2] = np.nan
+    waited = np.zeros(n, np.float32)
+    queued_until = np.full(n, -np.inf)
+    dt, every = np.float32(0.125), 3                                  # a binary fraction: QUEUE_AFTER met exactly
+    for step in range(20):
+        time = 1.0 + step * float(dt)
+        want = _reference_sight_rounds(v, behavior, 1, ctype, 0, vel, follows, waited, queued_until, sight,
+                                       time, dt, step, every)
+        got = K.sight_rounds(v, behavior, 1, ctype, 0, vel, follows, waited, queued_until, sight, time, dt, step,
+                             every)
+        for g, w in zip(got + (waited, queued_until, sight), want):
+            np.testing.assert_array_equal(g, w)
+        sight[:, want[2]] = rng.normal(0.0, 1.0, (2, len(want[2])))                  # looked again
+        follows[rng.uniform(size=n) < 0.05] ^= True
+    assert 0 < len(want[1]) < n and 0 < len(want[2]) < len(want[1])
+    assert 0 < (queued_until > time).sum() < len(want[1]) and ((waited > 0) & (waited < P.QUEUE_AFTER)).any()
+
+
 @pytest.mark.parametrize("walls", [False, True], ids=["open", "walls"])
 def test_walking_by_sight_gives_the_reference_bits(packed_crowd, pillars_among_the_crowd, walls):
     pos, vel, radius, idx, _ = packed_crowd

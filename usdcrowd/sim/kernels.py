@@ -13,7 +13,7 @@ each instead of chains of ``(n, k)`` numpy temporaries:
 - headings turned toward the velocity (:func:`turn_headings`);
 - grid queries (:func:`cells`, :func:`clearance`, :func:`line_of_sight`);
 - members' memory of their leader (:func:`remember_leaders`,
-  :func:`group_spread`) and walking by sight (:func:`choose_ways`).
+  :func:`group_spread`) and walking by sight (:func:`sight_rounds`, :func:`choose_ways`).
 
 Each follows a numpy form: the package's building blocks where they remain
 (:func:`.collision.agent_avoidance`, :func:`.steering.separation`,
@@ -118,6 +118,9 @@ _COUNTERFLOW = np.float32(P.COUNTERFLOW_SPEED)
 _MIN_SPEED2 = np.float32(P.HEADING_MIN_SPEED ** 2)
 _PI = np.float32(np.pi)
 _TWO_PI = np.float32(2 * np.pi)
+_MEANS_TO_MOVE = np.float32(1e-3)  # m/s
+_QUEUE_SPEED2 = np.float32(P.QUEUE_SPEED ** 2)
+_QUEUE_AFTER = np.float32(P.QUEUE_AFTER)
 _SIGHT_MARGIN = 1.5  # cells: sqrt(2) and room for rounding
 
 
@@ -714,6 +717,67 @@ def _first_ahead(pos, vel, radius, nb, r, ux, uy, gx, gy, reach):
         against |= vel[0, j] * gx + vel[1, j] * gy < -_COUNTERFLOW
     in_line = gap < reach and not against and vel[0, ahead] * ux + vel[1, ahead] * uy >= _F0
     return min(gap, reach), in_line
+
+
+@njit(cache=True, nogil=True)
+def sight_rounds(v, behavior, walk, ctype, human, vel, follows, waited, queued_until, sight, time, dt, steps,
+                 every):
+    """The bookkeeping of walking by sight for one step: who walks by sight, who waits their turn, and
+    whose look is due (Simulation._walk_by_sight).
+
+    A walker is a human whose behavior is ``walk`` and who means to move (desired speed over 1 mm/s); the
+    others forget their last look (``sight`` NaN). A walker in line (``follows``, as last seen) moving
+    slower than QUEUE_SPEED adds ``dt`` to ``waited`` (anyone else starts again from 0); after QUEUE_AFTER
+    seconds of it they wait their turn until ``time`` + QUEUE_HOLD (``queued_until``). A walker looks
+    again every ``every`` steps (in turn: when ``steps`` + its row is a multiple), or at once when it has
+    no last look.
+
+    Parameters
+    ----------
+    v : (2, n) float32
+        Desired velocities.
+    behavior, ctype : (n,) int8
+    walk, human : int
+        The codes of the walking behavior and of people.
+    vel : (2, n + 1) float32
+    follows : (n,) bool
+    waited, queued_until : (n,) float32, float64, seconds (in place)
+    sight : (2, n) float32 (in place)
+    time : float, seconds
+    dt : float32, seconds
+    steps, every : int
+
+    Returns
+    -------
+    speed : (n,) float32
+        Desired speeds.
+    rows, due : (w,), (d,) int64
+        The walkers, and those whose look is due.
+    """
+    n = behavior.shape[0]
+    speed = np.empty(n, np.float32)
+    rows = np.empty(n, np.int64)
+    due = np.empty(n, np.int64)
+    w = d = 0
+    for i in range(n):
+        s = np.sqrt(v[0, i] * v[0, i] + v[1, i] * v[1, i])
+        speed[i] = s
+        walking = behavior[i] == walk and ctype[i] == human and s > _MEANS_TO_MOVE
+        if not walking:
+            sight[0, i] = sight[1, i] = np.nan
+        if walking and follows[i] and vel[0, i] * vel[0, i] + vel[1, i] * vel[1, i] < _QUEUE_SPEED2:
+            waited[i] += dt
+        else:
+            waited[i] = _F0
+        if waited[i] >= _QUEUE_AFTER:
+            queued_until[i] = time + P.QUEUE_HOLD
+        if walking:
+            rows[w] = i
+            w += 1
+            if (steps + i) % every == 0 or not np.isfinite(sight[0, i]):
+                due[d] = i
+                d += 1
+    return speed, rows[:w], due[:d]
 
 
 @_loop(lambda pos, vel, radius, nb, rows, *rest: rows.shape[0])

@@ -47,7 +47,7 @@ from .distance_maps import DistanceMaps
 from .grid import WalkGrid
 from .groups import Groups, mate_mask
 from .interest import InterestFields
-from .kernels import forces, integrate, limit_moves, settle_velocities, turn_headings
+from .kernels import forces, integrate, limit_moves, settle_velocities, sight_rounds, turn_headings
 from .neighbors import NeighborList
 from .paths import BEZIER, GRADIENT, BezierPaths, SlopeSteering, Terrain, choose_path_method, enforce_slope
 from .steering import arrive, unit, wander
@@ -411,23 +411,20 @@ class Simulation:
     def _walk_by_sight(self, it: Intent) -> None:
         """People walking somewhere pick their way and pace by what they see ahead (:mod:`.vision`), each
         every VISION_INTERVAL seconds (in turn, so the cost is spread over the steps), keeping the
-        choice in between."""
+        choice in between; held up in line long enough, they wait their turn (:func:`.kernels.sight_rounds`)."""
         v = it.v
-        speed = np.sqrt(v[0] * v[0] + v[1] * v[1])
-        walking = (it.behavior == _B["walk"]) & (self.ctype == _HUMAN) & (speed > 1e-3)
         if self._sight is None:
             self._sight = np.full((2, self.n), np.nan, np.float32)
             self._sight_free = np.zeros(self.n, bool)
             self._follows = np.zeros(self.n, bool)
             self._waited = np.zeros(self.n, np.float32)       # s held up behind someone, in a row
             self._queued_until = np.full(self.n, -np.inf)     # s, waiting their turn until then
-        self._sight[:, ~walking] = np.nan
-        self._wait_turns(walking)
-        rows = np.flatnonzero(walking)
+        every = max(1, int(round(P.VISION_INTERVAL / self.dt)))
+        speed, rows, due = sight_rounds(v, it.behavior, int(_B["walk"]), self.ctype, _HUMAN, self.vel, self._follows,
+                                        self._waited, self._queued_until, self._sight, self.time,
+                                        np.float32(self.dt), self.steps, every)
         if len(rows) == 0:
             return
-        every = max(1, int(round(P.VISION_INTERVAL / self.dt)))
-        due = rows[((self.steps + rows) % every == 0) | ~np.isfinite(self._sight[0, rows])]
         if len(due):
             self._sight[:, due], self._sight_free[due], self._follows[due] = heuristic_velocity(
                 self.pos, self.vel, v[:, due] / speed[due], speed[due], self.nl.idx, self.radius, due,
@@ -435,14 +432,6 @@ class Simulation:
         # Nothing in their way at their last look: they walk as they meant to, to the bit.
         held = rows[~self._sight_free[rows]]
         v[:, held] = self._sight[:, held]
-
-    def _wait_turns(self, walking: np.ndarray) -> None:
-        """Who waits their turn: held below QUEUE_SPEED behind someone not coming toward them (as last
-        seen) for QUEUE_AFTER seconds in a row; they count as waiting for QUEUE_HOLD seconds after."""
-        vx, vy = self.vel[0, :self.n], self.vel[1, :self.n]
-        held = walking & self._follows & (vx * vx + vy * vy < np.float32(P.QUEUE_SPEED ** 2))
-        self._waited = np.where(held, self._waited + np.float32(self.dt), np.float32(0.0))
-        self._queued_until[self._waited >= P.QUEUE_AFTER] = self.time + P.QUEUE_HOLD
 
     def _look_at_exhibits(self, it, rows, dom):
         ip = self.interest

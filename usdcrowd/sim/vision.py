@@ -12,7 +12,7 @@ A walker heading for a goal looks over its field of view and
 
 One addition for queues (a door, a bottleneck): a walker who has waited its
 turn (held below ``QUEUE_SPEED`` behind someone who is not coming toward it,
-see ``Simulation._wait_turns``) keeps the shorter ``QUEUE_TAU`` to the person
+see :func:`.kernels.sight_rounds`) keeps the shorter ``QUEUE_TAU`` to the person
 ahead while it stands in line, so it steps into the space as it opens; with
 people walking against it nearby it is in a standoff, not a queue.
 
