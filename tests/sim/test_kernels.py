@@ -21,7 +21,7 @@ from usdcrowd.sim.collision import (GOLDEN_ANGLE, agent_avoidance, polygon_signe
 from usdcrowd.sim.grid import WalkGrid
 from usdcrowd.sim.groups import flocking, mate_mask
 from usdcrowd.sim.neighbors import NeighborList
-from usdcrowd.sim.steering import clip_norm, containment, separation, steer
+from usdcrowd.sim.steering import arrive, clip_norm, containment, separation, steer, unit
 from usdcrowd.sim.vision import heuristic_velocity
 
 
@@ -258,6 +258,46 @@ def _reference_wall_hit(grid, p, ux, uy, radius, horizon):
     limit = np.minimum(radius, grid.clearance(p[0], p[1])[0] - 0.05)[:, None, None]
     near = grid.clearance(x.ravel(), y.ravel())[0].reshape(x.shape) < limit
     return np.where(near.any(axis=2), s[np.argmax(near, axis=2)] - 0.25, horizon)
+
+
+def _reference_goal_direction(sim, rows):
+    """The whole-array form: straight at the goal, or down its distance map where that has a way."""
+    p = sim.pos[:, rows]
+    straight, dist = unit(sim.goal[:, rows] - p)
+    gid = sim.goal_id[rows]
+    d = sim.goal_dirs[np.maximum(gid, 0), :, sim.grid.flat_index(p[0], p[1])].T
+    ok = (gid >= 0) & ((d[0] != 0) | (d[1] != 0))
+    return np.where(ok[None, :], d, straight), dist
+
+
+def test_walkers_head_for_their_goals_and_followers_for_their_leaders_as_whole_arrays_said():
+    """Round the pillars down the goal's distance map (straight where it has no way or the walker no map),
+    and Reynolds' arrive at the remembered leader, bit for bit."""
+    sim = Simulation(S.room_with_pillars(n=120, seed=4), SimSettings())
+    for _ in range(40):
+        sim.step()
+    rows = np.arange(sim.n)
+    sim.goal_id[::7] = -1                                       # no map for these
+    sim.pos[:, 5] = sim.goal[:, 5]                              # one standing on its goal
+    flat = np.flatnonzero((sim.goal_dirs[sim.goal_id[6], 0] == 0) & (sim.goal_dirs[sim.goal_id[6], 1] == 0))
+    sim.pos[:, 6] = sim.grid.cell_centers()[:, flat[len(flat) // 2]]   # one where the map has no way
+    want_u, want_d = _reference_goal_direction(sim, rows)
+    got_u, got_d = sim._goal_direction(rows)
+    np.testing.assert_array_equal(got_u, want_u)
+    np.testing.assert_array_equal(got_d, want_d)
+    straight = unit(sim.goal - sim.pos[:, :sim.n])[0]
+    assert (np.abs(got_u - straight).max(axis=0) > 0.05).sum() > 10 and got_d[5] == 0.0 and len(flat)
+    rng = np.random.default_rng(4)
+    target = (sim.pos[:, :sim.n] + rng.normal(0.0, 2.0, (2, sim.n))).astype(np.float32)
+    target[:, 3] = sim.pos[:, 3]
+    speed = rng.uniform(0.5, 1.5, sim.n).astype(np.float32)
+    stop = rng.uniform(0.0, 1.5, sim.n).astype(np.float32)
+    want_v, want_d = arrive(sim.pos[:, rows], target, speed, slow_radius=P.FOLLOW_SLOW_RADIUS, stop_radius=stop)
+    got_v, got_d = K.arrive_rows(sim.pos, rows, target, speed, np.float32(P.FOLLOW_SLOW_RADIUS), stop)
+    np.testing.assert_array_equal(got_v, want_v)
+    np.testing.assert_array_equal(got_d, want_d)
+    pace = np.hypot(*got_v) / speed
+    assert (pace == 0).sum() > 5 and (pace > 0.999).sum() > 5 and ((pace > 0.01) & (pace < 0.99)).sum() > 5
 
 
 def _reference_sight_rounds(v, behavior, walk, ctype, human, vel, follows, waited, queued_until, sight, time, dt,

@@ -28,8 +28,8 @@ import numpy as np
 from ..core.model import AgentTable, GroupTable, ROLES, CONDITIONS, code
 from . import params as P
 from .grid import WalkGrid
-from .kernels import group_spread, remember_leaders
-from .steering import arrive, cohesion, alignment
+from .kernels import arrive_rows, group_spread, remember_leaders
+from .steering import cohesion, alignment
 
 
 class Groups:
@@ -129,9 +129,8 @@ class Groups:
             Distance to the remembered position.
         """
         fw = self.followers
-        v, d = arrive(pos[:, fw], self.memory, speed[fw] * np.float32(P.FOLLOW_SPEED_FACTOR),
-                      slow_radius=P.FOLLOW_SLOW_RADIUS, stop_radius=self.follow_dist)
-        return v, d
+        return arrive_rows(pos, fw, self.memory, speed[fw] * np.float32(P.FOLLOW_SPEED_FACTOR),
+                           np.float32(P.FOLLOW_SLOW_RADIUS), self.follow_dist)
 
     def leader_pace(self, pos: np.ndarray) -> np.ndarray:
         """Speed factor of each leader, < 1 while its group lags behind.

@@ -720,6 +720,75 @@ def _first_ahead(pos, vel, radius, nb, r, ux, uy, gx, gy, reach):
 
 
 @njit(cache=True, nogil=True)
+def _unit(dx, dy):
+    # steering.unit for one vector: (x, y) / max(norm, 1e-6), and the norm.
+    norm = np.sqrt(dx * dx + dy * dy)
+    s = np.maximum(norm, _EPS)
+    return dx / s, dy / s, norm
+
+
+@njit(cache=True, nogil=True)
+def goal_directions(pos, goal, rows, goal_id, goal_dirs, ox, oy, inv_cell, w, h):
+    """Simulation._goal_direction: each walker's way to its goal, down the goal's distance map where it has
+    one (``goal_id`` >= 0, a non-zero direction in the walker's cell of ``goal_dirs``), else straight.
+
+    Parameters
+    ----------
+    pos, goal : (2, N) float32
+    rows : (m,) int
+    goal_id : (N,) int64
+        Row of each agent's goal in ``goal_dirs``, -1 for none.
+    goal_dirs : (g, 2, h * w) float32
+        Unit directions down each goal's distance map, flat cell order (g may be 0).
+
+    Returns
+    -------
+    u : (2, m) float32
+        Unit directions.
+    dist : (m,) float32
+        Straight-line distances to the goals.
+    """
+    m = rows.shape[0]
+    u = np.empty((2, m), np.float32)
+    dist = np.empty(m, np.float32)
+    for q in range(m):
+        r = rows[q]
+        ux, uy, dist[q] = _unit(goal[0, r] - pos[0, r], goal[1, r] - pos[1, r])
+        g = goal_id[r]
+        if g >= 0 and goal_dirs.shape[0]:
+            f = _cell(pos[0, r], pos[1, r], ox, oy, inv_cell, w, h)
+            if goal_dirs[g, 0, f] != 0 or goal_dirs[g, 1, f] != 0:
+                ux, uy = goal_dirs[g, 0, f], goal_dirs[g, 1, f]
+        u[0, q] = ux
+        u[1, q] = uy
+    return u, dist
+
+
+@njit(cache=True, nogil=True)
+def arrive_rows(pos, rows, target, speed, slow_radius, stop_radius):
+    """steering.arrive for the agents ``rows``: toward ``target`` (2, m) at ``speed`` (m,), slowing down
+    linearly inside ``slow_radius`` (float32) to a stop at ``stop_radius`` (m,) float32.
+
+    Returns
+    -------
+    v : (2, m) float32
+    dist : (m,) float32
+    """
+    m = rows.shape[0]
+    v = np.empty((2, m), np.float32)
+    dist = np.empty(m, np.float32)
+    for q in range(m):
+        r = rows[q]
+        ux, uy, d = _unit(target[0, q] - pos[0, r], target[1, q] - pos[1, r])
+        ramp = np.minimum(np.maximum((d - stop_radius[q]) / slow_radius, _F0), _F1)
+        pace = speed[q] * ramp
+        v[0, q] = ux * pace
+        v[1, q] = uy * pace
+        dist[q] = d
+    return v, dist
+
+
+@njit(cache=True, nogil=True)
 def sight_rounds(v, behavior, walk, ctype, human, vel, follows, waited, queued_until, sight, time, dt, steps,
                  every):
     """The bookkeeping of walking by sight for one step: who walks by sight, who waits their turn, and

@@ -47,7 +47,7 @@ from .distance_maps import DistanceMaps
 from .grid import WalkGrid
 from .groups import Groups, mate_mask
 from .interest import InterestFields
-from .kernels import forces, integrate, limit_moves, settle_velocities, sight_rounds, turn_headings
+from .kernels import forces, goal_directions, integrate, limit_moves, settle_velocities, sight_rounds, turn_headings
 from .neighbors import NeighborList
 from .paths import BEZIER, GRADIENT, BezierPaths, SlopeSteering, Terrain, choose_path_method, enforce_slope
 from .steering import arrive, unit, wander
@@ -310,6 +310,7 @@ class Simulation:
         """Distance-map directions to each distinct goal (only around obstacles)."""
         self.goal_id = np.full(self.n, -1, np.int64)
         self.goal_dirs = None
+        self._no_goal_dirs = np.zeros((0, 2, 1), np.float32)
         if not self.grid.has_solid or not goers.any():
             return
         rows = np.where(goers)[0]
@@ -326,16 +327,9 @@ class Simulation:
 
     # -- one step -----------------------------------------------------------------
     def _goal_direction(self, rows):
-        """(2, m) unit direction toward each agent's goal (around obstacles)."""
-        p = self.pos[:, rows]
-        straight, dist = unit(self.goal[:, rows] - p)
-        if self.goal_dirs is None:
-            return straight, dist
-        gid = self.goal_id[rows]
-        f = self.grid.flat_index(p[0], p[1])
-        d = self.goal_dirs[np.maximum(gid, 0), :, f].T
-        ok = (gid >= 0) & ((d[0] != 0) | (d[1] != 0))
-        return np.where(ok[None, :], d, straight), dist
+        """(2, m) unit direction toward each agent's goal (around obstacles), (m,) straight distance."""
+        dirs = self._no_goal_dirs if self.goal_dirs is None else self.goal_dirs
+        return goal_directions(self.pos, self.goal, rows, self.goal_id, dirs, *self.grid.lookup)
 
     def _intent(self) -> Intent:
         n = self.n
