@@ -260,6 +260,31 @@ def _reference_wall_hit(grid, p, ux, uy, radius, horizon):
     return np.where(near.any(axis=2), s[np.argmax(near, axis=2)] - 0.25, horizon)
 
 
+def test_blasts_wound_and_kill_as_the_whole_array_form_did():
+    """A blast's falloff with distance (float64 distances, float32 values) and the wounds it deals (health
+    only worsens; a kill counts where the thresholds cross), bit for bit."""
+    rng = np.random.default_rng(9)
+    n = 4000
+    x, y = rng.uniform(-30.0, 30.0, (2, n)).astype(np.float32)
+    x[:5], y[:5] = 3.0, -2.0                                               # at the centre
+    ox, oy, R = 3.0, -2.0, 17.5
+    want = np.minimum(np.maximum(1.0 - np.hypot(x - np.float64(ox), y - np.float64(oy)) / R, 0.0), 1.0)
+    got = K.radial_falloff(x, y, ox, oy, R)
+    np.testing.assert_array_equal(got, want.astype(np.float32))
+    assert got.dtype == np.float32 and (got == 1).sum() >= 5 and (got == 0).sum() > 100 and (got > 0.5).sum() > 100
+    health = rng.choice(np.array([0, 1, 2], np.int8), n, p=[0.8, 0.15, 0.05])
+    wound_at = rng.uniform(0.1, 0.6, n).astype(np.float32)
+    dead_at = rng.uniform(0.4, 0.95, n).astype(np.float32)                  # some below their wound level
+    dmg = got * np.float32(0.9)
+    dmg[7] = wound_at[7]                                                    # on the thresholds
+    dmg[8] = dead_at[8]
+    expect = np.maximum(health, np.where(dmg >= wound_at, np.int8(1), np.int8(0)))
+    expect = np.maximum(expect, np.where(dmg >= dead_at, np.int8(2), np.int8(0)))
+    K.worsen_health(health, dmg, wound_at, dead_at, np.int8(1), np.int8(2))
+    np.testing.assert_array_equal(health, expect)
+    assert ((dmg >= dead_at) & (dmg < wound_at)).any() and (health == 1).sum() > 100 and (health == 2).sum() > 100
+
+
 def _reference_goal_direction(sim, rows):
     """The whole-array form: straight at the goal, or down its distance map where that has a way."""
     p = sim.pos[:, rows]

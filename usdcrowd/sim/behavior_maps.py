@@ -33,6 +33,7 @@ from ..core.model import (BEHAVIORS, CHARACTER_TYPES, FEAR_RESPONSES, HEALTH_STA
 from . import params as P
 from .distance_maps import DistanceMaps, sample_grid
 from .grid import field_is, generator_is
+from .kernels import radial_falloff, worsen_health
 from .neighbors import nearest_of
 from .steering import arrive, evade, pursue, unit
 
@@ -98,8 +99,7 @@ class MapLayer:
         R = self.current_radius(t)
         if R <= 0:
             return np.zeros(len(x), np.float32)
-        r = np.hypot(x - self.origin[0], y - self.origin[1])
-        return np.minimum(np.maximum(1.0 - r / R, 0.0), 1.0).astype(np.float32)
+        return radial_falloff(np.asarray(x), np.asarray(y), float(self.origin[0]), float(self.origin[1]), R)
 
     def render(self, t: float, shape=(128, 128)) -> np.ndarray:
         """The layer as an image over its extent (row 0 at +Y), like BehaviorField.values.
@@ -190,8 +190,7 @@ class Reactions:
                 dmg = v if dmg is None else np.maximum(dmg, v)
         if dmg is None:
             return
-        np.maximum(health, np.where(dmg >= self.wound_at, _WOUNDED, _OK), out=health)
-        np.maximum(health, np.where(dmg >= self.dead_at, _DEAD, _OK), out=health)
+        worsen_health(health, dmg, self.wound_at, self.dead_at, _WOUNDED, _DEAD)
 
     def active_threat(self, t: float):
         """The latest generated threat (explosion / volcano) already started, or None."""

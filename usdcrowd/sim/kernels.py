@@ -10,7 +10,8 @@ each instead of chains of ``(n, k)`` numpy temporaries:
 - integration and the constraints (:func:`integrate`,
   :func:`overlap_corrections`, :func:`limit_moves`,
   :func:`push_out_of_walls`, :func:`settle_velocities`);
-- headings turned toward the velocity (:func:`turn_headings`);
+- headings turned toward the velocity (:func:`turn_headings`), blasts' damage
+  and its wounds (:func:`radial_falloff`, :func:`worsen_health`);
 - grid queries (:func:`cells`, :func:`clearance`, :func:`line_of_sight`);
 - members' memory of their leader (:func:`remember_leaders`,
   :func:`group_spread`) and walking by sight (:func:`sight_rounds`, :func:`choose_ways`).
@@ -717,6 +718,28 @@ def _first_ahead(pos, vel, radius, nb, r, ux, uy, gx, gy, reach):
         against |= vel[0, j] * gx + vel[1, j] * gy < -_COUNTERFLOW
     in_line = gap < reach and not against and vel[0, ahead] * ux + vel[1, ahead] * uy >= _F0
     return min(gap, reach), in_line
+
+
+@njit(cache=True, nogil=True)
+def radial_falloff(x, y, ox, oy, radius):
+    """(n,) float32 ``clip(1 - r / radius, 0, 1)``, ``r`` each point's float64 distance from (ox, oy):
+    a blast's damage (behavior_maps.MapLayer.sample)."""
+    out = np.empty(x.shape[0], np.float32)
+    for i in range(x.shape[0]):
+        r = np.hypot(np.float64(x[i]) - ox, np.float64(y[i]) - oy)
+        out[i] = np.float32(np.minimum(np.maximum(1.0 - r / radius, 0.0), 1.0))
+    return out
+
+
+@njit(cache=True, nogil=True)
+def worsen_health(health, damage, wound_at, dead_at, wounded, dead):
+    """Wound (``wounded``) or kill (``dead``) where ``damage`` (n,) reaches each agent's ``wound_at`` or
+    ``dead_at``; health (n,) int8 only worsens, in place."""
+    for i in range(health.shape[0]):
+        if damage[i] >= dead_at[i]:
+            health[i] = max(health[i], dead)
+        elif damage[i] >= wound_at[i]:
+            health[i] = max(health[i], wounded)
 
 
 @njit(cache=True, nogil=True)
