@@ -285,6 +285,46 @@ def test_blasts_wound_and_kill_as_the_whole_array_form_did():
     assert ((dmg >= dead_at) & (dmg < wound_at)).any() and (health == 1).sum() > 100 and (health == 2).sum() > 100
 
 
+def _reference_flight(pos, rows, o, alarm, safe, dirs, grid, speed, freeze):
+    """Civilians' flight as whole arrays (the former Reactions._civilians, before the blend)."""
+    d = np.hypot(pos[0, rows] - o[0], pos[1, rows] - o[1])
+    rows, d = rows[d < alarm], d[d < alarm]
+    away = -dirs[:, grid.flat_index(pos[0, rows], pos[1, rows])]
+    radial, _ = unit(np.stack([pos[0, rows] - o[0], pos[1, rows] - o[1]]).astype(np.float32))
+    flat = (away[0] == 0) & (away[1] == 0)
+    away[:, flat] = radial[:, flat]
+    v = away * np.where(d < safe, speed[rows] * P.PANIC_SPEED_FACTOR, speed[rows])
+    v[:, freeze[rows]] = 0.0
+    beh = np.where(freeze[rows], 5, np.where(d < safe, 4, 3)).astype(np.int8)
+    return rows, d, v, beh
+
+
+def test_civilians_flee_a_blast_as_the_whole_array_form_did(walled_grid):
+    """Who is alarmed, how far, which way (down the map, radially where it has no way) and how fast (running
+    inside the safe distance, standing when frozen), bit for bit."""
+    g = walled_grid
+    rng = np.random.default_rng(12)
+    n = 3000
+    pos = rng.uniform(-90.0, 90.0, (2, n + 1)).astype(np.float32)
+    o = np.array([-60.0, -55.0, 0.0])
+    pos[:, :4] = o[:2, None]                                             # at the centre
+    dirs = rng.normal(0.0, 1.0, (2, g.h * g.w)).astype(np.float32)
+    dirs /= np.hypot(*dirs)
+    dirs[:, rng.uniform(size=g.h * g.w) < 0.2] = 0.0                     # no way here
+    dirs[:, g.flat_index(pos[0, :4], pos[1, :4])] = 0.0
+    speed = rng.uniform(1.0, 1.5, n + 1).astype(np.float32)
+    freeze = rng.uniform(size=n + 1) < 0.1
+    rows = np.flatnonzero(rng.uniform(size=n) < 0.9)
+    want = _reference_flight(pos, rows, o, 40.0, 25.0, dirs, g, speed, freeze)
+    near, d = K.within_reach(pos, rows, o[0], o[1], 40.0)
+    v, beh = K.flee_blast(pos, near, d, o[0], o[1], 25.0, dirs, *g.lookup, speed,
+                          np.float32(P.PANIC_SPEED_FACTOR), freeze, np.int8(4), np.int8(3), np.int8(5))
+    for got, w in zip((near, d, v, beh), want):
+        np.testing.assert_array_equal(got, w)
+    assert 100 < len(near) < len(rows) and set(np.unique(beh)) == {3, 4, 5}
+    assert (np.hypot(*v) > 0).sum() > 100 and np.isin(np.arange(4), near).all()
+
+
 def _reference_goal_direction(sim, rows):
     """The whole-array form: straight at the goal, or down its distance map where that has a way."""
     p = sim.pos[:, rows]

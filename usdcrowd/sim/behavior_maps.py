@@ -33,7 +33,7 @@ from ..core.model import (BEHAVIORS, CHARACTER_TYPES, FEAR_RESPONSES, HEALTH_STA
 from . import params as P
 from .distance_maps import DistanceMaps, sample_grid
 from .grid import field_is, generator_is
-from .kernels import radial_falloff, worsen_health
+from .kernels import flee_blast, radial_falloff, within_reach, worsen_health
 from .neighbors import nearest_of
 from .steering import arrive, evade, pursue, unit
 
@@ -231,35 +231,20 @@ class Reactions:
             intent.face[rows[react]] = True
 
     def _civilians(self, intent, pos, speed, alive, threat):
-        rows = self.civilians[alive[self.civilians]]
-        if rows.size == 0:
-            return
-        o = threat.origin
-        R = threat.radius
-        d = np.hypot(pos[0, rows] - o[0], pos[1, rows] - o[1])
-        near = d < max(P.ALARM_FACTOR * R, P.ALARM_MIN)
-        rows, d = rows[near], d[near]
+        o, R = threat.origin, threat.radius
+        rows, d = within_reach(pos, self.civilians[alive[self.civilians]], float(o[0]), float(o[1]),
+                               max(P.ALARM_FACTOR * R, P.ALARM_MIN))
         if rows.size == 0:
             return
         _, dirs = self.dmaps.direction(o[None, :], key=("threat", id(threat)))
-        px, py = pos[0, rows], pos[1, rows]
-        away = -sample_grid(self.grid, dirs, px, py)  # (2, m)
-        # Where the distance map has no gradient (at the origin) run radially.
-        flat = (away[0] == 0) & (away[1] == 0)
-        if flat.any():
-            radial, _ = unit(np.stack([px[flat] - o[0], py[flat] - o[1]]).astype(np.float32))
-            away[:, flat] = radial
         # Panic speed inside the safe distance, walking pace up to the alarm radius.
-        panic = d < P.SAFE_FACTOR * R
-        sp = np.where(panic, speed[rows] * P.PANIC_SPEED_FACTOR, speed[rows])
-        v = away * sp
-        frz = self.freeze[rows]
-        v[:, frz] = 0.0
-        beh = np.where(frz, _B["rest"], np.where(panic, _B["run"], _B["walk"])).astype(np.int8)
+        v, beh = flee_blast(pos, rows, d, float(o[0]), float(o[1]), P.SAFE_FACTOR * R, dirs.reshape(2, -1),
+                            *self.grid.lookup, speed, np.float32(P.PANIC_SPEED_FACTOR), self.freeze, _B["run"],
+                            _B["walk"], _B["rest"])
         look = np.empty((2, rows.size), np.float32)
         look[0], look[1] = o[0], o[1]
         self._blend(intent, rows, v, beh, look=look, face=False)
-        intent.face[rows[frz]] = True
+        intent.face[rows[self.freeze[rows]]] = True
 
     def _security(self, intent, pos, vel, speed, alive, threat):
         sec = self.security[alive[self.security]]

@@ -10,8 +10,9 @@ each instead of chains of ``(n, k)`` numpy temporaries:
 - integration and the constraints (:func:`integrate`,
   :func:`overlap_corrections`, :func:`limit_moves`,
   :func:`push_out_of_walls`, :func:`settle_velocities`);
-- headings turned toward the velocity (:func:`turn_headings`), blasts' damage
-  and its wounds (:func:`radial_falloff`, :func:`worsen_health`);
+- headings turned toward the velocity (:func:`turn_headings`), blasts' damage,
+  its wounds and the flight from it (:func:`radial_falloff`,
+  :func:`worsen_health`, :func:`within_reach`, :func:`flee_blast`);
 - grid queries (:func:`cells`, :func:`clearance`, :func:`line_of_sight`);
 - members' memory of their leader (:func:`remember_leaders`,
   :func:`group_spread`) and walking by sight (:func:`sight_rounds`, :func:`choose_ways`).
@@ -729,6 +730,57 @@ def radial_falloff(x, y, ox, oy, radius):
         r = np.hypot(np.float64(x[i]) - ox, np.float64(y[i]) - oy)
         out[i] = np.float32(np.minimum(np.maximum(1.0 - r / radius, 0.0), 1.0))
     return out
+
+
+@njit(cache=True, nogil=True)
+def within_reach(pos, rows, ox, oy, reach):
+    """Those of ``rows`` nearer than ``reach`` metres to (ox, oy), (a,) int64, and their float64 distances."""
+    m = rows.shape[0]
+    near = np.empty(m, np.int64)
+    dist = np.empty(m, np.float64)
+    a = 0
+    for q in range(m):
+        d = np.hypot(np.float64(pos[0, rows[q]]) - ox, np.float64(pos[1, rows[q]]) - oy)
+        if d < reach:
+            near[a] = rows[q]
+            dist[a] = d
+            a += 1
+    return near[:a], dist[:a]
+
+
+@njit(cache=True, nogil=True)
+def flee_blast(pos, rows, dist, ox, oy, safe, dirs, ox_grid, oy_grid, inv_cell, w, h, speed, panic_factor, freeze,
+               run, walk, rest):
+    """Civilians' flight from a blast at (ox, oy) (behavior_maps.Reactions._civilians): ``rows``, ``dist``
+    metres from it, walk away down its distance map (``dirs`` (2, h * w) toward it, flat cell order;
+    radially where the map has no way), running at ``panic_factor`` (float32) times their ``speed``
+    inside ``safe`` metres; those who ``freeze`` stand.
+
+    Returns
+    -------
+    v : (2, m) float32
+        Desired velocities.
+    behavior : (m,) int8
+        ``run``, ``walk`` or ``rest`` (codes).
+    """
+    m = rows.shape[0]
+    v = np.empty((2, m), np.float32)
+    beh = np.empty(m, np.int8)
+    for q in range(m):
+        r = rows[q]
+        f = _cell(pos[0, r], pos[1, r], ox_grid, oy_grid, inv_cell, w, h)
+        ax, ay = -dirs[0, f], -dirs[1, f]
+        if ax == 0 and ay == 0:
+            ax, ay, _ = _unit(np.float32(np.float64(pos[0, r]) - ox), np.float32(np.float64(pos[1, r]) - oy))
+        panic = dist[q] < safe
+        pace = speed[r] * panic_factor if panic else speed[r]
+        v[0, q] = ax * pace
+        v[1, q] = ay * pace
+        beh[q] = run if panic else walk
+        if freeze[r]:
+            v[0, q] = v[1, q] = _F0
+            beh[q] = rest
+    return v, beh
 
 
 @njit(cache=True, nogil=True)
