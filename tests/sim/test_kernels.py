@@ -424,8 +424,12 @@ def test_walking_by_sight_gives_the_reference_bits(packed_crowd, pillars_among_t
     goal = np.stack([np.cos(a), np.sin(a)])
     v0 = rng.uniform(1.0, 1.5, len(rows))
     queued = rng.uniform(size=len(rows)) < 0.5
-    got, free, follows = heuristic_velocity(pos, vel, goal, v0, idx, radius, rows, grid=grid, queued=queued)
-    # The reference: every walker x direction x neighbour as broadcast arrays.
+    n = idx.shape[0]
+    idx = idx.copy()
+    idx[::3, 5:] = n                # fewer neighbours for some: the rest is the ghost, skipped, far away
+    got, free, follows = heuristic_velocity(pos, vel, goal, v0, idx, radius, rows, grid=grid, queued=queued,
+                                            ghost=n)
+    # The reference: every walker x direction x neighbour (the ghost too) as broadcast arrays.
     nb = idx[rows]
     ox = (pos[0, nb] - pos[0, rows, None])[:, None, :]
     oy = (pos[1, nb] - pos[1, rows, None])[:, None, :]

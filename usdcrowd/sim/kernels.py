@@ -925,8 +925,8 @@ def sight_rounds(v, behavior, walk, ctype, human, vel, follows, waited, queued_u
 
 
 @_loop(lambda pos, vel, radius, nb, rows, *rest: rows.shape[0])
-def choose_ways(pos, vel, radius, nb, rows, ux, uy, speed, cos_offsets, horizon, tau, queued, queue_tau, walls,
-                steps, ox, oy, inv_cell, w, h, sdf):
+def choose_ways(pos, vel, radius, nb, rows, ux, uy, speed, cos_offsets, horizon, tau, queued, queue_tau, ghost,
+                walls, steps, ox, oy, inv_cell, w, h, sdf):
     """Moussaid, Helbing and Theraulaz's two heuristics for each walker (vision.heuristic_velocity): the
     direction that brings it nearest its goal, given how far it can walk each way before touching
     someone (or a wall), and a speed that keeps the time gap ``tau`` to whoever stands that way.
@@ -949,6 +949,9 @@ def choose_ways(pos, vel, radius, nb, rows, ux, uy, speed, cos_offsets, horizon,
     queued : (m,) bool
         Waiting their turn: they keep ``queue_tau`` (float32) instead of ``tau`` to someone ahead who is
         not coming toward them.
+    ghost : int
+        The row padding ``nb`` (-1 for none): a body standing a thousand kilometres away, which no way
+        reaches within the horizon, so it is not looked at along each way.
     walls : bool
         Whether to look for walls too, at ``steps`` (s,) float32 metres along each direction, in the
         grid's clearance (``ox`` ... ``sdf``: WalkGrid.lookup and flat_sdf).
@@ -978,6 +981,8 @@ def choose_ways(pos, vel, radius, nb, rows, ux, uy, speed, cos_offsets, horizon,
             f = _INF32
             for c in range(k):
                 j = nb[i, c]
+                if j == ghost:
+                    continue
                 f = min(f, _ray(pos[0, j] - pos[0, r], pos[1, j] - pos[1, r], ux[i, q], uy[i, q], speed[i],
                                 vel[0, j], vel[1, j], radius[r] + radius[j]))
             f = min(f, horizon)

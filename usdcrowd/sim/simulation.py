@@ -422,7 +422,8 @@ class Simulation:
         if len(due):
             self._sight[:, due], self._sight_free[due], self._follows[due] = heuristic_velocity(
                 self.pos, self.vel, v[:, due] / speed[due], speed[due], self.nl.idx, self.radius, due,
-                grid=self.grid if self.grid.has_solid else None, queued=self._queued_until[due] > self.time)
+                grid=self.grid if self.grid.has_solid else None, queued=self._queued_until[due] > self.time,
+                ghost=self.n)
         # Nothing in their way at their last look: they walk as they meant to, to the bit.
         held = rows[~self._sight_free[rows]]
         v[:, held] = self._sight[:, held]

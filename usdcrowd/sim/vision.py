@@ -53,7 +53,8 @@ def _directions(fov_deg: float, directions: int):
 def heuristic_velocity(pos: np.ndarray, vel: np.ndarray, goal_dir: np.ndarray, v0: np.ndarray,
                        idx: np.ndarray, radius: np.ndarray, rows: np.ndarray, fov_deg: float | None = None,
                        directions: int | None = None, horizon: float | None = None,
-                       tau: float | None = None, grid=None, queued: np.ndarray | None = None) -> tuple:
+                       tau: float | None = None, grid=None, queued: np.ndarray | None = None,
+                       ghost: int = -1) -> tuple:
     """The heuristics' desired velocity of the walkers ``rows``.
 
     Parameters
@@ -75,6 +76,8 @@ def heuristic_velocity(pos: np.ndarray, vel: np.ndarray, goal_dir: np.ndarray, v
     queued : (m,) bool, optional
         Walkers waiting their turn: they keep ``QUEUE_TAU`` to someone ahead who is not coming toward
         them (none by default).
+    ghost : int, optional
+        The far-away row that pads ``idx`` (``GHOST_POSITION``, standing), if any: skipped.
 
     Returns
     -------
@@ -102,5 +105,5 @@ def heuristic_velocity(pos: np.ndarray, vel: np.ndarray, goal_dir: np.ndarray, v
     steps = _WALL_SAMPLES[_WALL_SAMPLES <= horizon]
     where = (grid.lookup + (grid.flat_sdf,)) if grid is not None else _NO_WALLS
     return choose_ways(pos, vel, radius, nb, rows, ux, uy, np.asarray(v0, np.float32), cos_offsets,
-                       np.float32(horizon), np.float32(tau), queued, np.float32(P.QUEUE_TAU), grid is not None,
-                       steps, *where)
+                       np.float32(horizon), np.float32(tau), queued, np.float32(P.QUEUE_TAU), ghost,
+                       grid is not None, steps, *where)
