@@ -25,7 +25,6 @@ dominates the cost (about 2 s per million samples here).
 
 from __future__ import annotations
 
-import functools
 import multiprocessing as mp
 import os
 
@@ -40,10 +39,11 @@ from ..character import rig
 from ..character.animation import Animator
 from ..character.kernels import root_motion
 from ..character.root import root_scale
-from ..scenario.parent_space import in_parent, is_identity, parent_key
 from ..scenario.stageio import StageFrame
 from ..schema import USER_PROPERTIES
 from . import clips
+from .agent_prims import AgentPrims
+from .specs import new_attribute, new_prim, set_palette, value_types
 
 # Under the default prim, so a stage that references the shot gets them too (USD drops relationship
 # targets outside a reference's scope: bodies would lose their materials).
@@ -60,37 +60,6 @@ def shared_paths(default_prim: str) -> tuple[str, str, str]:
 # of scale: arms' reach while walking and the head top with margin.
 _REACH = 0.6
 _TOP = 1.05 * rig.HEAD_TOP
-
-
-@functools.cache
-def _sdf():
-    """pxr's Sdf, imported once: an import statement in the per-attribute helpers cost a part writer
-    half a second (150,000 attributes)."""
-    from pxr import Sdf
-
-    return Sdf
-
-
-def _types():
-    return _sdf().ValueTypeNames
-
-
-def _attr(prim_spec, name, type_name, value=None, variability=None, custom=False):
-    Sdf = _sdf()
-    spec = Sdf.AttributeSpec(prim_spec, name, type_name,
-                             variability or Sdf.VariabilityVarying, custom)
-    if value is not None:
-        spec.default = value
-    return spec
-
-
-def _prim(layer, path, type_name="", specifier=None):
-    Sdf = _sdf()
-    spec = Sdf.CreatePrimInLayer(layer, path)
-    spec.specifier = specifier if specifier is not None else Sdf.SpecifierOver
-    if type_name:
-        spec.typeName = type_name
-    return spec
 
 
 # Below this many agents a single process writes everything (spawning
@@ -116,35 +85,35 @@ def _write_prototypes(layer, default_prim: str) -> None:
     """The skeleton and skinned body every agent references."""
     from pxr import Gf, Sdf, Vt
 
-    T = _types()
+    T = value_types()
     body = body_mod.build_body()
     skel_proto, body_proto, materials = shared_paths(default_prim)
     if default_prim and not layer.GetPrimAtPath(f"/{default_prim}"):
-        _prim(layer, f"/{default_prim}")            # an over: the scenario defines it
-    _prim(layer, skel_proto.rsplit("/", 1)[0], "", Sdf.SpecifierClass)
-    skel = _prim(layer, skel_proto, "Skeleton", Sdf.SpecifierClass)
-    _attr(skel, "joints", T.TokenArray, Vt.TokenArray(list(rig.JOINTS)), Sdf.VariabilityUniform)
-    _attr(skel, "bindTransforms", T.Matrix4dArray,
+        new_prim(layer, f"/{default_prim}")            # an over: the scenario defines it
+    new_prim(layer, skel_proto.rsplit("/", 1)[0], "", Sdf.SpecifierClass)
+    skel = new_prim(layer, skel_proto, "Skeleton", Sdf.SpecifierClass)
+    new_attribute(skel, "joints", T.TokenArray, Vt.TokenArray(list(rig.JOINTS)), Sdf.VariabilityUniform)
+    new_attribute(skel, "bindTransforms", T.Matrix4dArray,
           Vt.Matrix4dArray([Gf.Matrix4d(m.tolist()) for m in rig.BIND_SKEL]), Sdf.VariabilityUniform)
-    _attr(skel, "restTransforms", T.Matrix4dArray,
+    new_attribute(skel, "restTransforms", T.Matrix4dArray,
           Vt.Matrix4dArray([Gf.Matrix4d(m.tolist()) for m in rig.REST_LOCAL]), Sdf.VariabilityUniform)
 
-    mesh = _prim(layer, body_proto, "Mesh", Sdf.SpecifierClass)
+    mesh = new_prim(layer, body_proto, "Mesh", Sdf.SpecifierClass)
     mesh.SetInfo("apiSchemas", Sdf.TokenListOp.Create(prependedItems=["SkelBindingAPI"]))
-    _attr(mesh, "points", T.Point3fArray, Vt.Vec3fArray.FromNumpy(body.points))
-    _attr(mesh, "normals", T.Normal3fArray, Vt.Vec3fArray.FromNumpy(body.normals)).SetInfo("interpolation", "vertex")
-    _attr(mesh, "faceVertexCounts", T.IntArray, Vt.IntArray.FromNumpy(body.face_vertex_counts))
-    _attr(mesh, "faceVertexIndices", T.IntArray, Vt.IntArray.FromNumpy(body.face_vertex_indices))
-    _attr(mesh, "subdivisionScheme", T.Token, "none", Sdf.VariabilityUniform)
+    new_attribute(mesh, "points", T.Point3fArray, Vt.Vec3fArray.FromNumpy(body.points))
+    new_attribute(mesh, "normals", T.Normal3fArray, Vt.Vec3fArray.FromNumpy(body.normals)).SetInfo("interpolation", "vertex")
+    new_attribute(mesh, "faceVertexCounts", T.IntArray, Vt.IntArray.FromNumpy(body.face_vertex_counts))
+    new_attribute(mesh, "faceVertexIndices", T.IntArray, Vt.IntArray.FromNumpy(body.face_vertex_indices))
+    new_attribute(mesh, "subdivisionScheme", T.Token, "none", Sdf.VariabilityUniform)
     lo, hi = body.points.min(0), body.points.max(0)
-    _attr(mesh, "extent", T.Float3Array, Vt.Vec3fArray([Gf.Vec3f(*lo.tolist()), Gf.Vec3f(*hi.tolist())]))
+    new_attribute(mesh, "extent", T.Float3Array, Vt.Vec3fArray([Gf.Vec3f(*lo.tolist()), Gf.Vec3f(*hi.tolist())]))
     k = body.joint_indices.shape[1]
     for name, vt, arr in (("primvars:skel:jointIndices", T.IntArray, Vt.IntArray.FromNumpy(body.joint_indices.ravel())),
                           ("primvars:skel:jointWeights", T.FloatArray, Vt.FloatArray.FromNumpy(body.joint_weights.ravel()))):
-        spec = _attr(mesh, name, vt, arr)
+        spec = new_attribute(mesh, name, vt, arr)
         spec.SetInfo("interpolation", "vertex")
         spec.SetInfo("elementSize", k)
-    _attr(mesh, "primvars:skel:geomBindTransform", T.Matrix4d, Gf.Matrix4d(1.0))
+    new_attribute(mesh, "primvars:skel:geomBindTransform", T.Matrix4d, Gf.Matrix4d(1.0))
     _write_regions(layer, mesh, body, body_proto, materials)
 
 
@@ -158,50 +127,40 @@ def _write_regions(layer, mesh, body, body_proto: str, materials: str) -> None:
     """
     from pxr import Sdf, Vt
 
-    T = _types()
+    T = value_types()
     regions = body_mod.REGIONS
     plain = appearance.plain_palettes(np.full((1, 3), 0.5))[0]
-    _set_palette(mesh, plain)
-    _attr(mesh, "primvars:displayColor:indices", T.IntArray, Vt.IntArray.FromNumpy(body.regions))
+    set_palette(mesh, plain)
+    new_attribute(mesh, "primvars:displayColor:indices", T.IntArray, Vt.IntArray.FromNumpy(body.regions))
     rough = appearance.roughness()
     faces = body.regions[body.face_vertex_indices.reshape(-1, 3)]
     # A face takes the region most of its corners have (the first corner's on a three-way tie).
     face_region = np.where(faces[:, 1] == faces[:, 2], faces[:, 1], faces[:, 0])
-    _prim(layer, materials, "Scope", Sdf.SpecifierDef)
+    new_prim(layer, materials, "Scope", Sdf.SpecifierDef)
     for k, name in enumerate(regions):
         title = name.capitalize()
         mat_path = f"{materials}/{title}"
-        mat = _prim(layer, mat_path, "Material", Sdf.SpecifierDef)
-        surface = _prim(layer, f"{mat_path}/Surface", "Shader", Sdf.SpecifierDef)
-        _attr(surface, "info:id", T.Token, "UsdPreviewSurface", Sdf.VariabilityUniform)
-        _attr(surface, "inputs:roughness", T.Float, float(rough[k]))
-        color = _attr(surface, "inputs:diffuseColor", T.Color3f)
+        mat = new_prim(layer, mat_path, "Material", Sdf.SpecifierDef)
+        surface = new_prim(layer, f"{mat_path}/Surface", "Shader", Sdf.SpecifierDef)
+        new_attribute(surface, "info:id", T.Token, "UsdPreviewSurface", Sdf.VariabilityUniform)
+        new_attribute(surface, "inputs:roughness", T.Float, float(rough[k]))
+        color = new_attribute(surface, "inputs:diffuseColor", T.Color3f)
         color.connectionPathList.explicitItems = [Sdf.Path(f"{mat_path}/DisplayColor.outputs:result")]
-        _attr(surface, "outputs:surface", T.Token)
-        reader = _prim(layer, f"{mat_path}/DisplayColor", "Shader", Sdf.SpecifierDef)
-        _attr(reader, "info:id", T.Token, "UsdPrimvarReader_float3", Sdf.VariabilityUniform)
-        _attr(reader, "inputs:varname", T.String, "displayColor")
-        _attr(reader, "outputs:result", T.Float3)
-        out = _attr(mat, "outputs:surface", T.Token)
+        new_attribute(surface, "outputs:surface", T.Token)
+        reader = new_prim(layer, f"{mat_path}/DisplayColor", "Shader", Sdf.SpecifierDef)
+        new_attribute(reader, "info:id", T.Token, "UsdPrimvarReader_float3", Sdf.VariabilityUniform)
+        new_attribute(reader, "inputs:varname", T.String, "displayColor")
+        new_attribute(reader, "outputs:result", T.Float3)
+        out = new_attribute(mat, "outputs:surface", T.Token)
         out.connectionPathList.explicitItems = [Sdf.Path(f"{mat_path}/Surface.outputs:surface")]
 
-        subset = _prim(layer, f"{body_proto}/{title}", "GeomSubset", Sdf.SpecifierDef)
+        subset = new_prim(layer, f"{body_proto}/{title}", "GeomSubset", Sdf.SpecifierDef)
         subset.SetInfo("apiSchemas", Sdf.TokenListOp.Create(prependedItems=["MaterialBindingAPI"]))
-        _attr(subset, "elementType", T.Token, "face", Sdf.VariabilityUniform)
-        _attr(subset, "familyName", T.Token, "materialBind", Sdf.VariabilityUniform)
-        _attr(subset, "indices", T.IntArray, Vt.IntArray.FromNumpy(np.flatnonzero(face_region == k).astype(np.int32)))
+        new_attribute(subset, "elementType", T.Token, "face", Sdf.VariabilityUniform)
+        new_attribute(subset, "familyName", T.Token, "materialBind", Sdf.VariabilityUniform)
+        new_attribute(subset, "indices", T.IntArray, Vt.IntArray.FromNumpy(np.flatnonzero(face_region == k).astype(np.int32)))
         Sdf.RelationshipSpec(subset, "material:binding", custom=False).targetPathList.explicitItems = [mat_path]
-    _attr(mesh, "subsetFamily:materialBind:familyType", T.Token, "partition", Sdf.VariabilityUniform)
-
-
-def _set_palette(body_spec, palette: np.ndarray) -> None:
-    """A body's displayColor rows: (r, 3) linear RGB, indexed per vertex by the prototype."""
-    from pxr import Vt
-
-    spec = _attr(body_spec, "primvars:displayColor", _types().Color3fArray,
-                 Vt.Vec3fArray.FromNumpy(np.asarray(palette, dtype=np.float32)))
-    spec.SetInfo("interpolation", "vertex")
-
+    new_attribute(mesh, "subsetFamily:materialBind:familyType", T.Token, "partition", Sdf.VariabilityUniform)
 
 
 def _write_group_profiles(layer, scenario: model.Scenario) -> None:
@@ -211,10 +170,11 @@ def _write_group_profiles(layer, scenario: model.Scenario) -> None:
     a = scenario.agents
     for gi, gpath in enumerate(scenario.groups.path):
         members = np.flatnonzero(a.group == gi)
-        spec = _prim(layer, gpath)
-        _attr(spec, f"{USER_PROPERTIES}agents", _types().Int, int(members.size), Sdf.VariabilityUniform, custom=True)
+        spec = new_prim(layer, gpath)
+        new_attribute(spec, f"{USER_PROPERTIES}agents", value_types().Int, int(members.size), Sdf.VariabilityUniform,
+                      custom=True)
         if members.size:
-            _attr(spec, "crowd:visitProfile", _types().Token,
+            new_attribute(spec, "crowd:visitProfile", value_types().Token,
                   model.VISIT_PROFILES[a.visit_profile[members[0]]], Sdf.VariabilityUniform)
 
 
@@ -222,7 +182,7 @@ def write_group_properties(layer, stage, group_paths: list[str]) -> None:
     """Each group's authored ``crowd:`` values again as user properties (numbers, strings, tokens)."""
     from pxr import Sdf
 
-    T = _types()
+    T = value_types()
     kinds = {bool: T.Bool, int: T.Int, float: T.Double, str: T.String}
     with Sdf.ChangeBlock():
         for path in group_paths:
@@ -236,7 +196,7 @@ def write_group_properties(layer, stage, group_paths: list[str]) -> None:
                 value = attr.Get()
                 value = str(value) if attr.GetTypeName() in (T.Token, T.String) else value
                 if type(value) in kinds:
-                    _attr(_prim(layer, path), f"userProperties:{name}", kinds[type(value)], value,
+                    new_attribute(new_prim(layer, path), f"userProperties:{name}", kinds[type(value)], value,
                           Sdf.VariabilityUniform, custom=True)
 
 
@@ -272,122 +232,18 @@ class _AgentPart:
         self._declared = None           # the attributes every clip layer declares (_clip_layer)
         from pxr import Sdf
 
-        self._same = self._shared_values()
-        self._roots: list = []          # (SkelRoot spec, its crowd:pathMethod spec) per agent, for finish()
-        self._placements: dict = {}
+        self._roots: list = []          # SkelRoot spec per agent, for finish()
         # Start positions in the stage's axes and units, all at once.
-        self._starts = dict(zip(self.rows.tolist(),
-                                frame.points_from_canonical(scenario.agents.start[self.rows]).tolist()))
+        starts = dict(zip(self.rows.tolist(), frame.points_from_canonical(scenario.agents.start[self.rows]).tolist()))
+        prims = AgentPrims(layer, scenario, frame, authored, self.parents, self._protos, self._palette, starts)
         with Sdf.ChangeBlock():
             for i, scale in zip(self.rows.tolist(), self._scale.tolist()):
-                self._paths.append(self._write_agent(i, scale))
+                root, samples = prims.write(i, scale)
+                self._roots.append(root)
+                self._paths.append(samples)
             if clip_plan is not None and len(self.rows):
                 clips.author_clip_sets(layer, stem.replace(".", "_"), clip_plan, stem,
                                        clips.anchor_roots(scenario.agents.path[i] for i in self.rows))
-
-    def _write_agent(self, i: int, s: float):
-        """Agent ``i``'s static prims (``s``: its root joint's scale, the part's ``_scale`` entry)."""
-        from pxr import Gf, Sdf, Vt
-
-        T, U = _types(), Sdf.VariabilityUniform
-        layer, sc, a, same = self.layer, self.scenario, self.scenario.agents, self._same
-        path = a.path[i]
-        spec = _prim(layer, path, "SkelRoot", Sdf.SpecifierOver if path in self.authored else Sdf.SpecifierDef)
-        spec.SetInfo("apiSchemas", same["apiSchemas"])
-        _attr(spec, "crowd:agentId", T.Int, int(a.agent_id[i]), U)
-        _attr(spec, "crowd:role", T.Token, model.ROLES[a.role[i]], U)
-        _attr(spec, "crowd:characterType", T.Token, model.CHARACTER_TYPES[a.character_type[i]], U)
-        _attr(spec, "crowd:personality", T.Token, model.PERSONALITIES[a.personality[i]], U)
-        _attr(spec, "crowd:behavior", T.Token, model.BEHAVIORS[a.behavior[i]], U)
-        _attr(spec, "crowd:condition", T.Token, model.CONDITIONS[a.condition[i]], U)
-        _attr(spec, "crowd:fearResponse", T.Token, model.FEAR_RESPONSES[a.fear_response[i]], U)
-        _attr(spec, "crowd:maxSlope", T.Float, float(a.max_slope[i]), U)
-        _attr(spec, "crowd:behaviorMapInfluence", T.Float, float(a.map_influence[i]), U)
-        if a.trades is not None and a.trades[i]:
-            _attr(spec, "crowd:trades", T.Bool, True, U)
-        _attr(spec, "crowd:color", T.Color3f, Gf.Vec3f(*a.color[i].tolist()), U)
-        # The same facts again where DCC tools look for custom properties (Blender
-        # imports the userProperties: namespace as an object's properties).
-        for name, kind, value in (("agentId", T.Int, int(a.agent_id[i])),
-                                  ("group", T.String, sc.groups.path[a.group[i]]),
-                                  ("role", T.String, model.ROLES[a.role[i]]),
-                                  ("characterType", T.String, model.CHARACTER_TYPES[a.character_type[i]])):
-            _attr(spec, f"{USER_PROPERTIES}{name}", kind, value, U, custom=True)
-        _attr(spec, "crowd:speed", T.Float, float(a.speed[i]), U)
-        _attr(spec, "crowd:height", T.Float, float(a.height[i]), U)
-        _attr(spec, "crowd:startPosition", T.Point3f, Gf.Vec3f(*self._starts[i]), U)
-        Sdf.RelationshipSpec(spec, "crowd:group", custom=False).targetPathList.explicitItems = [sc.groups.path[a.group[i]]]
-        if a.leader[i] >= 0:
-            Sdf.RelationshipSpec(spec, "crowd:leader", custom=False).targetPathList.explicitItems = [a.path[a.leader[i]]]
-        Sdf.RelationshipSpec(spec, "skel:skeleton", custom=False).targetPathList.explicitItems = [f"{path}/Skel"]
-        Sdf.RelationshipSpec(spec, "skel:animationSource", custom=False).targetPathList.explicitItems = [f"{path}/Anim"]
-        if a.role[i] == same["invisibleLeader"]:
-            _attr(spec, "visibility", T.Token, "invisible")
-        self._place(spec, path)
-        for name in ("crowd:state:behavior", "crowd:state:animClass", "crowd:state:health"):
-            _attr(spec, name, T.Token, custom=True)
-        self._roots.append((spec, _attr(spec, "crowd:pathMethod", T.Token, None, U, custom=True)))
-
-        skel = _prim(layer, f"{path}/Skel", "Skeleton", Sdf.SpecifierDef)
-        skel.referenceList.prependedItems = same["skeleton"]
-        anim = _prim(layer, f"{path}/Anim", "SkelAnimation", Sdf.SpecifierDef)
-        _attr(anim, "joints", T.TokenArray, same["joints"], U)
-        _attr(anim, "scales", T.Half3Array, Vt.Vec3hArray([Gf.Vec3h(s, s, s), Gf.Vec3h(1, 1, 1), Gf.Vec3h(1, 1, 1)]))
-        _attr(anim, "rotations", T.QuatfArray)
-        _attr(anim, "translations", T.Float3Array)
-        body = _prim(layer, f"{path}/Body", "Mesh", Sdf.SpecifierDef)
-        body.referenceList.prependedItems = same["body"]
-        _set_palette(body, self._palette[i])
-        # Height for shaders and tools; the geometry is scaled by the root joint.
-        _attr(body, "primvars:crowd:height", T.Float, float(a.height[i])).SetInfo("interpolation", "constant")
-        return tuple(Sdf.Path(p) for p in (f"{path}/Anim.rotations", f"{path}/Anim.translations",
-                                           f"{path}.crowd:state:behavior", f"{path}.crowd:state:animClass",
-                                           f"{path}.crowd:state:health"))
-
-    def _shared_values(self) -> dict:
-        """Values every agent of the part authors alike, made once (a Python-to-USD value costs as much
-        as the spec it goes in)."""
-        from pxr import Sdf, Vt
-
-        return {"apiSchemas": Sdf.TokenListOp.Create(prependedItems=["CrowdAgentAPI", "SkelBindingAPI"]),
-                "joints": Vt.TokenArray(list(rig.JOINTS)),
-                "skeleton": [Sdf.Reference(primPath=self._protos[0])],
-                "body": [Sdf.Reference(primPath=self._protos[1])],
-                "invisibleLeader": model.ROLES.index("invisibleLeader")}
-
-    def _place(self, spec, path: str) -> None:
-        """The agent's transform: the root joint holds its world motion in canonical metres, so the
-        SkelRoot maps canonical metres to the stage's axes and units and undoes its parent's transform
-        (:mod:`usdcrowd.scenario.parent_space`). The order replaces the placement the scenario may have
-        authored, which only said where the agent starts."""
-        from pxr import Sdf
-
-        T = Sdf.ValueTypeNames
-        key = parent_key(path)
-        if key not in self._placements:
-            self._placements[key] = self._placement(key)
-        ops, value = self._placements[key]
-        if isinstance(value, list):         # an animated parent: the inverse follows it
-            attr = _attr(spec, "xformOp:transform:stageFrame", T.Matrix4d)
-            for t, mt in value:
-                self.layer.SetTimeSample(attr.path, t, mt)
-        elif value is not None:
-            _attr(spec, "xformOp:transform:stageFrame", T.Matrix4d, value)
-        _attr(spec, "xformOpOrder", T.TokenArray, ops, Sdf.VariabilityUniform)
-
-    def _placement(self, key: str):
-        """``(xformOpOrder, the stage-frame op's value)`` of the agents under the parent ``key``: None
-        (no op), a Gf.Matrix4d, or ``[(time, Gf.Matrix4d), ...]`` for a parent that moves."""
-        from pxr import Gf, Vt
-
-        m = in_parent(self.frame.from_canonical, self.parents.get(key))
-        if m.ndim == 3:
-            value = [(float(t), Gf.Matrix4d(mt.tolist())) for t, mt in zip(self.scenario.time.codes, m)]
-        elif not is_identity(m):
-            value = Gf.Matrix4d(m.tolist())
-        else:
-            return Vt.TokenArray([]), None
-        return Vt.TokenArray(["xformOp:transform:stageFrame"]), value
 
     def write_frames(self, frames: model.CrowdFrames) -> None:
         """Animate this part's agents over a chunk (``frames`` holds only them) and author it."""
@@ -415,7 +271,7 @@ class _AgentPart:
                 path = self.scenario.agents.path[i]
                 spec = self.layer.GetPrimAtPath(path)
                 if "visibility" not in spec.attributes:
-                    _attr(spec, "visibility", _types().Token)
+                    new_attribute(spec, "visibility", value_types().Token)
                 self._paths[j] = self._paths[j] + (Sdf.Path(f"{path}.visibility"),)
 
     def write_samples(self, times: np.ndarray, rot_usd: np.ndarray, trans: np.ndarray, tokens: dict) -> None:
@@ -482,7 +338,7 @@ class _AgentPart:
         from pxr import Sdf
 
         if self._declared is None:
-            T = _types()
+            T = value_types()
             self._declared = Sdf.Layer.CreateAnonymous(".usdc")
             kinds = (T.QuatfArray, T.Float3Array, T.Token, T.Token, T.Token, T.Token)
             with Sdf.ChangeBlock():
@@ -512,13 +368,13 @@ class _AgentPart:
         """Extents (m, 3) in the SkelRoots' canonical space, and the path method per agent."""
         from pxr import Sdf, Vt
 
-        T = _types()
+        T = value_types()
         boxes = np.stack([lo, hi], axis=1).astype(np.float32)
         with Sdf.ChangeBlock():
-            for j, (spec, method) in enumerate(self._roots):
-                _attr(spec, "extent", T.Float3Array, Vt.Vec3fArray.FromNumpy(boxes[j]))
+            for j, spec in enumerate(self._roots):
+                new_attribute(spec, "extent", T.Float3Array, Vt.Vec3fArray.FromNumpy(boxes[j]))
                 if path_method is not None:
-                    method.default = model.PATH_METHODS[path_method[j]]
+                    spec.attributes["crowd:pathMethod"].default = model.PATH_METHODS[path_method[j]]
         if self._clips is not None:
             for k in sorted(self._windows):
                 self._save_window(k)
