@@ -13,8 +13,9 @@ median of the per-round ratios are reported):
   crowd's frames a chunk at a time: the same split, plus what usdcrowd
   writes beside the samples (every agent's attributes, prototypes,
   materials) and the animation that makes the samples.
-- **crowd layer, one window**: the same with every sample in the part layers
-  (no value clips: what the time windows cost, and what they save in memory).
+- **crowd layer, in windows**: the same with the samples in value-clip windows of
+  WINDOW frames (what a longer shot or a larger crowd is written as: what the
+  windows cost, and what they save in memory).
 - **shot**: ``author_shot``, what ``simulate`` does after simulating: the
   crowd layer, the camera agents, the overview and the trajectory map (the
   crowd's frames come from a straight walk, not a simulation); once more
@@ -48,6 +49,7 @@ CHUNK = 50                  # frames per chunk handed to the writers, as simulat
 WORKERS = 2
 PER_LAYER = 1000
 TARGET_RATIO = 1.25         # crowd layer within 1.25x of the floor
+WINDOW = 80                 # frames per clip window in the windowed row
 TARGET_SHOT_S = 20.0        # 10,000 agents x 300 frames as a shot
 TARGET_SHOT_GIB = 4.0
 
@@ -180,8 +182,8 @@ def floor_once(folder: str, agents: int) -> dict:
 
 
 def crowd_layer_once(folder: str, agents: int, frames: int, clip_frames: int | None = None) -> dict:
-    """usdcrowd's CrowdLayerWriter over the same frames (timed from the writer's start to its save);
-    ``clip_frames=frames`` writes every sample into the part layers, in one window (no value clips)."""
+    """usdcrowd's CrowdLayerWriter over the same frames (timed from the writer's start to its save), its
+    samples in value-clip windows of ``clip_frames`` frames if given (else as the writer decides)."""
     from usdcrowd.scenario import stage_frame
     from usdcrowd.usd import CrowdLayerWriter
 
@@ -267,7 +269,7 @@ def run(agents: int = 10_000, frames: int = 300, rounds: int = 3) -> dict:
         ``floor``, ``crowd_layer``, ``shot``: median seconds, peak MiB, file MiB and every round's
         seconds; ``ratio_crowd_layer`` / ``ratio_shot``: medians of the per-round ratios to the floor.
     """
-    rows = ("floor", "crowd_layer", "crowd_layer_one_window", "shot")
+    rows = ("floor", "crowd_layer", "crowd_layer_windows", "shot")
     with tempfile.TemporaryDirectory() as tmp:
         size = _child("write_samples", folder=tmp, agents=agents, frames=frames)
         print(f"   {size['agents']:,} agents x {size['frames']} frames, {2 * size['agents'] * size['frames']:,} "
@@ -276,17 +278,17 @@ def run(agents: int = 10_000, frames: int = 300, rounds: int = 3) -> dict:
         for _ in range(rounds):
             seen["floor"].append(_child("floor_once", folder=tmp, agents=size["agents"]))
             seen["crowd_layer"].append(_child("crowd_layer_once", folder=tmp, agents=agents, frames=frames))
-            seen["crowd_layer_one_window"].append(_child("crowd_layer_once", folder=tmp, agents=agents, frames=frames,
-                                                         clip_frames=frames))
+            seen["crowd_layer_windows"].append(_child("crowd_layer_once", folder=tmp, agents=agents, frames=frames,
+                                                      clip_frames=WINDOW))
             seen["shot"].append(_child("shot_once", folder=tmp, agents=agents, frames=frames))
         events = _child("shot_once", folder=tmp, agents=agents, frames=frames, events=True)
         extras = _child("extras_once", folder=tmp, agents=agents, frames=frames)
-    found = {"agents": size["agents"], "frames": size["frames"], "rounds": rounds}
+    found = {"agents": size["agents"], "frames": size["frames"], "rounds": rounds, "window": WINDOW}
     for row in rows:
         s = [r["seconds"] for r in seen[row]]
         found[row] = {"seconds": float(np.median(s)), "each_s": s, "peak_mib": max(r["peak_mib"] for r in seen[row]),
                       "size_mib": seen[row][-1]["size_mib"]}
-    for row in ("crowd_layer", "crowd_layer_one_window", "shot"):
+    for row in ("crowd_layer", "crowd_layer_windows", "shot"):
         found[f"ratio_{row}"] = float(np.median([a["seconds"] / f["seconds"]
                                                  for a, f in zip(seen[row], seen["floor"])]))
     print(f"   {'row':<22} {'median s':>9} {'rounds (s)':<22} {'peak MiB':>9} {'files MiB':>10} {'x floor':>8}")

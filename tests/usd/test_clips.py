@@ -60,6 +60,8 @@ def test_windows_split_the_frames():
     assert got == {0: [0, 1], 1: [2, 3, 4, 5, 6, 7, 8], 2: [9, 10]}
     assert clips.plan("/o/crowd.usdc", 1, 30, 100, window=30) is None       # one window: no clips
     assert clips.window_frames(10) == clips.MAX_WINDOW and clips.window_frames(10**6) == clips.MIN_WINDOW
+    # The writers share one budget: twice the processes, half the window.
+    assert clips.window_frames(5000, 2) == clips.AGENT_FRAMES_HELD // 10000 == 2 * clips.window_frames(5000, 4)
 
 
 def test_clipped_shot_holds_the_same_animation_at_every_time(shots):

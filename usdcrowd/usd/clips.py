@@ -31,18 +31,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
-# Agent-frames of samples one process holds before it saves a window: about
-# 0.5 KB each in USD, so ~200 MB per process whatever the shot's length.
-AGENT_FRAMES_PER_PROCESS = 400_000
+# Agent-frames of samples the writers hold together before they save a window:
+# about 0.5 KB each in USD, so ~1.5 GB whatever the shot's length and however
+# many processes write it. Each window costs time (its layer declares every
+# agent's animated attributes again, and small layers save slower per sample):
+# `python tools/bench.py author` times a crowd in one window and in several.
+AGENT_FRAMES_HELD = 3_000_000
 # Window length bounds, frames. Shots no longer than one window are written
 # without clips (one layer, as any USD tool would write it).
 MIN_WINDOW = 24
 MAX_WINDOW = 480
 
 
-def window_frames(agents_per_process: int) -> int:
-    """Frames per clip window for a process that authors ``agents_per_process`` agents."""
-    w = AGENT_FRAMES_PER_PROCESS // max(1, agents_per_process)
+def window_frames(agents_per_process: int, processes: int = 1) -> int:
+    """Frames per clip window for ``processes`` writers of ``agents_per_process`` agents each."""
+    w = AGENT_FRAMES_HELD // max(1, agents_per_process * processes)
     return int(np.clip(w, MIN_WINDOW, MAX_WINDOW))
 
 
@@ -103,9 +106,9 @@ class ClipPlan:
 
 
 def plan(final_layer: str, start: float, end: float, agents_per_process: int,
-         window: int | None = None) -> ClipPlan | None:
+         window: int | None = None, processes: int = 1) -> ClipPlan | None:
     """The clip plan of a crowd layer written to ``final_layer``; None when one window holds the shot."""
-    window = window or window_frames(agents_per_process)
+    window = window or window_frames(agents_per_process, processes)
     if end - start + 1 <= window:
         return None
     stem = os.path.splitext(os.path.basename(final_layer))[0]

@@ -487,7 +487,7 @@ class CrowdLayerWriter:
         has at least PARALLEL_MIN_AGENTS agents, else 1 (no extra process).
     clip_frames : int, optional
         Frames per value-clip window (:mod:`usdcrowd.usd.clips`); default: as
-        many as keep a process's samples near ``clips.AGENT_FRAMES_PER_PROCESS``.
+        many as keep the writers' samples near ``clips.AGENT_FRAMES_HELD`` together.
         A shot no longer than one window is written without clips.
     parents : dict, optional
         ``{parent path: (4, 4) or (t, 4, 4)}`` local-to-world of the agents' parents on the scenario
@@ -517,7 +517,7 @@ class CrowdLayerWriter:
         authored = authored_agents or set()
         self._splits = np.array_split(np.arange(n), workers)
         self.clip_plan = clips.plan(self.final, scenario.time.start, scenario.time.end,
-                                    max(map(len, self._splits)), clip_frames)
+                                    max(map(len, self._splits)), clip_frames, workers)
         self._local = None
         self._workers = []
         self._saving = False
