@@ -21,7 +21,7 @@ from usdcrowd.sim.collision import (GOLDEN_ANGLE, agent_avoidance, polygon_signe
 from usdcrowd.sim.grid import WalkGrid
 from usdcrowd.sim.groups import flocking, mate_mask
 from usdcrowd.sim.neighbors import NeighborList
-from usdcrowd.sim.steering import arrive, clip_norm, containment, separation, steer, unit
+from usdcrowd.sim.steering import arrive, clip_norm, containment, separation, unit
 from usdcrowd.sim.vision import heuristic_velocity
 
 
@@ -45,14 +45,14 @@ def packed_crowd():
     return pos, vel, radius, nl.idx, mates
 
 
-def _reference_forces(pos, vel, v_des, radius, idx, mates, grid, lo, hi):
-    """The force terms as (n, k) numpy arrays, added in the step's order."""
+def _reference_forces(pos, vel, v_des, gain, radius, idx, mates, grid, lo, hi):
+    """The force terms as (n, k) numpy arrays, added in the step's order (``gain``: each agent's 1 / tau)."""
     n = idx.shape[0]
     dx = pos[:, :n, None] - pos[:, idx]
     dv = vel[:, :n, None] - vel[:, idx]
     dist = np.sqrt(dx[0] * dx[0] + dx[1] * dx[1])
     gap = dist - (radius[:n, None] + radius[idx])
-    F = steer(v_des, vel[:, :n])
+    F = (v_des - vel[:, :n]) * gain
     F += agent_avoidance(dx, dv, dist, gap, vel[:, :n])
     F += separation(dx, dist, gap)
     F += flocking(dx, dv, dist, mates)
@@ -101,10 +101,12 @@ def test_the_force_is_its_terms_summed(packed_crowd, pillars_among_the_crowd, wa
     n = idx.shape[0]
     v_des = np.random.default_rng(1).normal(0.0, 1.0, (2, n)).astype(np.float32)
     lo, hi = np.array([-5.0, -5.0], np.float32), np.array([5.0, 5.0], np.float32)   # some walk out
-    want = _reference_forces(pos, vel, v_des, radius, idx, mates, grid if walls else None, lo, hi)
-    got = K.forces(pos, vel, v_des, radius, idx, mates, walls, *grid.lookup, grid.flat_sdf, grid.flat_nx,
+    # Walkers by sight relax faster toward their desired velocity than the others.
+    gain = np.where(np.arange(n) % 3 == 0, 1.0 / P.SIGHT_RELAX, 1.0 / P.TAU_RELAX).astype(np.float32)
+    want = _reference_forces(pos, vel, v_des, gain, radius, idx, mates, grid if walls else None, lo, hi)
+    got = K.forces(pos, vel, v_des, gain, radius, idx, mates, walls, *grid.lookup, grid.flat_sdf, grid.flat_nx,
                    grid.flat_ny, lo, hi)
-    steering = steer(v_des, vel[:, :n])
+    steering = (v_des - vel[:, :n]) * gain
     assert (np.hypot(*(want - steering)) > 10.0).sum() > 50       # the terms are not negligible here
     if walls:
         assert (np.hypot(*wall_avoidance(grid, pos[:, :n], vel[:, :n], radius[:n])) > 1.0).sum() > 20
@@ -695,7 +697,9 @@ def test_on_one_thread_or_spread_over_the_cores_the_loops_give_the_same_bytes(pa
     n = idx.shape[0]
     v_des = np.random.default_rng(1).normal(0.0, 1.0, (2, n)).astype(np.float32)
     lo, hi = np.array([-5.0, -5.0], np.float32), np.array([5.0, 5.0], np.float32)
-    args = (pos, vel, v_des, radius, idx, mates, True, *grid.lookup, grid.flat_sdf, grid.flat_nx, grid.flat_ny, lo, hi)
+    gain = np.full(n, 1.0 / P.TAU_RELAX, np.float32)
+    args = (pos, vel, v_des, gain, radius, idx, mates, True, *grid.lookup, grid.flat_sdf, grid.flat_nx, grid.flat_ny,
+            lo, hi)
     np.testing.assert_array_equal(K.forces.serial(*args), K.forces.parallel(*args))
     x, y = pos[0, :n].astype(np.float64), pos[1, :n].astype(np.float64)
     np.testing.assert_array_equal(K.nearest_within.serial(x, y, 8, 4.6), K.nearest_within.parallel(x, y, 8, 4.6))

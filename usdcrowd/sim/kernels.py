@@ -108,7 +108,6 @@ _INF32 = np.float32(np.inf)
 _TINY2 = np.float32(1e-12)
 _A_MIN = np.float32(1e-9)
 _WALL_APPROACH = np.float32(0.05)  # nearer a wall than now by this much is getting nearer, m
-_STEER = np.float32(1.0 / P.TAU_RELAX)
 _WALL_EXP = np.float32(-0.5 / (P.WALL_AVOID_TAU * P.WALL_AVOID_TAU))
 _WALL_GAIN = np.float32(P.WALL_AVOID_GAIN)
 _CONTACT_GAP = np.float32(P.WALL_CONTACT_GAP)
@@ -193,7 +192,7 @@ def _wall_terms(px, py, vx, vy, r, sdf, nx, ny):
 
 
 @_loop(lambda pos, vel, v_des, *rest: v_des.shape[1])
-def forces(pos, vel, v_des, radius, idx, mates, walls, ox, oy, inv_cell, w, h, sdf, nx, ny, lo, hi):
+def forces(pos, vel, v_des, steer, radius, idx, mates, walls, ox, oy, inv_cell, w, h, sdf, nx, ny, lo, hi):
     """The force on each agent (m/s^2, before its clip): steering toward the desired velocity, then
     avoidance of the neighbours, personal space, flocking, avoidance of walls and containment in the
     bounds, added in that order.
@@ -204,6 +203,8 @@ def forces(pos, vel, v_des, radius, idx, mates, walls, ox, oy, inv_cell, w, h, s
         Positions and velocities, ghost last.
     v_des : (2, n) float32
         Desired velocities.
+    steer : (n,) float32
+        Each agent's steering gain, 1 / its relaxation time (1/s).
     radius : (n + 1,) float32
     idx : (n, k) int32
         Neighbour table (``n``: none).
@@ -223,8 +224,8 @@ def forces(pos, vel, v_des, radius, idx, mates, walls, ox, oy, inv_cell, w, h, s
     for i in prange(n):
         px, py = pos[0, i], pos[1, i]
         vx, vy = vel[0, i], vel[1, i]
-        fx = (v_des[0, i] - vx) * _STEER
-        fy = (v_des[1, i] - vy) * _STEER
+        fx = (v_des[0, i] - vx) * steer[i]
+        fy = (v_des[1, i] - vy) * steer[i]
         ax, ay, sx, sy, gx, gy = _pair_terms(i, pos, vel, radius, idx, mates)
         fx = ((fx + ax) + sx) + gx
         fy = ((fy + ay) + sy) + gy

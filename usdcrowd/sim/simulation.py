@@ -176,6 +176,7 @@ class Simulation:
         self.radius = np.append(np.asarray(P.AGENT_RADIUS)[ctype], 0.0).astype(f32)
         self.pref = np.asarray(a.speed, dtype=f32)
         self.max_accel = np.asarray(P.MAX_ACCEL, dtype=f32)[ctype]
+        self.steer = np.full(self.n, 1.0 / P.TAU_RELAX, f32)   # 1 / relaxation time, set each step
         self.speed_cap = np.asarray(P.SPEED_CAP, dtype=f32)[ctype]
         self.turn_rate = np.asarray(P.TURN_RATE, dtype=f32)[ctype]
         self.max_slope = np.asarray(a.max_slope, dtype=f32)
@@ -417,6 +418,7 @@ class Simulation:
         speed, rows, due = sight_rounds(v, it.behavior, int(_B["walk"]), self.ctype, _HUMAN, self.vel, self._follows,
                                         self._waited, self._queued_until, self._sight, self.time,
                                         np.float32(self.dt), self.steps, every)
+        self.steer[:] = np.float32(1.0 / P.TAU_RELAX)
         if len(rows) == 0:
             return
         if len(due):
@@ -427,6 +429,8 @@ class Simulation:
         # Nothing in their way at their last look: they walk as they meant to, to the bit.
         held = rows[~self._sight_free[rows]]
         v[:, held] = self._sight[:, held]
+        # Held up by someone, they take up the space as it opens (SIGHT_RELAX).
+        self.steer[held] = np.float32(1.0 / P.SIGHT_RELAX)
 
     def _look_at_exhibits(self, it, rows, dom):
         ip = self.interest
@@ -474,8 +478,8 @@ class Simulation:
         # pass over the agents and their neighbour table.
         idx = self.nl.idx
         g = self.grid
-        F = forces(pos, vel, it.v, self.radius, idx, self.mates, g.has_solid, *g.lookup, g.flat_sdf, g.flat_nx,
-                   g.flat_ny, self.lo, self.hi)
+        F = forces(pos, vel, it.v, self.steer, self.radius, idx, self.mates, g.has_solid, *g.lookup, g.flat_sdf,
+                   g.flat_nx, g.flat_ny, self.lo, self.hi)
 
         # Integration (seed 003): x += v dt + F dt^2 / 2, v += F dt, force and speed clipped.
         alive = self.health != _DEAD
