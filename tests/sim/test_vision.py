@@ -132,7 +132,7 @@ def test_people_waiting_their_turn_at_a_door_close_up_and_pass_it_sooner(monkeyp
     spaced, _ = _through_a_door()
     assert np.isfinite(queued[:36]).all() and np.isfinite(spaced[:36]).all()
     first, last = queued[[5, 35]], spaced[[5, 35]]
-    assert (last[1] - last[0]) > 1.25 * (first[1] - first[0]), (first, last)   # measured 1.37
+    assert (last[1] - last[0]) > 1.25 * (first[1] - first[0]), (first, last)   # measured 1.34
     assert overlap < 0.02, overlap
 
 
