@@ -50,7 +50,7 @@ from .interest import InterestFields
 from .kernels import forces, goal_directions, integrate, limit_moves, settle_velocities, sight_rounds, turn_headings
 from .neighbors import NeighborList
 from .paths import BEZIER, GRADIENT, BezierPaths, SlopeSteering, Terrain, choose_path_method, enforce_slope
-from .steering import arrive, unit, wander
+from .steering import arrive, wander
 from .trade import Trading, top_groups
 from .validate import validate
 from .vision import heuristic_velocity
@@ -66,6 +66,7 @@ _WOUNDED = np.int8(code(HEALTH_STATES, "wounded"))
 _HUMAN = code(CHARACTER_TYPES, "human")
 LOOK_HEIGHT = 1.5  # m above the ground: eye level of a point looked at without a height
 MAX_GOAL_FIELDS = 64  # distinct goals with their own distance map (others: straight seek)
+_NO_GOAL_DIRS = np.zeros((0, 2, 1), np.float32)  # goal_directions' table when no goal has a map
 
 
 @dataclass
@@ -311,7 +312,6 @@ class Simulation:
         """Distance-map directions to each distinct goal (only around obstacles)."""
         self.goal_id = np.full(self.n, -1, np.int64)
         self.goal_dirs = None
-        self._no_goal_dirs = np.zeros((0, 2, 1), np.float32)
         if not self.grid.has_solid or not goers.any():
             return
         rows = np.where(goers)[0]
@@ -329,7 +329,7 @@ class Simulation:
     # -- one step -----------------------------------------------------------------
     def _goal_direction(self, rows):
         """(2, m) unit direction toward each agent's goal (around obstacles), (m,) straight distance."""
-        dirs = self._no_goal_dirs if self.goal_dirs is None else self.goal_dirs
+        dirs = _NO_GOAL_DIRS if self.goal_dirs is None else self.goal_dirs
         return goal_directions(self.pos, self.goal, rows, self.goal_id, dirs, *self.grid.lookup)
 
     def _intent(self) -> Intent:

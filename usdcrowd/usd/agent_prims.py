@@ -29,6 +29,7 @@ _TOKENS = (("crowd:role", "role", model.ROLES), ("crowd:characterType", "charact
            ("crowd:condition", "condition", model.CONDITIONS),
            ("crowd:fearResponse", "fear_response", model.FEAR_RESPONSES))
 _STATE = ("crowd:state:behavior", "crowd:state:animClass", "crowd:state:health")
+_INVISIBLE = model.ROLES.index("invisibleLeader")
 
 
 class AgentPrims:
@@ -74,7 +75,7 @@ class AgentPrims:
         a = self.scenario.agents
         path = a.path[i]
         return (path in self.authored, a.leader[i] >= 0, bool(a.trades is not None and a.trades[i]),
-                int(a.role[i]) == model.ROLES.index("invisibleLeader"), parent_key(path))
+                int(a.role[i]) == _INVISIBLE, parent_key(path))
 
     def _values(self, i: int, s: float) -> dict:
         """Agent ``i``'s own values, keyed by (child prim, property), as Python values (``s``: the root
@@ -177,7 +178,7 @@ class AgentPrims:
                 Sdf.RelationshipSpec(spec, name, custom=False).targetPathList.explicitItems = [v[(_ROOT, name)]]
         Sdf.RelationshipSpec(spec, "skel:skeleton", custom=False).targetPathList.explicitItems = [f"{path}/Skel"]
         Sdf.RelationshipSpec(spec, "skel:animationSource", custom=False).targetPathList.explicitItems = [f"{path}/Anim"]
-        if a.role[i] == model.ROLES.index("invisibleLeader"):
+        if a.role[i] == _INVISIBLE:
             new_attribute(spec, "visibility", T.Token, "invisible")
         self._place(spec, path)
         for name in _STATE:
