@@ -1,11 +1,16 @@
-"""Per-joint impostors: a small character drawn as three textured quads.
+"""Impostors: a small character drawn as one quad carrying its three joints' pictures.
 
 A character between the point levels and the full mesh costs a software
 rasteriser mostly triangle set-up, so it is drawn from pictures instead
 (Tecchia et al. 2002 draw whole crowds this way; seed 004 keeps points for the
-smallest). The body is rigid per joint (legs, torso, head), so each joint gets
-its own pictures and its own quad, placed by that joint's skinning matrix:
-the pose, the height and the heading are exact, only the view is quantised.
+smallest). The body is rigid per joint (legs, torso, head), so each joint has
+its own pictures, placed by that joint's skinning matrix: the pose, the
+height and the heading are exact, only the view is quantised. The three
+pictures share one quad per character (two triangles, where a quad per
+joint cost three times the set-up): it lies in the torso's picture plane,
+spans the three pictures' covered rectangles, and each fragment reads the
+head's, the torso's and the legs' pictures where its line of sight meets
+them, keeping the first that covers it (``shaders.IMPOSTOR_CS`` places them).
 
 The atlas holds, for each joint's part of the body, views from
 ``N_AZIMUTH`` directions around it and ``N_ELEVATION`` heights. A texel

@@ -3,7 +3,7 @@
 Each agent is bounded by a sphere around its waist joint. Agents whose
 sphere misses the view frustum are not drawn; the others get a level from
 their height on screen in pixels: the full mesh (or clustered meshes, when
-configured), per-joint impostors (:mod:`.impostors`), or, for the smallest, a
+configured), impostors (:mod:`.impostors`), or, for the smallest, a
 number of points from the body's octree-ordered list that shrinks with the
 size (seed 004: "the number of points to be rendered is obtained as a
 function of the distance for each character").
@@ -50,7 +50,7 @@ class LodSettings:
         mesh, which must come first).
     impostor_min_px : float or None
         Characters smaller than the last mesh level and at least this tall
-        are drawn as per-joint impostors (:mod:`.impostors`); None: no
+        are drawn as impostors (:mod:`.impostors`); None: no
         impostor level.
     max_meshes : int or None
         At most this many drawn characters get a mesh level, the tallest on

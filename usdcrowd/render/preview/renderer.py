@@ -324,7 +324,7 @@ class PreviewRenderer:
             self.prog_imp_place = ctx.compute_shader(shaders.IMPOSTOR_CS)
             self._imp_vaos = None         # (view, shadow), made with the quad indices
             self._imp_index = None
-            self._imp_capacity = 0        # parts the quad indices cover
+            self._imp_capacity = 0        # agents the quad indices cover
             self._sprites = None
             self._sprite_capacity = 0     # bytes
             for prog in (self.prog_imp, self.prog_shadow_imp, self.prog_imp_place):
@@ -682,9 +682,8 @@ class PreviewRenderer:
     def _draw_impostors(self, which: int, first: int, count: int) -> None:
         """Place (compute pass) then draw the quads of ``count`` agents from slot ``first``."""
         mgl = self._moderngl
-        parts = 3 * count
-        if parts > self._imp_capacity:
-            self._imp_capacity = max(parts, 2 * self._imp_capacity)
+        if count > self._imp_capacity:
+            self._imp_capacity = max(count, 2 * self._imp_capacity)
             quad = np.array([0, 1, 3, 0, 3, 2], np.int32)
             indices = (np.arange(self._imp_capacity, dtype=np.int32)[:, None] * 4 + quad).ravel()
             for obj in (*(self._imp_vaos or ()), self._imp_index):
@@ -693,25 +692,26 @@ class PreviewRenderer:
             self._imp_index = self.ctx.buffer(indices.tobytes())
             self._imp_vaos = tuple(self.ctx.vertex_array(prog, [], self._imp_index, 4, skip_errors=True)
                                    for prog in (self.prog_imp, self.prog_shadow_imp))
-        # Shadow and view sprites go to different halves: the shadow draw may still be reading.
-        need = 2 * parts * 64
+        # Shadow and view records go to different halves: the shadow draw may still be reading.
+        record = 16 * shaders.IMPOSTOR_RECORD
+        need = 2 * count * record
         if self._sprites is None or need > self._sprite_capacity:
             if self._sprites is not None:
                 self._sprites.release()
             self._sprite_capacity = max(need, 2 * self._sprite_capacity)
             self._sprites = self.ctx.buffer(reserve=self._sprite_capacity)
         self._sprites.bind_to_storage_buffer(2)
-        sprite_base = which * (self._sprite_capacity // 128)
+        sprite_base = which * (self._sprite_capacity // (2 * record))
         cs = self.prog_imp_place
         _set(cs, "u_base", first)
-        _set(cs, "u_count", parts)
+        _set(cs, "u_count", count)
         _set(cs, "u_sprite_base", sprite_base)
-        cs.run(group_x=(parts + 63) // 64)
+        cs.run(group_x=(count + 63) // 64)
         self.ctx.memory_barrier()
         vao = self._imp_vaos[which]
         _set(vao.program, "u_base", first)
         _set(vao.program, "u_sprite_base", sprite_base)
-        vao.render(mgl.TRIANGLES, vertices=6 * parts)
+        vao.render(mgl.TRIANGLES, vertices=6 * count)
 
     def release(self) -> None:
         """Free the GL objects (the context too when this renderer made it)."""

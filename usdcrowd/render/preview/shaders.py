@@ -221,37 +221,69 @@ uniform vec3 u_eye;                   // perspective views: the camera's positio
 uniform vec3 u_view_dir;              // orthographic views (the sun): toward the viewer; else 0
 uniform sampler2D u_cell_box;         // covered rectangle of each view, corner space
 
-// Joint j's picture for this view: the centre of its covered rectangle, the
-// rectangle's half axes (world vectors), the atlas cell and rectangle, and
-// the part's radius.
-void impostor(int instance, int j, out vec3 centre, out vec3 right, out vec3 up, out vec2 cell, out vec4 box,
-              out float radius) {
-    int b = record(instance);
+// Joint j's picture for this view, seen from where the viewer is.
+struct Picture {
+    vec3 joint;      // the part's cylinder centre, world
+    vec3 rt, up;     // unit axes of the picture, world
+    vec2 half_ext;   // half width and height of the cell's frame, metres
+    vec3 d;          // toward the viewer
+    vec2 cell;       // atlas cell (azimuth column, part-and-elevation row)
+    vec4 box;        // covered rectangle, corner space
+    mat3 rot;        // the joint's rotation, local to world
+    float radius;    // metres
+};
+
+bool orthographic() { return dot(u_view_dir, u_view_dir) > 0.5; }
+
+Picture picture(int b, int j) {
+    Picture p;
     vec4 c0 = inst[b + 3 * j], c1 = inst[b + 3 * j + 1], c2 = inst[b + 3 * j + 2];
     vec4 pc = vec4(u_part_centre[j].xyz, 1.0);
-    vec3 joint = vec3(dot(pc, c0), dot(pc, c1), dot(pc, c2));
+    p.joint = vec3(dot(pc, c0), dot(pc, c1), dot(pc, c2));
     float s = length(c0.xyz);
-    mat3 rot = transpose(mat3(c0.xyz, c1.xyz, c2.xyz)) / s;
-    vec3 d = dot(u_view_dir, u_view_dir) > 0.5 ? u_view_dir : normalize(u_eye - joint);
-    vec3 dl = transpose(rot) * d;
+    p.rot = transpose(mat3(c0.xyz, c1.xyz, c2.xyz)) / s;
+    p.d = orthographic() ? u_view_dir : normalize(u_eye - p.joint);
+    vec3 dl = transpose(p.rot) * p.d;
     float az = atan(dl.y, dl.x);
     float el = asin(clamp(dl.z, -1.0, 1.0));
     int ia = int(mod(round(az * float(N_AZ) / 6.28318530718), float(N_AZ)));
     int ie = clamp(int(round((el - EL0) / EL_STEP)), 0, N_EL - 1);
     float e = EL0 + float(ie) * EL_STEP;
     float r = u_part_centre[j].w;
-    float hw = r * MARGIN * s;
-    float hh = (u_part_half_height[j] * cos(e) + r * abs(sin(e))) * MARGIN * s;
-    vec3 up_axis = rot[2], facing = rot[0];
-    vec3 u = normalize(up_axis - dot(up_axis, d) * d + LEAN * (facing - dot(facing, d) * d));
-    vec3 rt = cross(u, d);
-    box = texelFetch(u_cell_box, ivec2(ia, j * N_EL + ie), 0);
-    vec2 mid = 0.5 * (box.xy + box.zw), half_k = 0.5 * (box.zw - box.xy);
-    centre = joint + mid.x * hw * rt + mid.y * hh * u;
-    right = half_k.x * hw * rt;
-    up = half_k.y * hh * u;
-    cell = vec2(float(ia), float(j * N_EL + ie));
-    radius = r * s;
+    p.half_ext = vec2(r, u_part_half_height[j] * cos(e) + r * abs(sin(e))) * MARGIN * s;
+    vec3 up_axis = p.rot[2], facing = p.rot[0];
+    p.up = normalize(up_axis - dot(up_axis, p.d) * p.d + LEAN * (facing - dot(facing, p.d) * p.d));
+    p.rt = cross(p.up, p.d);
+    p.box = texelFetch(u_cell_box, ivec2(ia, j * N_EL + ie), 0);
+    p.cell = vec2(float(ia), float(j * N_EL + ie));
+    p.radius = r * s;
+    return p;
+}
+
+// Where the line of sight through x meets the plane through o with normal n.
+vec3 along_sight(vec3 x, vec3 o, vec3 n) {
+    vec3 from = orthographic() ? x : u_eye;
+    vec3 dir = orthographic() ? u_view_dir : x - u_eye;
+    return from + dir * (dot(o - from, n) / dot(dir, n));
+}
+
+// Quaternion (xyz, w) of a rotation matrix (GLSL's m[column][row]).
+vec4 quat_of(mat3 m) {
+    float tr = m[0][0] + m[1][1] + m[2][2];
+    if (tr > 0.0) {
+        float s = 2.0 * sqrt(tr + 1.0);
+        return vec4(m[1][2] - m[2][1], m[2][0] - m[0][2], m[0][1] - m[1][0], 0.25 * s * s) / s;
+    }
+    if (m[0][0] > m[1][1] && m[0][0] > m[2][2]) {
+        float s = 2.0 * sqrt(1.0 + m[0][0] - m[1][1] - m[2][2]);
+        return vec4(0.25 * s * s, m[1][0] + m[0][1], m[2][0] + m[0][2], m[1][2] - m[2][1]) / s;
+    }
+    if (m[1][1] > m[2][2]) {
+        float s = 2.0 * sqrt(1.0 + m[1][1] - m[0][0] - m[2][2]);
+        return vec4(m[1][0] + m[0][1], 0.25 * s * s, m[2][1] + m[1][2], m[2][0] - m[0][2]) / s;
+    }
+    float s = 2.0 * sqrt(1.0 + m[2][2] - m[0][0] - m[1][1]);
+    return vec4(m[2][0] + m[0][2], m[2][1] + m[1][2], 0.25 * s * s, m[0][1] - m[1][0]) / s;
 }
 """
 
@@ -264,37 +296,74 @@ vec2 impostor_coord(sampler2D atlas, vec2 cell, vec2 local_uv) {
     return (cell + clamp(local_uv, half_texel, 1.0 - half_texel)) / grid;
 }
 
-float impostor_alpha(sampler2D atlas, vec2 cell, vec2 local_uv, out vec3 normal) {
-    vec4 t = texture(atlas, impostor_coord(atlas, cell, local_uv));
-    normal = t.rgb * 2.0 - 1.0;
-    return t.a;
+// The part's picture at this fragment, if it covers it (coverage in t.a).
+bool covered(sampler2D atlas, vec2 cell, vec2 local_uv, out vec4 t, out vec2 coord) {
+    t = vec4(0.0);
+    coord = impostor_coord(atlas, cell, local_uv);
+    if (any(lessThan(local_uv, vec2(0.0))) || any(greaterThan(local_uv, vec2(1.0)))) return false;
+    t = texture(atlas, coord);
+    return t.a >= 0.5;
 }
 """
 
-# Placing a joint's picture takes trigonometry and a table lookup: done once
-# per part in a compute pass (threaded on a software renderer too), not once
-# per corner. Each sprite record is 4 vec4: centre and radius, the half axes
-# right and up with the atlas cell in their w, and the covered rectangle.
+# Placing the pictures takes trigonometry and table lookups: done once per
+# agent in a compute pass (threaded on a software renderer too), not once
+# per corner. A character is one quad in the plane of its torso's picture,
+# spanning the covered rectangles of all three pictures as seen from the
+# viewer; for each corner the record holds where the line of sight through
+# it meets each part's picture, so the fragment shader reads all three (a
+# software rasteriser pays per triangle far more than per texture read).
+# Record (IMPOSTOR_RECORD vec4): centre and torso radius; the quad's half
+# axes right and up; the three atlas cells; the joints' rotations as
+# quaternions; per corner the three parts' picture coordinates.
+IMPOSTOR_RECORD = 16
 IMPOSTOR_CS = VERSION + """
 layout(local_size_x = 64) in;
 """ + INSTANCES + IMPOSTOR_CONSTANTS + IMPOSTOR_PLACE + """
 layout(std430, binding = 2) writeonly buffer Sprites { vec4 sprite_out[]; };
-uniform int u_count;              // parts to place: three per agent
+uniform int u_count;              // agents to place
 uniform int u_sprite_base;        // first record written
 
 void main() {
     int k = int(gl_GlobalInvocationID.x);
     if (k >= u_count) return;
-    vec3 centre, right, up;
-    vec2 cell;
-    vec4 box;
-    float radius;
-    impostor(k / 3, k % 3, centre, right, up, cell, box, radius);
-    int o = (u_sprite_base + k) * 4;
-    sprite_out[o] = vec4(centre, radius);
-    sprite_out[o + 1] = vec4(right, cell.x);
-    sprite_out[o + 2] = vec4(up, cell.y);
-    sprite_out[o + 3] = box;
+    int b = record(k);
+    Picture p[3];
+    for (int j = 0; j < 3; ++j) p[j] = picture(b, j);
+    // The quad lies in the torso's picture plane and covers every part's
+    // covered rectangle projected onto it along the lines of sight.
+    vec3 o = p[1].joint, n = p[1].d, R = p[1].rt, U = p[1].up;
+    vec2 lo = vec2(1e30), hi = vec2(-1e30);
+    for (int j = 0; j < 3; ++j) {
+        for (int c = 0; c < 4; ++c) {
+            vec2 q = mix(p[j].box.xy, p[j].box.zw, vec2(float(c & 1), float(c >> 1)));
+            vec3 x = p[j].joint + q.x * p[j].half_ext.x * p[j].rt + q.y * p[j].half_ext.y * p[j].up;
+            vec3 h = along_sight(x, o, n) - o;
+            vec2 xy = vec2(dot(h, R), dot(h, U));
+            lo = min(lo, xy);
+            hi = max(hi, xy);
+        }
+    }
+    vec2 mid = 0.5 * (lo + hi), half_k = 0.5 * (hi - lo);
+    int w = (u_sprite_base + k) * """ + str(IMPOSTOR_RECORD) + """;
+    vec3 centre = o + mid.x * R + mid.y * U;
+    sprite_out[w] = vec4(centre, p[1].radius);
+    sprite_out[w + 1] = vec4(half_k.x * R, 0.0);
+    sprite_out[w + 2] = vec4(half_k.y * U, 0.0);
+    sprite_out[w + 3] = vec4(p[0].cell, p[1].cell);
+    sprite_out[w + 4] = vec4(p[2].cell, 0.0, 0.0);
+    for (int j = 0; j < 3; ++j) sprite_out[w + 5 + j] = quat_of(p[j].rot);
+    for (int c = 0; c < 4; ++c) {
+        vec2 q = vec2(float(c & 1), float(c >> 1)) * 2.0 - 1.0;
+        vec3 corner = centre + q.x * half_k.x * R + q.y * half_k.y * U;
+        vec2 uv[3];
+        for (int j = 0; j < 3; ++j) {
+            vec3 h = along_sight(corner, p[j].joint, p[j].d) - p[j].joint;
+            uv[j] = vec2(dot(h, p[j].rt), dot(h, p[j].up)) / p[j].half_ext * 0.5 + 0.5;
+        }
+        sprite_out[w + 8 + 2 * c] = vec4(uv[0], uv[1]);
+        sprite_out[w + 9 + 2 * c] = vec4(uv[2], 0.0, 0.0);
+    }
 }
 """
 
@@ -302,40 +371,47 @@ IMPOSTOR_QUAD = """
 layout(std430, binding = 2) readonly buffer Sprites { vec4 sprite[]; };
 uniform int u_sprite_base;
 
-// Corner of part quad gl_VertexID / 4 (indexed draw, no instancing: Mesa's
-// software pipeline runs its whole front end once per instance).
-void quad_corner(out vec3 wp, out vec2 local_uv, out vec2 cell, out float radius, out int part) {
-    part = gl_VertexID >> 2;
-    vec2 corner = vec2(float(gl_VertexID & 1), float((gl_VertexID >> 1) & 1));
-    int o = (u_sprite_base + part) * 4;
-    vec4 s0 = sprite[o], s1 = sprite[o + 1], s2 = sprite[o + 2], box = sprite[o + 3];
-    vec2 q = corner * 2.0 - 1.0;
-    wp = s0.xyz + q.x * s1.xyz + q.y * s2.xyz;
-    local_uv = mix(box.xy, box.zw, corner) * 0.5 + 0.5;
-    cell = vec2(s1.w, s2.w);
-    radius = s0.w;
+// Corner of agent gl_VertexID / 4's quad (indexed draw, no instancing:
+// Mesa's software pipeline runs its whole front end once per instance).
+void quad_corner(out vec3 wp, out vec4 uv01, out vec2 uv2, out vec4 cells01, out vec2 cell2, out int agent,
+                 out int o) {
+    agent = gl_VertexID >> 2;
+    int c = gl_VertexID & 3;
+    vec2 q = vec2(float(c & 1), float(c >> 1)) * 2.0 - 1.0;
+    o = (u_sprite_base + agent) * """ + str(IMPOSTOR_RECORD) + """;
+    wp = sprite[o].xyz + q.x * sprite[o + 1].xyz + q.y * sprite[o + 2].xyz;
+    cells01 = sprite[o + 3];
+    cell2 = sprite[o + 4].xy;
+    uv01 = sprite[o + 8 + 2 * c];
+    uv2 = sprite[o + 9 + 2 * c].xy;
 }
+"""
+
+IMPOSTOR_VARYINGS = """
+in vec3 v_world;
+in vec4 v_uv01;
+in vec2 v_uv2;
+in float v_z;
+flat in vec4 v_cells01;
+flat in vec2 v_cell2;
 """
 
 IMPOSTOR_VS = VERSION + INSTANCES + IMPOSTOR_QUAD + """
 uniform mat4 u_view;
 uniform mat4 u_proj;
-out vec3 v_world;
-out vec2 v_uv;
-out float v_z;
-flat out vec2 v_cell;
-flat out mat3 v_rot;
+""" + IMPOSTOR_VARYINGS.replace("in ", "out ") + """
+flat out vec4 v_quat[3];
 flat out float v_radius;
 flat out vec3 v_palette[5];
 flat out uint v_id;
 
 void main() {
     vec3 wp;
-    int part;
-    quad_corner(wp, v_uv, v_cell, v_radius, part);
-    int b = record(part / 3), j = part % 3;
-    vec3 c0 = inst[b + 3 * j].xyz, c1 = inst[b + 3 * j + 1].xyz, c2 = inst[b + 3 * j + 2].xyz;
-    v_rot = transpose(mat3(c0, c1, c2)) / length(c0);
+    int agent, o;
+    quad_corner(wp, v_uv01, v_uv2, v_cells01, v_cell2, agent, o);
+    for (int j = 0; j < 3; ++j) v_quat[j] = sprite[o + 5 + j];
+    v_radius = sprite[o].w;
+    int b = record(agent);
     for (int k = 0; k < 5; ++k) v_palette[k] = inst[b + 9 + k].rgb;
     v_id = inst_u[b + 9].w;
     vec4 vp = u_view * vec4(wp, 1.0);
@@ -345,60 +421,70 @@ void main() {
 }
 """
 
-IMPOSTOR_FS = VERSION + LIGHTING + OUTPUTS + IMPOSTOR_CONSTANTS + IMPOSTOR_SAMPLE + """
+# The frontmost part's picture at a fragment: the head, then the torso (its
+# arms hang over the hips), then the legs.
+IMPOSTOR_PICK = """
+int pick(sampler2D atlas, out vec4 t, out vec2 coord) {
+    if (covered(atlas, v_cell2, v_uv2, t, coord)) return 2;
+    if (covered(atlas, v_cells01.zw, v_uv01.zw, t, coord)) return 1;
+    if (covered(atlas, v_cells01.xy, v_uv01.xy, t, coord)) return 0;
+    return -1;
+}
+"""
+
+IMPOSTOR_FS = (VERSION + LIGHTING + OUTPUTS + IMPOSTOR_CONSTANTS + IMPOSTOR_SAMPLE + IMPOSTOR_VARYINGS
+               + IMPOSTOR_PICK + """
 uniform sampler2D u_atlas;
 uniform sampler2D u_regions;      // the atlas's palette-row weights (impostors.ImpostorAtlas.regions)
-in vec3 v_world;
-in vec2 v_uv;
-in float v_z;
-flat in vec2 v_cell;
-flat in mat3 v_rot;
+flat in vec4 v_quat[3];
 flat in float v_radius;
 flat in vec3 v_palette[5];
 flat in uint v_id;
 
+vec3 rotate(vec4 q, vec3 v) { return v + 2.0 * cross(q.xyz, cross(q.xyz, v) + q.w * v); }
+
 void main() {
-    vec3 n_local;
-    float alpha = impostor_alpha(u_atlas, v_cell, v_uv, n_local);
-    if (alpha < 0.5) discard;
+    vec4 t;
+    vec2 coord;
+    int j = pick(u_atlas, t, coord);
+    if (j < 0) discard;
     // Weights were drawn over a cleared (zero) background, as coverage was: undo the edge blend.
-    vec4 r = texture(u_regions, impostor_coord(u_atlas, v_cell, v_uv)) / alpha;
+    vec4 r = texture(u_regions, coord) / t.a;
     vec3 v_color = r.x * v_palette[0] + r.y * v_palette[1] + r.z * v_palette[2] + r.w * v_palette[3]
                  + max(1.0 - r.x - r.y - r.z - r.w, 0.0) * v_palette[4];
-    vec3 n = normalize(v_rot * n_local);
-    // The quad runs through the joint's middle: look the shadow up on the
+    vec3 n = normalize(rotate(v_quat[j], t.rgb * 2.0 - 1.0));
+    // The quad runs through the body's middle: look the shadow up on the
     // sun's side of the body, or half of it would shadow itself.
     vec3 wp = v_world + u_sun_dir * v_radius;
     o_color = vec4(srgb_encode(shade(v_color, wp, n)), 1.0);
     o_id = v_id;
     o_depth = v_z;
 }
-"""
+""")
 
 SHADOW_IMPOSTOR_VS = VERSION + INSTANCES + IMPOSTOR_QUAD + """
 uniform mat4 u_light_vp;
-out vec2 v_uv;
-flat out vec2 v_cell;
+""" + IMPOSTOR_VARYINGS.replace("in ", "out ") + """
 
 void main() {
     vec3 wp;
-    float radius;
-    int part;
-    quad_corner(wp, v_uv, v_cell, radius, part);
+    int agent, o;
+    quad_corner(wp, v_uv01, v_uv2, v_cells01, v_cell2, agent, o);
     gl_Position = u_light_vp * vec4(wp, 1.0);
+    v_world = wp;
+    v_z = 0.0;
 }
 """
 
-SHADOW_IMPOSTOR_FS = VERSION + IMPOSTOR_CONSTANTS + IMPOSTOR_SAMPLE + """
+SHADOW_IMPOSTOR_FS = (VERSION + IMPOSTOR_CONSTANTS + IMPOSTOR_SAMPLE + IMPOSTOR_VARYINGS + IMPOSTOR_PICK + """
 uniform sampler2D u_atlas;
-in vec2 v_uv;
-flat in vec2 v_cell;
 
 void main() {
-    vec3 n;
-    if (impostor_alpha(u_atlas, v_cell, v_uv, n) < 0.5) discard;
+    vec4 t;
+    vec2 coord;
+    if (pick(u_atlas, t, coord) < 0) discard;
 }
-"""
+""")
 
 # ------------------------------------------------------------------- shadows
 SHADOW_CHARACTER_VS = VERSION + SKINNING + """
