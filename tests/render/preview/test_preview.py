@@ -115,8 +115,9 @@ def test_instance_records_skin_like_usdskel():
 
 def test_shadow_map_is_sized_to_the_screen_pixels():
     from usdcrowd.render.preview import shadows
-    assert shadows.used_size(60.0, 0.044, 2048) == 1408       # 60 m at 4.4 cm per pixel
-    assert shadows.used_size(60.0, 0.01, 2048) == 2048        # never more than the map
+    assert shadows.used_size(60.0, 0.044, 2048, texel_pixels=1.0) == 1408   # 60 m at 4.4 cm per pixel
+    assert shadows.used_size(60.0, 0.022, 2048, texel_pixels=2.0) == 1408   # a texel to two pixels
+    assert shadows.used_size(60.0, 0.005, 2048) == 2048        # never more than the map
     assert shadows.used_size(1.0, 0.05, 2048) == 512          # nor less than the floor
     assert shadows.used_size(60.0, None, 2048) == 2048
     view = np.eye(4)                                          # camera at the origin looking down -Z
@@ -127,7 +128,7 @@ def test_shadow_map_is_sized_to_the_screen_pixels():
 
 def test_only_the_tallest_drawn_characters_keep_meshes_past_the_budget(rng):
     s = lod.LodSettings(max_meshes=150)
-    px = rng.uniform(70.0, 900.0, 1000)           # all tall enough for the full mesh
+    px = rng.uniform(110.0, 900.0, 1000)          # all tall enough for the full mesh
     drawn = rng.random(1000) < 0.8
     levels = lod.choose_levels(px, s, drawn)
     meshed = levels == 0
@@ -140,6 +141,23 @@ def test_only_the_tallest_drawn_characters_keep_meshes_past_the_budget(rng):
     assert (lod.choose_levels(px, lod.LodSettings(max_meshes=None)) == 0).all()
 
 
+def test_impostor_texels_are_no_coarser_than_pixels_below_the_mesh_level():
+    """Up to the default mesh level's height on screen, no part's picture has a texel wider than a pixel."""
+    from usdcrowd.character.body import build_body
+    from usdcrowd.render.preview import impostors
+
+    b = build_body()
+    faces = b.face_vertex_indices.reshape(-1, 3)
+    parts = impostors.body_parts(b.points, faces, instancing.dense_weights(b.joint_indices, b.joint_weights))
+    tallest = lod.LodSettings().mesh_levels[-1][0]
+    pixel = rig.HEAD_TOP / tallest
+    for part in parts:
+        for e in impostors.ELEVATIONS:
+            d = impostors.view_direction(0.0, e)
+            _, _, hw, hh = impostors.view_basis(d, part)
+            assert 2.0 * max(hw, hh) / impostors.CELL <= pixel, (part.half_height, np.degrees(e))
+
+
 def test_levels_follow_screen_size_and_frustum_culls():
     s = lod.LodSettings(mesh_levels=((64.0, 0.0), (32.0, 0.05), (12.0, 0.1)), impostor_min_px=None,
                         point_levels=((6.0, 48, 0.3), (0.0, 16, 0.45)))
@@ -147,10 +165,10 @@ def test_levels_follow_screen_size_and_frustum_culls():
     levels = lod.choose_levels(px, s)
     assert levels.tolist() == [0, 0, 1, 2, 3, 4, 0]
     assert lod.shadow_levels(levels, s).tolist() == [1, 1, 2, 2, 3, 4, 1]
-    # The default: the full mesh, impostors from 64 px down to 3 px, then points.
+    # The default: the full mesh, impostors from 100 px down to 3 px, then points.
     d = lod.LodSettings()
     assert d.impostor_level == 1 and d.first_point_level == 2 and d.n_levels == 4
-    levels = lod.choose_levels(np.array([500.0, 64.0, 63.0, 3.0, 2.9, 1.0]), d)
+    levels = lod.choose_levels(np.array([500.0, 100.0, 99.0, 3.0, 2.9, 1.0]), d)
     assert levels.tolist() == [0, 0, 1, 1, 2, 3]
     assert lod.shadow_levels(levels, d).tolist() == [0, 0, 1, 1, 2, 3]
     assert lod.choose_levels(px, lod.LodSettings(enabled=False)).tolist() == [0] * 7

@@ -34,7 +34,10 @@ N_AZIMUTH = 16
 N_ELEVATION = 6
 # Elevation of each row's view, radians: from slightly below to straight down.
 ELEVATIONS = np.radians(np.linspace(-10.0, 90.0, N_ELEVATION))
-CELL = 64                 # texels per side of one view
+# Texels per side of one view. The legs, the part with the coarsest texels,
+# get 1.6 cm a texel: an impostor up to 100 px tall shows no texel larger
+# than a pixel (LodSettings's mesh level starts there).
+CELL = 96
 # Leans the picture's "up" toward the joint's facing, so a view straight down
 # the axis still has a defined orientation.
 FACING_LEAN = 0.05

@@ -56,8 +56,9 @@ class LodSettings:
         At most this many drawn characters get a mesh level, the tallest on
         screen; the others drop to the impostor level. A dense crowd seen
         from close by would otherwise be millions of triangles (3,000 full
-        meshes in the volcano's Village view: 1.7 fps on llvmpipe). None: no
-        limit; ignored without an impostor level.
+        meshes in the volcano's Village view: 1.7 fps on llvmpipe; past a
+        few dozen, each mesh costs more than the impostors of a hundred
+        characters). None: no limit; ignored without an impostor level.
     point_levels : tuple of (min_px, n_points, splat_m)
         Point levels from the largest: characters at least ``min_px`` tall
         draw the first ``n_points`` points of the octree list, each a square
@@ -69,12 +70,13 @@ class LodSettings:
     cull: bool = True
     shadow_bias: int = 1
     shadow_cell: float = 0.06
-    mesh_levels: tuple = ((64.0, 0.0),)
+    # Below 100 px an impostor's texels are no coarser than pixels (impostors.CELL).
+    mesh_levels: tuple = ((100.0, 0.0),)
     # Impostors cost a software rasteriser less than 48 points down to a few
     # pixels (bench_preview), so points are kept for specks.
     impostor_min_px: float | None = 3.0
     point_levels: tuple = ((1.5, 16, 0.45), (0.0, 8, 0.6))
-    max_meshes: int | None = 150
+    max_meshes: int | None = 32
 
     @property
     def n_meshes(self) -> int:

@@ -106,9 +106,18 @@ def pixel_footprint(centres: np.ndarray, world_to_cam: np.ndarray, focal_px: flo
     return float(np.quantile(z, quantile)) / focal_px if len(z) else None
 
 
-def used_size(span: float, footprint: float | None, size: int, step: int = 128, least: int = 512) -> int:
-    """Texels per side to render: about one per screen pixel at ``footprint``, in ``step``s, at most ``size``."""
+# Screen pixels a shadow-map texel spans at the nearer characters. The map's
+# bilinear comparison already blurs an edge over two texels, and a software
+# rasteriser pays for every texel a crowd covers in the map: two pixels a
+# texel quarter that cost (half the frame in a dense crowd) for an edge
+# softened by one pixel more.
+TEXEL_PIXELS = 2.0
+
+
+def used_size(span: float, footprint: float | None, size: int, step: int = 128, least: int = 512,
+              texel_pixels: float = TEXEL_PIXELS) -> int:
+    """Texels per side to render: one per ``texel_pixels`` screen pixels at ``footprint``, in ``step``s, at most ``size``."""
     if footprint is None or footprint <= 0:
         return size
-    want = int(np.ceil(span / footprint / step)) * step
+    want = int(np.ceil(span / (footprint * texel_pixels) / step)) * step
     return int(min(size, max(least, want)))
