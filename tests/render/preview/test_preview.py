@@ -485,3 +485,36 @@ def test_impostors_stand_where_the_meshes_do(tiny_shot, gl):
         c_imp = imp.color[imp.ids == k].mean(0)
         c_mesh = mesh.color[mesh.ids == k].mean(0)
         assert np.abs(c_imp - c_mesh).max() < 12, (k, c_imp, c_mesh)
+
+
+def test_an_impostor_in_a_blocks_shadow_is_as_dark_as_its_mesh(tiny_shot, gl):
+    """The sun's visibility reaches impostors: one stood in the block's shadow darkens as its mesh does."""
+    from dataclasses import replace
+
+    from usdcrowd.render.preview import PreviewRenderer
+
+    renderers = {"impostor": PreviewRenderer(tiny_shot, 640, 360, ctx=gl, lod_settings=lod.LodSettings(
+        mesh_levels=((1e9, 0.0),))), "mesh": PreviewRenderer(tiny_shot, 640, 360, ctx=gl,
+                                                              lod_settings=lod.LodSettings(enabled=False))}
+    try:
+        poses = renderers["mesh"].poses(4.0)
+        cam = renderers["mesh"].scene.camera("/World/Cam", 4.0)
+        sun = renderers["mesh"].lights.sun_dir
+        away = -sun[:2] / np.linalg.norm(sun[:2])
+        block = np.array([2.5, 1.5])
+        colours = {}
+        # Agent 1 stood behind the block from the sun (its shadow covers the legs), then in the open.
+        for where, distance in (("shade", 1.0), ("sun", 3.0)):
+            joints = poses.joints_world.copy()
+            joints[0, :, 3, :2] += block + distance * away - joints[0, 0, 3, :2]
+            moved = replace(poses, joints_world=joints)
+            for name, r in renderers.items():
+                f = r.render_poses(moved, cam)
+                colours[where, name] = f.color[f.ids == 1].astype(float).mean(0)
+        # The mesh is clearly darker in the shade; the impostor follows it within a preview's tolerance.
+        assert (colours["sun", "mesh"] - colours["shade", "mesh"]).mean() > 8, colours
+        for where in ("shade", "sun"):
+            assert np.abs(colours[where, "impostor"] - colours[where, "mesh"]).max() < 12, (where, colours)
+    finally:
+        for r in renderers.values():
+            r.release()
