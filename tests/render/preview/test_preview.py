@@ -103,8 +103,14 @@ def test_instance_records_skin_like_usdskel():
     root = np.tile(np.eye(4), (5, 1, 1))
     root[:, 3, :3] = rng.uniform(-5, 5, (5, 3))
     root[:, :3, :3] *= rng.uniform(0.9, 1.1, (5, 1, 1))
-    skinning = rig.skinning_transforms(rig.local_to_skel(local) @ root[:, None])
+    world = rig.local_to_skel(local) @ root[:, None]
+    skinning = rig.skinning_transforms(world)
     rec = instancing.pack_instances(skinning, np.zeros((5, 3)), np.arange(1, 6))
+    # The compiled packer, from the joints themselves, writes the same records.
+    palettes = rng.uniform(0, 1, (5, 4, 3))
+    fast = instancing.pack_poses(world, palettes, np.arange(1, 6))
+    assert np.allclose(fast, instancing.pack_instances(skinning, palettes, np.arange(1, 6)), atol=1e-6, rtol=0)
+    assert fast[:, 9, 3].view(np.uint32).tolist() == [1, 2, 3, 4, 5]
     w = instancing.dense_weights(b.joint_indices, b.joint_weights)
     cols = np.einsum("vj,njcd->nvcd", w, rec[:, :9].reshape(5, 3, 3, 4))      # blended columns
     got = np.einsum("vd,nvcd->nvc", np.c_[b.points, np.ones(len(b.points))], cols)

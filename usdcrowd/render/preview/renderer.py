@@ -480,7 +480,7 @@ class PreviewRenderer:
         plan = self._plan(poses, camera, view, focal)
         # One record per agent; draws index them through the slot list.
         n = plan["n"]
-        self._upload(instancing.pack_instances(plan["skinning"], poses.palette, poses.agent_ids) if n
+        self._upload(instancing.pack_poses(poses.joints_world, poses.palette, poses.agent_ids) if n
                      else np.zeros((0, shaders.INSTANCE_STRIDE, 4), np.float32))
         s_base = len(plan["order"])
         self._upload_slots(np.concatenate([plan["order"], plan["s_order"]]))
@@ -506,7 +506,6 @@ class PreviewRenderer:
         """Which agents are drawn, at which level (nearest first), and which cast shadows."""
         w, h = self.width, self.height
         n = len(poses)
-        skinning = poses.skinning if n else np.zeros((0, 3, 4, 4))
         centres, radius, body_h = lod.agent_bounds(poses.joints_world) if n else (np.zeros((0, 3)),) * 3
         draw_mask = np.asarray(poses.visible, dtype=bool).copy()
         if n and self.lod.cull:
@@ -532,7 +531,7 @@ class PreviewRenderer:
         else:
             casts = draw_mask
         s_order, s_starts = lod.group_by_level(lod.shadow_levels(levels, self.lod), casts, n_levels)
-        return {"n": n, "skinning": skinning, "centres": centres, "radius": radius, "draw_mask": draw_mask,
+        return {"n": n, "centres": centres, "radius": radius, "draw_mask": draw_mask,
                 "in_view": in_view, "drawn": drawn, "order": order, "starts": starts, "casts": casts,
                 "s_order": s_order, "s_starts": s_starts}
 
