@@ -1,15 +1,17 @@
 """Frames per second of the OpenGL preview at 1280x720, 1,000 and 10,000 characters.
 
-    .venv/bin/python tools/bench_preview.py [--frames 12] [--workdir DIR] [--scenes museum:1000,volcano:10000]
+    .venv/bin/python tools/bench_preview.py [--frames 12] [--rounds 3] [--workdir DIR] [--scenes museum:1000,volcano:10000]
 
 Builds shots with ``usdcrowd new TEMPLATE --agents N`` and
 ``usdcrowd simulate`` (kept in --workdir for the next run), reads the poses
 of a few frames first (stage loading is not timed), then times drawing plus
-reading back colour, ids and depth, from both of the shot's cameras, with
+reading back colour, ids and depth, from each of the shot's cameras, with
 the default level of detail, with shadows off, and with every character at
 its full mesh for reference, and the same frames with no characters (the
 floor: the scenery, shadows and read-back alone), each setting's frame cost
-printed as a multiple of that empty frame's. Headless EGL; on a machine without a GPU that
+printed as a multiple of that empty frame's. The empty frame and the two
+level-of-detail settings are timed in interleaved rounds and their medians
+kept, so the ratio does not ride on a burst of load. Headless EGL; on a machine without a GPU that
 is Mesa's llvmpipe, whose speed depends on the cores it can use.
 """
 
@@ -36,6 +38,7 @@ SCENES = (("museum", 1_000), ("museum", 10_000), ("volcano", 10_000))
 TARGET_AGENTS = 10_000
 TARGET_FPS = 24.0
 TARGET_OVER_EMPTY = 2.0     # a frame with 10,000 characters costs at most twice the frame without them
+ROUNDS = 3
 
 
 def make_shot(n_agents: int, workdir: Path, frames: int, template: str = "museum") -> Path:
@@ -53,8 +56,6 @@ def make_shot(n_agents: int, workdir: Path, frames: int, template: str = "museum
 
 def time_renderer(renderer, poses_by_time, cameras, repeats: int = 1) -> tuple[float, dict]:
     """Frames per second of draw + read-back over the given poses and cameras; last frame's stats."""
-    first = next(iter(poses_by_time.values()))
-    renderer.render_poses(first, cameras[float(first.time)])          # warm-up: shader compile, buffers
     n = 0
     stats = {}
     t0 = time.perf_counter()
@@ -65,7 +66,13 @@ def time_renderer(renderer, poses_by_time, cameras, repeats: int = 1) -> tuple[f
     return n / (time.perf_counter() - t0), stats
 
 
-def run(frames: int = 8, workdir: str | os.PathLike | None = None, scenes=SCENES) -> dict:
+def warm_up(renderer, poses_by_time, cameras) -> None:
+    """Draw one frame untimed: shader compilation, buffers."""
+    first = next(iter(poses_by_time.values()))
+    renderer.render_poses(first, cameras[float(first.time)])
+
+
+def run(frames: int = 8, workdir: str | os.PathLike | None = None, scenes=SCENES, rounds: int = ROUNDS) -> dict:
     """Print and return frames per second for each scene, camera and setting."""
     import usdcrowd  # noqa: F401
     from usdcrowd.render.preview import LodSettings, PreviewRenderer
@@ -75,7 +82,8 @@ def run(frames: int = 8, workdir: str | os.PathLike | None = None, scenes=SCENES
     workdir.mkdir(parents=True, exist_ok=True)
     results = {}
     print(f"preview benchmark: {SIZE[0]}x{SIZE[1]}, draw + read-back of colour, ids and depth, "
-          f"{os.cpu_count()} CPUs")
+          f"{os.cpu_count()} CPUs; the empty frame, level of detail and no shadows timed in {rounds} "
+          f"interleaved rounds (median), full meshes once")
     for template, n in scenes:
         shot = make_shot(n, workdir, frames, template)
         scene = ShotScene(shot)
@@ -85,24 +93,37 @@ def run(frames: int = 8, workdir: str | os.PathLike | None = None, scenes=SCENES
         load_s = time.perf_counter() - t0
         probe = PreviewRenderer(scene, *SIZE)
         renderer_info = probe.ctx.info["GL_RENDERER"]
+        no_shadows = PreviewRenderer(scene, *SIZE, ctx=probe.ctx, shadows=False)
         for cam_path in scene.camera_paths:
             cams = {float(t): scene.camera(cam_path, t) for t in times}
             nobody = {t: replace(p, visible=np.zeros(len(p), bool)) for t, p in poses.items()}
-            empty, _ = time_renderer(probe, nobody, cams)
-            results[(template, n, cam_path, "empty")] = empty
-            print(f"  {template:<8} {n:>6,} characters  {cam_path.rsplit('/', 1)[-1]:<10} {'no characters':<16} "
-                  f"{empty:6.2f} fps")
-            for label, kwargs in (("lod", {}), ("lod, no shadows", {"shadows": False}),
-                                  ("full meshes", {"lod_settings": LodSettings(enabled=False)})):
-                r = probe if label == "lod" else PreviewRenderer(scene, *SIZE, ctx=probe.ctx, **kwargs)
-                fps, stats = time_renderer(r, poses, cams)
+            # Interleaved, so a burst of load on the machine falls on every setting alike.
+            settings = {"empty": (probe, nobody), "lod": (probe, poses), "lod, no shadows": (no_shadows, poses)}
+            for r, ps in settings.values():
+                warm_up(r, ps, cams)
+            samples = {label: [] for label in settings}
+            for _ in range(rounds):
+                for label, (r, ps) in settings.items():
+                    fps, stats = time_renderer(r, ps, cams)
+                    samples[label].append(fps)
+                    if label == "lod":
+                        lod_stats = stats
+            cam = cam_path.rsplit('/', 1)[-1]
+            empty = results[(template, n, cam_path, "empty")] = float(np.median(samples["empty"]))
+            print(f"  {template:<8} {n:>6,} characters  {cam:<10} {'no characters':<16} {empty:6.2f} fps")
+            full = PreviewRenderer(scene, *SIZE, ctx=probe.ctx, lod_settings=LodSettings(enabled=False))
+            warm_up(full, poses, cams)
+            measured = {"lod": (float(np.median(samples["lod"])), lod_stats),
+                        "lod, no shadows": (float(np.median(samples["lod, no shadows"])), lod_stats),
+                        "full meshes": time_renderer(full, poses, cams)}
+            full.release()
+            for label, (fps, stats) in measured.items():
                 results[(template, n, cam_path, label)] = fps
-                print(f"  {template:<8} {n:>6,} characters  {cam_path.rsplit('/', 1)[-1]:<10} {label:<16} "
+                print(f"  {template:<8} {n:>6,} characters  {cam:<10} {label:<16} "
                       f"{fps:6.2f} fps, {empty / fps:5.2f}x the empty frame  (full {stats['full']}, "
                       f"clustered {stats['coarse']}, "
                       f"impostors {stats.get('impostors', 0)}, points {stats['points']}, culled {stats['culled']})")
-                if r is not probe:
-                    r.release()
+        no_shadows.release()
         probe.release()
         print(f"  ({template}, {n:,} characters: reading {len(times)} frames of poses from the stage took "
               f"{load_s:.1f} s, not timed; renderer {renderer_info})")
@@ -138,12 +159,13 @@ def _scenes(text: str) -> tuple:
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--frames", type=int, default=8, help="frames timed per camera (default 8)")
+    p.add_argument("--rounds", type=int, default=ROUNDS, help=f"interleaved rounds (default {ROUNDS})")
     p.add_argument("--workdir", help="where the benchmark shots are kept")
     p.add_argument("--scenes", type=_scenes, default=SCENES,
                    help="TEMPLATE:CHARACTERS, comma-separated (default "
                         + ",".join(f"{t}:{n}" for t, n in SCENES) + ")")
     a = p.parse_args(argv)
-    run(a.frames, a.workdir, a.scenes)
+    run(a.frames, a.workdir, a.scenes, a.rounds)
     return 0
 
 
