@@ -139,6 +139,23 @@ def test_walls_repel_only_agents_walking_toward_them():
     assert abs(f[0, 1]) < 1e-6 and abs(f[0, 2]) < 1e-6
 
 
+def test_clearance_is_each_walls_own_distance_not_its_cells():
+    """Walls falling between cell centres stand where they are: across a 1.2 m door the clearance is the
+    distance to the nearer wall (to within a centimetre where it is linear between cell centres; never
+    more than it on the door's axis, where it bends)."""
+    door = [S.box(0.0, 2.6, 2.0, 2.0), S.box(0.0, -2.6, 2.0, 2.0)]        # walls at y = +-0.6
+    g = WalkGrid(S.scenario(S.agents([[-5, 0]]), S.groups([[5, 0, 0]]), obstacles=door))
+    y = np.linspace(-0.58, 0.58, 59)
+    sdf, _, _ = g.clearance(np.full_like(y, 0.3), y)
+    want = 0.6 - np.abs(y)
+    away = np.abs(y) >= 0.5 * g.cell
+    np.testing.assert_allclose(sdf[away], want[away], atol=0.01)
+    assert (sdf <= want + 0.01).all()
+    # Farther than the exact band, the distance transform's clearance is within a cell of the truth.
+    far, _, _ = g.clearance(np.array([-8.0]), np.array([0.0]))
+    assert abs(float(far[0]) - 6.0) < g.cell
+
+
 def test_followers_stay_near_leader_around_a_wall():
     sc = S.led_group(frames=480)
     fr = simulate(sc)

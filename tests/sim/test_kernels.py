@@ -151,7 +151,7 @@ def test_grid_lookups_give_the_reference_bits(walled_grid):
         far = np.array([-1e4, 1e4], dtype)                     # beyond the grid: clamped to its corners
         np.testing.assert_array_equal(g.flat_index(far, far), [0, g.w * g.h - 1])
         sdf, nx, ny = g.clearance(x, y)
-        np.testing.assert_array_equal(sdf, g.flat_sdf[f])
+        np.testing.assert_allclose(sdf, _reference_clearance(g, x, y), rtol=0, atol=1e-5)
         np.testing.assert_array_equal(nx, g.flat_nx[f])
         np.testing.assert_array_equal(ny, g.flat_ny[f])
         bx, by = rng.uniform(-104.0, 104.0, (2, 5000)).astype(dtype)
@@ -160,6 +160,18 @@ def test_grid_lookups_give_the_reference_bits(walled_grid):
         got = g.line_of_sight(x, y, bx, by)
         assert 0 < want.sum() < len(want)
         np.testing.assert_array_equal(got, want)
+
+
+def _reference_clearance(g, x, y):
+    """The clearance between the four nearest cell centres, bilinear, in float64."""
+    fx = (x.astype(np.float64) - g.origin[0]) / g.cell - 0.5
+    fy = (y.astype(np.float64) - g.origin[1]) / g.cell - 0.5
+    ix = np.clip(np.floor(fx).astype(int), 0, g.w - 2)
+    iy = np.clip(np.floor(fy).astype(int), 0, g.h - 2)
+    tx, ty = np.clip(fx - ix, 0.0, 1.0), np.clip(fy - iy, 0.0, 1.0)
+    s = g.sdf.astype(np.float64)
+    return ((s[iy, ix] * (1 - tx) + s[iy, ix + 1] * tx) * (1 - ty)
+            + (s[iy + 1, ix] * (1 - tx) + s[iy + 1, ix + 1] * tx) * ty)
 
 
 def _reference_sight(g, x, y, bx, by):
@@ -210,7 +222,8 @@ def _reference_projection(grid, pos, radius, passes=2):
     n = pos.shape[1] - 1
     rows = np.arange(n)
     for _ in range(passes):
-        sdf, nx, ny = grid.clearance(pos[0, rows], pos[1, rows])
+        cell = grid.flat_index(pos[0, rows], pos[1, rows])           # the cell's own clearance, not between
+        sdf, nx, ny = grid.flat_sdf[cell], grid.flat_nx[cell], grid.flat_ny[cell]
         near = sdf < radius[rows] + P.WALL_PROJECT_MARGIN
         if not near.any():
             break

@@ -106,13 +106,13 @@ def test_a_fast_walker_overtakes_a_slow_one_where_there_is_room_and_follows_wher
 
 
 def _through_a_door(seconds=60.0, n=60):
-    """Sixty people packed in a 5 m x 6 m room leave through a passage 0.8 m wide and 2 m long for a
+    """Sixty people packed in a 5 m x 6 m room leave through a passage 1.0 m wide and 2 m long for a
     goal beyond: the times (s) at which each has passed its middle, sorted (inf: not yet), and the
     bodies' deepest overlap (m)."""
     rng = np.random.default_rng(4)
     cols, rows = np.meshgrid(np.arange(10), np.arange(6))
     start = np.column_stack([-5.3 + 0.5 * cols.ravel(), -2.6 + 0.95 * rows.ravel()]) + rng.uniform(-0.05, 0.05, (n, 2))
-    walls = [S.box(1.0, 1.7, 1.0, 1.3), S.box(1.0, -1.7, 1.0, 1.3), S.box(-2.75, 3.2, 2.75, 0.2),
+    walls = [S.box(1.0, 1.8, 1.0, 1.3), S.box(1.0, -1.8, 1.0, 1.3), S.box(-2.75, 3.2, 2.75, 0.2),
              S.box(-2.75, -3.2, 2.75, 0.2), S.box(-5.7, 0.0, 0.2, 3.4)]
     a = S.agents(start, group=np.arange(n), speed=rng.uniform(1.1, 1.5, n), condition="isolated")
     g = S.groups(np.tile([[9.0, 0.0, 0.0]], (n, 1)))
@@ -153,3 +153,16 @@ def test_a_walker_held_up_by_someone_takes_up_the_space_in_SIGHT_RELAX_a_free_on
     np.testing.assert_allclose(speeds[-1], 1.3 * (1 - np.exp(-1)), rtol=0.05)
     assert sim.steer[0] == np.float32(1 / P.SIGHT_RELAX) and sim.steer[2] == np.float32(1 / P.TAU_RELAX)
     assert sim.pos[0, 0] < 0.5                                       # still held behind the one standing
+
+
+def test_a_walker_in_a_door_steps_beside_a_person_standing_in_it():
+    """A 1.2 m door leaves room to pass a standing person at its side: the walker takes it at nearly its
+    own speed. (With the walls placed on the grid's cells the door was 1.0 m wide and it waited.)"""
+    from usdcrowd.sim.grid import WalkGrid
+
+    door = [S.box(0.0, 2.6, 2.0, 2.0), S.box(0.0, -2.6, 2.0, 2.0)]        # walls at y = +-0.6
+    grid = WalkGrid(S.scenario(S.agents([[-5.0, 0.0]]), S.groups([[5.0, 0.0, 0.0]]), obstacles=door))
+    pos = np.array([[-1.5, 0.15], [-0.7, -0.15]], np.float32).T.copy()    # 0.8 m ahead, a little aside
+    v, _, _ = heuristic_velocity(pos, np.zeros_like(pos), np.array([[1.0], [0.0]]), np.array([1.3]),
+                                 np.array([[1]]), np.full(2, RADIUS, np.float32), np.array([0]), grid=grid)
+    assert np.hypot(*v[:, 0]) > 1.2 and v[1, 0] > 0.2, v[:, 0]

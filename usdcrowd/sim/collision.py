@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import params as P
-from .grid import WalkGrid
+from .grid import WalkGrid, polygon_signed_distance  # noqa: F401  (re-exported: the tests' exact reference)
 from .kernels import GOLDEN_ANGLE, overlap_corrections, push_out_of_walls
 
 _GAP_MIN = np.float32(0.02)  # m, floor of the gap in t_o (contact)
@@ -226,37 +226,3 @@ def project_out_of_walls(grid: WalkGrid, pos, radius, passes: int = 2):
         return
     push_out_of_walls(pos, radius, passes, np.float32(P.WALL_PROJECT_MARGIN), grid.polygons, *grid.lookup, grid.flat_sdf,
                       grid.flat_nx, grid.flat_ny, grid.flat_label)
-
-
-def polygon_signed_distance(p: np.ndarray, poly: np.ndarray):
-    """Exact signed distance of points to convex CCW polygons.
-
-    Parameters
-    ----------
-    p : (m, 2) float64
-    poly : (m, K, 2) float64
-        One (padded) polygon per point.
-
-    Returns
-    -------
-    dist : (m,) signed distance, negative inside, metres
-    closest : (m, 2) nearest boundary point
-    normal : (m, 2) outward normal of the nearest edge
-    """
-    a = poly
-    b = np.roll(poly, -1, axis=1)
-    e = b - a  # (m, K, 2)
-    ap = p[:, None, :] - a
-    ll = np.einsum("mkc,mkc->mk", e, e)
-    t = np.clip(np.einsum("mkc,mkc->mk", ap, e) / np.maximum(ll, 1e-18), 0.0, 1.0)
-    c = a + e * t[..., None]
-    d2 = np.einsum("mkc,mkc->mk", p[:, None, :] - c, p[:, None, :] - c)
-    d2 = np.where(ll > 1e-18, d2, np.inf)  # padded zero-length edges
-    k = np.argmin(d2, axis=1)
-    r = np.arange(len(p))
-    dist = np.sqrt(d2[r, k])
-    cross = e[..., 0] * ap[..., 1] - e[..., 1] * ap[..., 0]
-    inside = np.all((cross >= 0) | (ll <= 1e-18), axis=1)
-    ek = e[r, k]
-    nrm = np.stack([ek[:, 1], -ek[:, 0]], axis=1) / np.maximum(np.sqrt(ll[r, k]), 1e-12)[:, None]
-    return np.where(inside, -dist, dist), c[r, k], nrm

@@ -231,7 +231,8 @@ def forces(pos, vel, v_des, steer, radius, idx, mates, walls, ox, oy, inv_cell, 
         fy = ((fy + ay) + sy) + gy
         if walls:
             f = _cell(px, py, ox, oy, inv_cell, w, h)
-            wx, wy = _wall_terms(px, py, vx, vy, radius[i], sdf[f], nx[f], ny[f])
+            wx, wy = _wall_terms(px, py, vx, vy, radius[i], _sdf_at(px, py, ox, oy, inv_cell, w, h, sdf), nx[f],
+                                 ny[f])
             fx += wx
             fy += wy
         # Steering back in when the position a lookahead ahead leaves the bounds (steering.containment).
@@ -501,6 +502,21 @@ def _cell(x, y, ox, oy, inv_cell, w, h):
 
 
 @njit(cache=True, nogil=True)
+def _sdf_at(x, y, ox, oy, inv_cell, w, h, sdf):
+    # The clearance at (x, y), bilinear between the four nearest cell centres (a wall between two
+    # centres is where it stands, not where the nearer centre is), float32.
+    fx = (np.float64(x) - ox) * inv_cell - 0.5
+    fy = (np.float64(y) - oy) * inv_cell - 0.5
+    ix = min(max(np.int64(np.floor(fx)), 0), w - 2)
+    iy = min(max(np.int64(np.floor(fy)), 0), h - 2)
+    tx = min(max(fx - ix, 0.0), 1.0)
+    ty = min(max(fy - iy, 0.0), 1.0)
+    f = iy * w + ix
+    return np.float32((sdf[f] * (1.0 - tx) + sdf[f + 1] * tx) * (1.0 - ty)
+                      + (sdf[f + w] * (1.0 - tx) + sdf[f + w + 1] * tx) * ty)
+
+
+@njit(cache=True, nogil=True)
 def cells(x, y, ox, oy, inv_cell, w, h):
     """(m,) int64 flat cell index of points, clamped to the grid (WalkGrid.flat_index)."""
     out = np.empty(x.shape[0], np.int64)
@@ -511,7 +527,7 @@ def cells(x, y, ox, oy, inv_cell, w, h):
 
 @_loop(lambda x, *rest: x.shape[0])
 def clearance(x, y, ox, oy, inv_cell, w, h, sdf, nx, ny):
-    """Nearest-cell clearance and wall normal at points (WalkGrid.clearance).
+    """Clearance (bilinear) and nearest-cell wall normal at points (WalkGrid.clearance).
 
     Returns
     -------
@@ -523,7 +539,7 @@ def clearance(x, y, ox, oy, inv_cell, w, h, sdf, nx, ny):
     uy = np.empty(m, np.float32)
     for i in prange(m):
         f = _cell(x[i], y[i], ox, oy, inv_cell, w, h)
-        s[i] = sdf[f]
+        s[i] = _sdf_at(x[i], y[i], ox, oy, inv_cell, w, h, sdf)
         ux[i] = nx[f]
         uy[i] = ny[f]
     return s, ux, uy
@@ -975,7 +991,7 @@ def choose_ways(pos, vel, radius, nb, rows, ux, uy, speed, cos_offsets, horizon,
     for i in prange(m):
         r = rows[i]
         # One already near a wall is stopped only where it would get nearer still.
-        limit = min(radius[r], sdf[_cell(pos[0, r], pos[1, r], ox, oy, inv_cell, w, h)] - _WALL_APPROACH)
+        limit = min(radius[r], _sdf_at(pos[0, r], pos[1, r], ox, oy, inv_cell, w, h, sdf) - _WALL_APPROACH)
         best_q = 0
         best_left = _INF32
         for q in range(d):
@@ -989,9 +1005,8 @@ def choose_ways(pos, vel, radius, nb, rows, ux, uy, speed, cos_offsets, horizon,
             f = min(f, horizon)
             if walls:
                 for s in range(steps.shape[0]):
-                    cell = _cell(pos[0, r] + ux[i, q] * steps[s], pos[1, r] + uy[i, q] * steps[s], ox, oy,
-                                 inv_cell, w, h)
-                    if sdf[cell] < limit:      # where the wall begins, taken as a quarter metre before
+                    if _sdf_at(pos[0, r] + ux[i, q] * steps[s], pos[1, r] + uy[i, q] * steps[s], ox, oy,
+                               inv_cell, w, h, sdf) < limit:      # where the wall begins, a quarter metre before
                         wall[i, q] = steps[s] - np.float32(0.25)
                         break
                 f = min(f, wall[i, q])
