@@ -124,3 +124,18 @@ def test_rays_are_closer_to_the_true_geodesic_than_dijkstra():
     # Corners are pushed 0.75 cell off the obstacle so their cells are free:
     # paths round them slightly wide.
     assert err_r < 0.3  # metres, on a 0.25 m grid (Dijkstra: ~1.5 m here)
+
+
+@pytest.mark.parametrize("width, through", [(0.8, True), (1.2, True), (0.4, False)])
+def test_a_door_wide_enough_for_a_body_is_a_way_through(width, through):
+    """Paths go through a door a body fits (0.8 m, 1.2 m; walls between cell centres), not one it does not
+    (0.4 m): the far side of the wall is reached only through the door."""
+    h = width / 2.0
+    walls = [S.box(0.0, h + 6.0, 0.5, 6.0), S.box(0.0, -h - 6.0, 0.5, 6.0)]    # across the grid, but a door
+    g = WalkGrid(S.scenario(S.agents([[-5, 0]]), S.groups([[5, 0, 0]]), obstacles=walls,
+                            bounds=((-8, -6.0), (8, 6.0))))
+    D = DistanceMaps(g, "dijkstra").distance(np.array([[-4.0, 0.0]]))
+    beyond = D.ravel()[g.flat_index(np.array([4.0]), np.array([0.0]))[0]]
+    assert np.isfinite(beyond) == through, beyond
+    if through:
+        assert beyond < 8.0 * 1.083 + 2 * g.cell

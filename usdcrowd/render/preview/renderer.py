@@ -692,7 +692,7 @@ class PreviewRenderer:
             self._imp_vaos = tuple(self.ctx.vertex_array(prog, [], self._imp_index, 4, skip_errors=True)
                                    for prog in (self.prog_imp, self.prog_shadow_imp))
         # Shadow and view records go to different halves: the shadow draw may still be reading.
-        record = 16 * shaders.IMPOSTOR_RECORD
+        record = 16 * shaders.IMPOSTOR_RECORD      # bytes: vec4s of four floats
         need = 2 * count * record
         if self._sprites is None or need > self._sprite_capacity:
             if self._sprites is not None:
