@@ -942,6 +942,20 @@ def sight_rounds(v, behavior, walk, ctype, human, vel, follows, waited, queued_u
     return speed, rows[:w], due[:d]
 
 
+@njit(cache=True, nogil=True)
+def _wall_along(px, py, ux, uy, steps, limit, horizon, ox, oy, inv_cell, w, h, sdf):
+    # How far one can walk from p along u before the clearance falls under `limit`, sampled at `steps`
+    # and taken as a quarter metre before (`horizon` where it never does). Interpolated only near the
+    # limit: a distance differs from the nearest cell centre's by less than two cells.
+    for s in range(steps.shape[0]):
+        x = px + ux * steps[s]
+        y = py + uy * steps[s]
+        if sdf[_cell(x, y, ox, oy, inv_cell, w, h)] < limit + _TWO / inv_cell and \
+                _sdf_at(x, y, ox, oy, inv_cell, w, h, sdf) < limit:
+            return steps[s] - np.float32(0.25)
+    return horizon
+
+
 @_loop(lambda pos, vel, radius, nb, rows, *rest: rows.shape[0])
 def choose_ways(pos, vel, radius, nb, rows, ux, uy, speed, cos_offsets, horizon, tau, queued, queue_tau, ghost,
                 walls, steps, ox, oy, inv_cell, w, h, sdf):
@@ -1005,15 +1019,8 @@ def choose_ways(pos, vel, radius, nb, rows, ux, uy, speed, cos_offsets, horizon,
                                 vel[0, j], vel[1, j], radius[r] + radius[j]))
             f = min(f, horizon)
             if walls:
-                for s in range(steps.shape[0]):
-                    x = pos[0, r] + ux[i, q] * steps[s]
-                    y = pos[1, r] + uy[i, q] * steps[s]
-                    # Where the wall begins, taken as a quarter metre before. Interpolated only near the
-                    # limit: a distance differs from the nearest cell centre's by less than two cells.
-                    if sdf[_cell(x, y, ox, oy, inv_cell, w, h)] < limit + _TWO / inv_cell and \
-                            _sdf_at(x, y, ox, oy, inv_cell, w, h, sdf) < limit:
-                        wall[i, q] = steps[s] - np.float32(0.25)
-                        break
+                wall[i, q] = _wall_along(pos[0, r], pos[1, r], ux[i, q], uy[i, q], steps, limit, horizon, ox, oy,
+                                         inv_cell, w, h, sdf)
                 f = min(f, wall[i, q])
             # Distance left to the goal (at the horizon) after walking f this way, less horizon^2.
             left = f * f - (np.float32(2.0) * horizon) * f * cos_offsets[0, q]
