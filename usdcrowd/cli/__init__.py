@@ -119,6 +119,18 @@ def main(argv: list[str] | None = None) -> int:
     except Terminated:
         print(f"usdcrowd {args.command}: terminated (finished outputs kept; run it again to resume)", file=sys.stderr)
         return _after_a_stop(143)
+    except SystemError as exc:
+        # numba's dispatcher turns a Ctrl-C that lands while it loads a compiled loop into a SystemError
+        # whose context is the KeyboardInterrupt: a stop all the same.
+        stop = exc.__context__
+        while stop is not None and not isinstance(stop, (KeyboardInterrupt, Terminated)):
+            stop = stop.__context__
+        if stop is None:
+            raise
+        code = 130 if isinstance(stop, KeyboardInterrupt) else 143
+        print(f"usdcrowd {args.command}: {'interrupted' if code == 130 else 'terminated'} "
+              "(finished outputs kept; run it again to resume)", file=sys.stderr)
+        return _after_a_stop(code)
 
 
 def _after_a_stop(code: int) -> int:
