@@ -251,3 +251,32 @@ def test_a_part_writer_cut_off_mid_message_ends_quietly():
         "print(p.exitcode)\n")
     r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
     assert r.stdout.strip() == "0" and r.stderr == "", r.stderr
+
+
+@pytest.mark.parametrize("stop, code, word", [(KeyboardInterrupt, 130, "interrupted"), (None, 143, "terminated")])
+def test_a_stop_wrapped_by_numbas_dispatcher_is_still_a_stop(monkeypatch, capsys, stop, code, word):
+    """A Ctrl-C (or SIGTERM) that lands while numba loads a compiled loop reaches the CLI as a SystemError
+    whose context is the stop: one line and the stop's exit code, as for the bare stop; any other
+    SystemError stays an error."""
+    import usdcrowd.cli as cli
+    from usdcrowd.interrupts import Terminated
+
+    stop = stop or Terminated
+
+    def wrapped(args):
+        try:
+            raise stop()
+        except BaseException:    # raised while handling it: the stop becomes the SystemError's context
+            raise SystemError("CPUDispatcher(<function sight_rounds>) returned a result with an exception set")
+
+    monkeypatch.setattr(cli, "_run_guarded", wrapped)
+    assert main(["new", "museum", "-o", "unused.usda"]) == code
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and word in err[0], err
+
+    def other(args):
+        raise SystemError("something else")
+
+    monkeypatch.setattr(cli, "_run_guarded", other)
+    with pytest.raises(SystemError):
+        main(["new", "museum", "-o", "unused.usda"])
