@@ -12,8 +12,8 @@ import tests.helpers.scenarios as S
 from usdcrowd.core.model import ANIM_CLASSES, PATH_METHODS, CrowdFrames
 from usdcrowd.sim import SimSettings, Simulation, simulate, simulate_chunks
 from usdcrowd.sim import params as P
-from usdcrowd.sim.collision import polygon_signed_distance, wall_avoidance
-from usdcrowd.sim.grid import WalkGrid, polygon_table
+from usdcrowd.sim.collision import wall_avoidance
+from usdcrowd.sim.grid import WalkGrid, polygon_signed_distance, polygon_table
 from usdcrowd.sim.groups import Groups
 
 try:

@@ -16,9 +16,9 @@ from tests.helpers.tools import load_tool
 from usdcrowd.sim import SimSettings, Simulation
 from usdcrowd.sim import kernels as K
 from usdcrowd.sim import params as P
-from usdcrowd.sim.collision import (GOLDEN_ANGLE, agent_avoidance, polygon_signed_distance, project_out_of_walls,
-                                   resolve_overlaps, wall_avoidance)
-from usdcrowd.sim.grid import WalkGrid
+from usdcrowd.sim.collision import (GOLDEN_ANGLE, agent_avoidance, project_out_of_walls, resolve_overlaps,
+                                   wall_avoidance)
+from usdcrowd.sim.grid import WalkGrid, polygon_signed_distance
 from usdcrowd.sim.groups import flocking, mate_mask
 from usdcrowd.sim.neighbors import NeighborList
 from usdcrowd.sim.steering import arrive, clip_norm, containment, separation, unit

@@ -113,12 +113,8 @@ def main(argv: list[str] | None = None) -> int:
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"usdcrowd {args.command}: error: {where}{(exc.strerror or str(exc)).lower()}", file=sys.stderr)
         return EXIT_USER_ERROR
-    except KeyboardInterrupt:
-        print(f"usdcrowd {args.command}: interrupted (finished outputs kept; run it again to resume)", file=sys.stderr)
-        return _after_a_stop(130)
-    except Terminated:
-        print(f"usdcrowd {args.command}: terminated (finished outputs kept; run it again to resume)", file=sys.stderr)
-        return _after_a_stop(143)
+    except (KeyboardInterrupt, Terminated) as exc:
+        return _after_a_stop(args.command, exc)
     except SystemError as exc:
         # numba's dispatcher turns a Ctrl-C that lands while it loads a compiled loop into a SystemError
         # whose context is the KeyboardInterrupt: a stop all the same.
@@ -127,17 +123,17 @@ def main(argv: list[str] | None = None) -> int:
             stop = stop.__context__
         if stop is None:
             raise
-        code = 130 if isinstance(stop, KeyboardInterrupt) else 143
-        print(f"usdcrowd {args.command}: {'interrupted' if code == 130 else 'terminated'} "
-              "(finished outputs kept; run it again to resume)", file=sys.stderr)
-        return _after_a_stop(code)
+        return _after_a_stop(args.command, stop)
 
 
-def _after_a_stop(code: int) -> int:
-    """Free now what the stopped work left in reference cycles (USD layers and stages among them), while
-    USD is whole: left to the interpreter's exit, they would be destroyed after USD's own statics."""
+def _after_a_stop(command: str, stop: BaseException) -> int:
+    """Say in one line that ``command`` was stopped (Ctrl-C: 130, SIGTERM: 143) and free now what the stopped
+    work left in reference cycles (USD layers and stages among them), while USD is whole: left to the
+    interpreter's exit, they would be destroyed after USD's own statics."""
     import gc
 
+    how, code = ("interrupted", 130) if isinstance(stop, KeyboardInterrupt) else ("terminated", 143)
+    print(f"usdcrowd {command}: {how} (finished outputs kept; run it again to resume)", file=sys.stderr)
     gc.collect()
     return code
 

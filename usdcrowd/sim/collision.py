@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import params as P
-from .grid import WalkGrid, polygon_signed_distance  # noqa: F401  (re-exported: the tests' exact reference)
+from .grid import WalkGrid
 from .kernels import GOLDEN_ANGLE, overlap_corrections, push_out_of_walls
 
 _GAP_MIN = np.float32(0.02)  # m, floor of the gap in t_o (contact)

@@ -630,7 +630,7 @@ def remember_leaders(pos, sub, followers, leader_of, slot, trail, probes, range2
 def _out_of_convex(px, py, poly, r):
     """Where a body of radius ``r`` at ``p`` (float64) stands once pushed out of the convex CCW polygon
     ``poly`` (K, 2) (padded with repeated vertices); ``p`` itself when already clear
-    (collision.polygon_signed_distance and the push made from it)."""
+    (grid.polygon_signed_distance and the push made from it)."""
     K = poly.shape[0]
     best = np.inf
     kb = 0

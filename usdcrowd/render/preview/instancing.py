@@ -248,9 +248,7 @@ def pack_instances(skinning: np.ndarray, palettes: np.ndarray, ids: np.ndarray) 
         row 9's last lane the id bits.
     """
     n = len(skinning)
-    pal = np.asarray(palettes, dtype=np.float32).reshape(n, -1, 3)
-    if pal.shape[1] > MAX_REGIONS:
-        raise ValueError(f"the preview draws {MAX_REGIONS} colours per body, got {pal.shape[1]}")
+    pal = _palette_rows(palettes, n)
     out = np.empty((n, 9 + MAX_REGIONS, 4), dtype=np.float32)
     # Column c of a row-vector matrix holds what dot(vec4(p, 1), .) needs.
     out[:, :9] = np.swapaxes(np.asarray(skinning), -1, -2)[:, :, :3, :].reshape(n, 9, 4)
@@ -259,6 +257,14 @@ def pack_instances(skinning: np.ndarray, palettes: np.ndarray, ids: np.ndarray) 
     out[:, 9:, 3] = 0.0
     out[:, 9, 3] = np.asarray(ids, dtype=np.uint32).view(np.float32)
     return out
+
+
+def _palette_rows(palettes: np.ndarray, n: int) -> np.ndarray:
+    """(n, r, 3) float32 palettes of ``n`` agents, r <= MAX_REGIONS."""
+    pal = np.asarray(palettes, dtype=np.float32).reshape(n, -1, 3)
+    if pal.shape[1] > MAX_REGIONS:
+        raise ValueError(f"the preview draws {MAX_REGIONS} colours per body, got {pal.shape[1]}")
+    return pal
 
 
 def _bind_translations() -> np.ndarray:
@@ -291,9 +297,7 @@ def pack_poses(joints_world: np.ndarray, palettes: np.ndarray, ids: np.ndarray) 
     (n, 16, 4) float32
     """
     n = len(joints_world)
-    pal = np.asarray(palettes, dtype=np.float32).reshape(n, -1, 3)
-    if pal.shape[1] > MAX_REGIONS:
-        raise ValueError(f"the preview draws {MAX_REGIONS} colours per body, got {pal.shape[1]}")
+    pal = _palette_rows(palettes, n)
     out = np.empty((n, 9 + MAX_REGIONS, 4), dtype=np.float32)
     _pack_poses(np.ascontiguousarray(joints_world, dtype=np.float64), _bind_translations(), np.ascontiguousarray(pal),
                 np.ascontiguousarray(ids, dtype=np.uint32).view(np.float32), out)
