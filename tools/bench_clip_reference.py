@@ -108,15 +108,13 @@ def truth_of(shot: Path, name: str, clip_camera: np.ndarray):
 def run(gallery_png: Path | None = None) -> dict:
     from calibrate_pose_joints import video_python
     from usdcrowd.cameras.features import head_and_facing
-    from usdcrowd.cameras.moe import CLIP_WEIGHTS, CameraMoE, character_features
+    from usdcrowd.cameras.moe import CameraMoE, character_features
     from usdcrowd.cameras.moe_data import ASPECT, FOV_X
     from usdcrowd.cameras.retarget import compare, retarget_poses
     from usdcrowd.core.resources import data_dir
     from usdcrowd.scenario.shot_scene import ShotScene
 
-    # Clip references are gated by the clip model (frame --like does so); the shipped stage model's gate is
-    # measured beside it on the same readings: the reason it is not used for clips.
-    model, stage_model = CameraMoE(CLIP_WEIGHTS), CameraMoE()
+    model = CameraMoE()
     results = {}
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
@@ -139,7 +137,7 @@ def run(gallery_png: Path | None = None) -> dict:
         heads, yaws = zip(*(head_and_facing(scene.agents(t, rows).joints_world) for t in range(1, FRAMES + 1)))
         heads, yaws = np.array(heads), np.array(yaws)
         char_cd = character_features(heads[:, 0], heads[:, 1], yaws[:, 0], yaws[:, 1], scene.fps)
-        truths, gates, stage_model_l1 = {}, {}, {}
+        truths, gates = {}, {}
         for case in CASES:
             est = read[str(clips[case])]
             if "refused" in est:
@@ -149,8 +147,6 @@ def run(gallery_png: Path | None = None) -> dict:
             unknown[:, 7:10] = model.w["char_mean"][7:10]
             gates[case] = (model.gate(np.array(est["character"]), np.array(est["camera"])),
                            model.gate(unknown, truths[case].camera_features))
-            stage_model_l1[case] = float(np.abs(stage_model.gate(np.array(est["character"]), np.array(est["camera"]))
-                                                - stage_model.gate(unknown, truths[case].camera_features)).sum())
         for behavior, size in CASES:
             est = read[str(clips[behavior, size])]
             if "refused" in est:
@@ -160,7 +156,6 @@ def run(gallery_png: Path | None = None) -> dict:
             r = compare_features(np.array(est["character"]), np.array(est["camera"]), truths[behavior, size])
             g_clip, g_stage = gates[behavior, size]
             r["gate_l1"] = float(np.abs(g_clip - g_stage).sum())
-            r["gate_l1_stage_model"] = stage_model_l1[behavior, size]
             r["gate_l1_other_nearest"] = float(min(np.abs(g_clip - gates[b, size][1]).sum()
                                                    for b in BEHAVIORS if b != behavior and (b, size) in gates))
             r["size"] = est["size"]
@@ -175,7 +170,7 @@ def run(gallery_png: Path | None = None) -> dict:
             print(f"{behavior:<15} {size:<9} screen {r['screen']:.3f}  theta {r['theta_deg']:5.1f}  phi {r['phi_deg']:4.1f}  "
                   f"span x{r['span_ratio']:.2f}  dAB x{r['d_ab_ratio']:.2f}  sA {r['s_a_deg']:5.1f}  "
                   f"sB {r['s_b_deg']:5.1f}  sAB {r['s_ab_deg']:5.1f}  | gate L1 {r['gate_l1']:.2f} "
-                  f"(other behaviors >= {r['gate_l1_other_nearest']:.2f}; stage model {r['gate_l1_stage_model']:.2f})  | camera x{r['camera_distance_ratio']:.2f}, "
+                  f"(other behaviors >= {r['gate_l1_other_nearest']:.2f})  | camera x{r['camera_distance_ratio']:.2f}, "
                   f"theta {r['camera_theta_deg']:.0f}, turn {r['turn_deg']:+.0f} vs {r['stage_turn_deg']:+.0f}",
                   flush=True)
         if gallery_png is not None:

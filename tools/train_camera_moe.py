@@ -19,10 +19,7 @@
    filming them itself (theta and phi errors; for orbits also how far and
    which way they turn);
 4. writes CSV and plots to --out, and with --install copies the weights to
-   usdcrowd/cameras/camera_moe.npz (what the package ships), with
-   --install-clip to camera_moe_plain.npz, the model that gates film clips
-   (the recipe with a gate of the 18 features alone:
-   --config '{"gate_style": false, "style": 0}').
+   usdcrowd/cameras/camera_moe.npz (what the package ships).
 """
 
 from __future__ import annotations
@@ -251,9 +248,6 @@ def main() -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default="build/camera_moe")
     p.add_argument("--install", action="store_true", help="copy the weights into the package")
-    p.add_argument("--install-clip", action="store_true",
-                   help="copy the weights into the package as the clip references' model (camera_moe_plain.npz: "
-                        "train it with --config '{\"gate_style\": false, \"style\": 0}')")
     p.add_argument("--config", default="{}",
                    help='JSON overriding the model and training config, e.g. \'{"noise": 0.1}\'')
     p.add_argument("--record", action="store_true",
@@ -302,11 +296,10 @@ def main() -> int:
     print("plots:", *plots(out, out / "errors.csv", out / "history.csv"))
     if a.record:
         record_figures(out, summary, retarget, sil)
-    for wanted, name in ((a.install, "camera_moe.npz"), (a.install_clip, "camera_moe_plain.npz")):
-        if wanted:
-            dest = ROOT / "usdcrowd" / "cameras" / name
-            shutil.copy(out / "camera_moe.npz", dest)
-            print(f"installed {dest} ({dest.stat().st_size / 1e6:.2f} MB)")
+    if a.install:
+        dest = ROOT / "usdcrowd" / "cameras" / "camera_moe.npz"
+        shutil.copy(out / "camera_moe.npz", dest)
+        print(f"installed {dest} ({dest.stat().st_size / 1e6:.2f} MB)")
     return 0
 
 

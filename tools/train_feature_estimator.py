@@ -140,9 +140,9 @@ def evaluate(weights: Path, test, seed: int) -> dict:
     """Per component, medians and 95th percentiles over the held-out clips' frames; and the gate."""
     from usdcrowd.cameras.behaviors import BEHAVIORS
     from usdcrowd.cameras.estimator import FeatureEstimator
-    from usdcrowd.cameras.moe import CLIP_WEIGHTS, CameraMoE
+    from usdcrowd.cameras.moe import CameraMoE
 
-    est, model = FeatureEstimator(weights), CameraMoE(CLIP_WEIGHTS)      # the model that gates clip references
+    est, model = FeatureEstimator(weights), CameraMoE()
     rng = np.random.default_rng(seed + 4000)
     per = {}
     gates = {b: [] for b in BEHAVIORS}

@@ -35,19 +35,6 @@ def test_the_shipped_weights_are_small_and_say_what_they_are(moe):
     assert moe.about["train_clips"] > 0 and moe.about["torch"].startswith("2.13.0")
 
 
-def test_clip_references_are_gated_by_the_plain_model_and_stages_by_the_shipped_one():
-    """A film clip's features come through the estimator, whose errors the style-reading gate takes for another
-    style; frame --like gates clips with the model whose gate reads the 18 features alone (small too)."""
-    from usdcrowd.cameras.moe import CLIP_WEIGHTS
-    from usdcrowd.jobs.toric_filming import Reference, reference_model
-
-    feats = np.zeros((10, N_CHARACTER)), np.zeros((10, N_CAMERA))
-    clip, stage = (reference_model(Reference("r", "c", "a", "b", *feats, "medium", from_clip=k)) for k in (True, False))
-    assert clip.path == str(CLIP_WEIGHTS) and stage.path == str(WEIGHTS)
-    assert CLIP_WEIGHTS.stat().st_size < 3e6 and not clip.config.gate_style and "style_mean" not in clip.w
-    assert clip.w["gate.lstm.weight_ih"].shape == (4 * clip.config.gate_hidden, N_CHARACTER + N_CAMERA)
-
-
 def test_blending_the_weights_equals_blending_each_layers_outputs(moe, rng):
     """The prediction network with blended weights (inference) is the training's per-layer mix of experts."""
     c = moe.config

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from usdcrowd.cameras.moe import CLIP_WEIGHTS, CameraMoE, camera_angles
+from usdcrowd.cameras.moe import CameraMoE, camera_angles
 from usdcrowd.core.resources import data_dir
 
 from tests.helpers.paths import ROOT
@@ -175,7 +175,7 @@ def test_the_gate_reads_each_clip_nearer_its_own_stage_than_the_other(filmed_dia
     """The expert weights from the clip against those from the stage the clip was drawn from (the
     pair's motion, which a picture cannot show, set as unknown in both)."""
     shot, _ = filmed_dialogue
-    model = CameraMoE(CLIP_WEIGHTS)         # the model frame --like gates a clip with
+    model = CameraMoE()
     gates = {}
     for name in CLIPS:
         truth = _truth(shot, name, clip_features[name]["camera"])
@@ -231,7 +231,7 @@ def test_an_orbit_read_from_its_clip_turns_a_new_pair_as_the_stage_does(filmed_d
     from usdcrowd.scenario.shot_scene import ShotScene
 
     shot, _ = filmed_dialogue
-    model = CameraMoE(CLIP_WEIGHTS)         # the model frame --like gates a clip with
+    model = CameraMoE()
     scene = ShotScene(shot)
     rows = [scene.agent_row("C"), scene.agent_row("D")]
     heads, yaws = map(np.array, zip(*(head_and_facing(scene.agents(t, rows).joints_world)
@@ -241,10 +241,8 @@ def test_an_orbit_read_from_its_clip_turns_a_new_pair_as_the_stage_does(filmed_d
     truth = _truth(shot, "orbit", est["camera"])
     stage_char = truth.character.copy()
     stage_char[:, 7:10] = model.w["char_mean"][7:10]
-    # Each as frame --like reads it: the clip through the clip model, the stage through the shipped one.
-    poses = [retarget_poses(mo, mo.gate(c, m), char, heads[:, 0], heads[:, 1], FOV_X, ASPECT)[0]
-             for mo, c, m in ((model, est["character"], est["camera"]),
-                              (CameraMoE(), stage_char, truth.camera_features))]
+    poses = [retarget_poses(model, model.gate(c, m), char, heads[:, 0], heads[:, 1], FOV_X, ASPECT)[0]
+             for c, m in ((est["character"], est["camera"]), (stage_char, truth.camera_features))]
     d = compare(poses[0], poses[1], heads[:, 0], heads[:, 1], FOV_X, ASPECT)
     assert np.sign(d["turn_deg"]) == np.sign(d["truth_turn_deg"]) and abs(d["truth_turn_deg"]) > 45, d["turn_deg"]
     assert 0.7 < d["turn_deg"] / d["truth_turn_deg"] < 1.3, (d["turn_deg"], d["truth_turn_deg"])

@@ -61,10 +61,6 @@ N_STYLE = 5         # the gate's style features (style_features), after its char
 U = slice(4, 7)     # the camera features' direction from A
 SPAN = 7            # and their log span
 WEIGHTS = Path(__file__).with_name("camera_moe.npz")
-# Film clips are read through the feature estimator, whose errors (a camera bearing that wobbles by tens of
-# degrees a second) the style-reading gate of WEIGHTS takes for another style; the model whose gate reads the
-# 18 features alone is robust to them (tools/bench_clip_reference.py measures both), so clip references use it.
-CLIP_WEIGHTS = Path(__file__).with_name("camera_moe_plain.npz")
 CLIP = 4.0          # standard deviations a fed-back camera feature may reach (and the training's range, if stored)
 
 

@@ -13,7 +13,6 @@ of the seed: "their positions need to be interpolated to avoid a jump").
 
 from __future__ import annotations
 
-import functools
 import os
 from typing import TYPE_CHECKING
 from dataclasses import dataclass
@@ -459,7 +458,6 @@ class Reference:
     character: np.ndarray      # (t, 10)
     camera_features: np.ndarray  # (t, 8)
     shot_size: str
-    from_clip: bool = False    # read from a film clip by the feature estimator (the clip model gates it)
 
 
 def read_reference(shot_path, camera: str | None = None, targets: tuple[str, str] | None = None,
@@ -571,7 +569,7 @@ def read_clip_reference(path, focal_length: float = FOCAL_LENGTH, fps: float | N
         char_mean = CameraMoE().w["char_mean"]
     char, cam = FeatureEstimator().features(joints, char_mean)
     return Reference(os.fspath(path), "the camera", "the main character", "the other", char, cam,
-                     _nearest_shot_size(float(np.exp(np.median(cam[:, SPAN])))), from_clip=True)
+                     _nearest_shot_size(float(np.exp(np.median(cam[:, SPAN])))))
 
 
 def toric_camera(scene) -> str:
@@ -607,21 +605,6 @@ def _nearest_shot_size(span: float) -> str:
     return min(SHOT_SIZES, key=lambda k: abs(np.log(SHOT_SIZES[k].span / span)))
 
 
-@functools.lru_cache(maxsize=2)
-def _model(path: str):
-    from ..cameras.moe import CameraMoE
-
-    return CameraMoE(path)
-
-
-def reference_model(reference: Reference):
-    """The learned camera model that reads ``reference``: the clip model for a film clip
-    (:data:`usdcrowd.cameras.moe.CLIP_WEIGHTS`), the shipped one for a stage."""
-    from ..cameras.moe import CLIP_WEIGHTS, WEIGHTS
-
-    return _model(str(CLIP_WEIGHTS if reference.from_clip else WEIGHTS))
-
-
 def frame_like(shot_path, reference: Reference | list[tuple[Reference, float]], spans: list[PairSpan] | str, name: str | None = None,
                smooth: bool = False, focal_length: float = FOCAL_LENGTH, aspect: float = 16 / 9,
                span: float = 5.0, model=None, progress: bool = True):
@@ -646,11 +629,12 @@ def frame_like(shot_path, reference: Reference | list[tuple[Reference, float]], 
         or (n, m), one row per reference, with several.
     """
     from ..cameras.behaviors import clear_of_obstacles
-    from ..cameras.moe import character_features, eyes_of_features, level_camera, screen_height
+    from ..cameras.moe import CameraMoE, character_features, eyes_of_features, level_camera, screen_height
     from ..cameras.retarget import blend_features, retarget_features, switch_weights
     from ..cameras.smoothing import smooth_track
     from ..scenario.shot_scene import ShotScene
 
+    model = model or CameraMoE()
     scene = ShotScene(shot_path)
     times = scene.time_codes
     if isinstance(spans, str):
@@ -661,14 +645,13 @@ def frame_like(shot_path, reference: Reference | list[tuple[Reference, float]], 
     signals = target_signals(scene, spans, times, TRANSITION, progress)
     timeline = reference if isinstance(reference, list) else [(reference, times[0])]
     reference = timeline[0][0]
-    models = [model or reference_model(r) for r, _ in timeline]
-    gates = [m.gate(r.character, r.camera_features) for m, (r, _) in zip(models, timeline)]
+    gates = [model.gate(r.character, r.camera_features) for r, _ in timeline]
     char = character_features(signals.heads_a, signals.heads_b, signals.yaw_a, signals.yaw_b, scene.fps)
     fov_x = 2.0 * np.arctan(0.5 * APERTURE / focal_length)
     # A model trained with blind samples frames the new pair itself; the reference's first framing is
     # another pair's (an older model starts from it).
-    cams = [retarget_features(m, g, char, None if m.config.blind > 0 else r.camera_features[0])
-            for m, g, (r, _) in zip(models, gates, timeline)]
+    cams = [retarget_features(model, g, char, None if model.config.blind > 0 else r.camera_features[0])
+            for g, (r, _) in zip(gates, timeline)]
     cam = cams[0] if len(cams) == 1 else blend_features(
         cams, switch_weights([f for _, f in timeline], times, scene.fps, STYLE_TRANSITION))
     eye = eyes_of_features(cam, signals.heads_a, signals.heads_b, fov_x, aspect)
