@@ -201,7 +201,7 @@ def experts(record: dict, epochs: int) -> str:
         out = ROOT / "build" / f"camera_moe_experts_{m}"
         t0 = time.perf_counter()
         subprocess.run([sys.executable, str(ROOT / "tools" / "train_camera_moe.py"), "--out", str(out),
-                        "--epochs", str(epochs), "--config", json.dumps({"experts": m})], check=True,
+                        "--epochs", str(epochs), "--config", json.dumps({"experts": m}), "--moe-only"], check=True,
                        stdout=subprocess.DEVNULL)
         ret = {r["behavior"]: r for r in csv.DictReader(open(out / "retarget_summary.csv")) if r["shot"] == "all"}
         pred = list(csv.DictReader(open(out / "summary.csv")))
@@ -239,20 +239,25 @@ def experts(record: dict, epochs: int) -> str:
 
 # The paper's recipe over the same time spans at 24 fps: 1 s of past camera (12 samples) and its Eq. 6 loss.
 PAPER_RECIPE = {"past": 12, "eta": 0.1}
+# The shipped recipe with a gate that also reads the style features and learns the controllers' parameters.
+STYLE_GATE = {"gate_style": True, "style": 0.3}
 
 
 def recipes(record: dict) -> None:
-    """The shipped recipe and the paper's (its windows and Eq. 6) trained alike, 25 epochs each, and scored on
-    the same held-out clips (train_camera_moe's evaluation, from build/camera_moe_recipe_ours and
-    build/camera_moe_paper_recipe, each trained first unless it is there)."""
+    """The shipped recipe, the paper's (its windows and Eq. 6) and one whose gate reads the style features,
+    trained alike, 25 epochs each, and scored on the same held-out clips (train_camera_moe's evaluation, from
+    build/camera_moe_recipe_ours, build/camera_moe_paper_recipe and build/camera_moe_style_gate, each
+    trained first unless it is there)."""
     import csv
 
     out = {}
     for name, folder, config in (("shipped", ROOT / "build" / "camera_moe_recipe_ours", {}),
-                                 ("paper_recipe", ROOT / "build" / "camera_moe_paper_recipe", PAPER_RECIPE)):
+                                 ("paper_recipe", ROOT / "build" / "camera_moe_paper_recipe", PAPER_RECIPE),
+                                 ("style_gate", ROOT / "build" / "camera_moe_style_gate", STYLE_GATE)):
         if not (folder / "retarget_summary.csv").exists():
             subprocess.run([sys.executable, str(ROOT / "tools" / "train_camera_moe.py"), "--out", str(folder),
-                            "--epochs", "25", "--config", json.dumps(config)], check=True, stdout=subprocess.DEVNULL)
+                            "--epochs", "25", "--config", json.dumps(config), "--moe-only"], check=True,
+                           stdout=subprocess.DEVNULL)
         ret = {r["behavior"]: r for r in csv.DictReader(open(folder / "retarget_summary.csv")) if r["shot"] == "all"}
         pred = {r["behavior"]: r for r in csv.DictReader(open(folder / "summary.csv"))}
         hist = [r for r in csv.DictReader(open(folder / "history.csv")) if r["model"] == "moe"]
@@ -306,15 +311,16 @@ def tables(figures: dict) -> dict:
         rows = []
         for b in ("direct_track", "relative_track", "side_track", "orbit"):
             line = [b.replace("_", " ")]
-            for name in ("shipped", "paper_recipe"):
+            for name in (n for n in ("shipped", "paper_recipe", "style_gate") if n in figures["recipes"]):
                 r = figures["recipes"][name][b]
-                extra = f", {r['orbit_same_way']:.0%} the right way" if "orbit_same_way" in r else ""
+                extra = (f", {r['orbit_same_way']:.0%} the right way at {r['orbit_speed']:.2f}x"
+                         if "orbit_same_way" in r else "")
                 line.append(f"{r['direction_deg']:.1f} / {r['theta_deg_median']:.1f} / "
                             f"{r['distance_ratio_median']:.2f}{extra}")
             rows.append(line)
-        out["recipes"] = {"columns": ["behavior", "shipped recipe: one prediction (deg) / retargeted theta (deg, "
-                                      "median) / distance ratio", "the paper's windows and Eq. 6: the same"],
-                          "rows": rows}
+        columns = ["behavior", "shipped recipe: one prediction (deg) / retargeted theta (deg, median) / distance "
+                   "ratio", "the paper's windows and Eq. 6: the same", "a gate reading the style features: the same"]
+        out["recipes"] = {"columns": columns[:len(rows[0])], "rows": rows}
     if "generality" in figures:
         names = {"distance": "distance between them (m)", "speed": "animation speed (x)",
                  "scale": "B's height (x its own)"}

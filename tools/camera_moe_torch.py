@@ -29,11 +29,12 @@ import torch
 from torch import nn
 
 N_CHAR, N_CAM = 10, 8          # features per frame (usdcrowd.cameras.moe); set from the data read
+N_STYLE = 0                    # the gate's style features (usdcrowd.cameras.moe.style_features), if trained on
 
 
-def _sizes(n_char: int, n_cam: int) -> None:
-    global N_CHAR, N_CAM
-    N_CHAR, N_CAM = int(n_char), int(n_cam)
+def _sizes(n_char: int, n_cam: int, n_style: int = 0) -> None:
+    global N_CHAR, N_CAM, N_STYLE
+    N_CHAR, N_CAM, N_STYLE = int(n_char), int(n_cam), int(n_style)
 
 
 def absolute(pred: torch.Tensor, base: torch.Tensor, cfg: dict) -> torch.Tensor:
@@ -46,12 +47,15 @@ class Gate(nn.Module):
 
     def __init__(self, hidden: int, experts: int):
         super().__init__()
-        self.lstm = nn.LSTM(N_CHAR + N_CAM, hidden, batch_first=True)
+        self.lstm = nn.LSTM(N_CHAR + N_CAM + N_STYLE, hidden, batch_first=True)
         self.fc = nn.Linear(hidden, experts)
 
     def forward(self, x):
+        return torch.softmax(self.logits(x), dim=-1)
+
+    def logits(self, x):
         _, (h, _) = self.lstm(x)
-        return torch.softmax(self.fc(h[-1]), dim=-1)
+        return self.fc(h[-1])
 
 
 class Experts(nn.Module):
@@ -83,6 +87,9 @@ class MoE(nn.Module):
         self.gate = Gate(cfg["gate_hidden"], cfg["experts"])
         n_in = cfg["past"] * N_CAM + (cfg["char_past"] + cfg["char_future"]) * N_CHAR
         self.experts = Experts(cfg["experts"], n_in, cfg["hidden"], cfg["out"] * N_CAM)
+        if cfg.get("style") and cfg.get("n_style"):
+            # Training only: the style labels read linearly from the gate's logits (config "style").
+            self.style = nn.Linear(cfg["experts"], cfg["n_style"])
 
     def forward(self, gate_x, x):
         w = self.gate(gate_x)
@@ -130,6 +137,12 @@ class Windows:
         self.ref_char = (data["ref_character"] - stats["char_mean"]) / stats["char_std"] if paired else None
         self.ref_cam = (data["ref_camera"] - stats["cam_mean"]) / stats["cam_std"] if paired else None
         self.labels = data["behavior"]
+        # The gate's style features, after its character and camera features, of the clips and their references.
+        self.gate_extra = self.ref_extra = None
+        if "gate_style" in data:
+            self.gate_extra = (data["gate_style"] - stats["style_mean"]) / stats["style_std"]
+            self.ref_extra = (data["ref_gate_style"] - stats["style_mean"]) / stats["style_std"]
+        self.style = data["style"] if "style" in data else None
         c, t, _ = self.char.shape
         lo = (cfg["past"] - 1) * cfg["step"]
         hi = t - 1 - cfg.get("unroll", 1) * cfg["out"] * cfg["step"]
@@ -148,10 +161,13 @@ class Windows:
         else:
             start = np.full(len(clips), (t - 1 - span) // 2)
         idx = start[:, None] + np.arange(cfg["gate_len"]) * cfg["gate_step"]
-        own = np.concatenate([self.char[clips[:, None], idx], self.cam[clips[:, None], idx]], axis=-1)
+        extra = lambda a: [] if a is None else [a[clips[:, None], idx]]  # noqa: E731
+        own = np.concatenate([self.char[clips[:, None], idx], self.cam[clips[:, None], idx], *extra(self.gate_extra)],
+                             axis=-1)
         if not random or self.ref_char is None or not cfg.get("pair", 0.0):
             return own
-        paired = np.concatenate([self.ref_char[clips[:, None], idx], self.ref_cam[clips[:, None], idx]], axis=-1)
+        paired = np.concatenate([self.ref_char[clips[:, None], idx], self.ref_cam[clips[:, None], idx],
+                                 *extra(self.ref_extra)], axis=-1)
         return np.where((self.rng.random(len(clips)) < cfg["pair"])[:, None, None], paired, own)
 
     def batch(self, rows, random_gate=True):
@@ -186,7 +202,13 @@ class Windows:
         if len(reset):
             src = self.index[self.rng.integers(len(self.index), size=len(reset))]
             past[reset] = self.cam[src[:, :1], src[:, 1:] + np.arange(-(cfg["past"] - 1), 1) * cfg["step"]]
-        past = past + self.rng.normal(0.0, noise, past.shape)
+        if cfg.get("drift"):
+            # A roll-out's error is a drift: one offset over the whole past window, a little jitter on top,
+            # so the window's own motion (an orbit's turn) stays readable and is not learnt damped.
+            common = self.rng.normal(0.0, noise, (len(rows), 1, past.shape[-1]))
+            past = past + common + self.rng.normal(0.0, noise * (1.0 - cfg["drift"]), past.shape)
+        else:
+            past = past + self.rng.normal(0.0, noise, past.shape)
         # Some see no past camera at all (config "blind"): the framing must come from the gate and the
         # characters, as in a roll-out that starts blind (`usdcrowd frame --like`).
         past[self.rng.random(len(rows)) < cfg.get("blind", 0.0)] = 0.0
@@ -199,15 +221,20 @@ class Windows:
             out_idx = np.clip(at[:, None] + np.arange(1, cfg["out"] + 1) * cfg["step"], 0, t - 1)
             ys.append(self.cam[clips[:, None], out_idx].reshape(len(rows), -1))
         f32 = lambda a: torch.tensor(np.asarray(a), dtype=torch.float32)  # noqa: E731
+        style = f32(self.style[clips]) if self.style is not None else None
         return (f32(self.gate_inputs(clips)), f32(past.reshape(len(rows), -1)), f32(chars), f32(ys),
-                f32(past[:, -1]))
+                f32(past[:, -1]), style)
 
 
 def _stats(data) -> dict:
     """Normalisation, and the range of camera features the training spans (a roll-out stays inside it)."""
     char, cam = data["character"].reshape(-1, N_CHAR), data["camera"].reshape(-1, N_CAM)
-    return {"char_mean": char.mean(0), "char_std": char.std(0) + 1e-6, "cam_mean": cam.mean(0),
-            "cam_std": cam.std(0) + 1e-6, "cam_lo": cam.min(0), "cam_hi": cam.max(0)}
+    stats = {"char_mean": char.mean(0), "char_std": char.std(0) + 1e-6, "cam_mean": cam.mean(0),
+             "cam_std": cam.std(0) + 1e-6, "cam_lo": cam.min(0), "cam_hi": cam.max(0)}
+    if "gate_style" in data:
+        style = data["gate_style"].reshape(-1, N_STYLE)
+        stats.update(style_mean=style.mean(0), style_std=style.std(0) + 1e-6)
+    return stats
 
 
 def sample_weights(cfg: dict) -> torch.Tensor:
@@ -245,7 +272,8 @@ def _gate_outputs(model, windows: Windows):
         return model.gate(torch.tensor(windows.gate_inputs(clips, random=False), dtype=torch.float32)).numpy()
 
 
-def train(data_path: str, out_dir: str, epochs: int, seed: int, batch: int = 256, lr: float = 2e-3) -> None:
+def train(data_path: str, out_dir: str, epochs: int, seed: int, batch: int = 256, lr: float = 2e-3,
+          baseline: bool = True) -> None:
     from sklearn.metrics import silhouette_score
 
     torch.manual_seed(seed)
@@ -253,9 +281,13 @@ def train(data_path: str, out_dir: str, epochs: int, seed: int, batch: int = 256
     rng = np.random.default_rng(seed)
     data = np.load(data_path)
     cfg = json.loads(str(data["config"]))
-    _sizes(data["character"].shape[-1], data["camera"].shape[-1])
+    _sizes(data["character"].shape[-1], data["camera"].shape[-1],
+           data["gate_style"].shape[-1] if "gate_style" in data.files else 0)
     split = data["test"]                                # 1 for test clips
-    keys = [k for k in ("character", "camera", "behavior", "ref_character", "ref_camera") if k in data.files]
+    keys = [k for k in ("character", "camera", "behavior", "ref_character", "ref_camera", "style", "gate_style",
+                        "ref_gate_style") if k in data.files]
+    if "style" in data.files:
+        cfg["n_style"] = int(data["style"].shape[-1])
     train_d = {k: data[k][split == 0] for k in keys}
     test_d = {k: data[k][split == 1] for k in keys}
     train_d["config"] = test_d["config"] = data["config"]
@@ -264,7 +296,7 @@ def train(data_path: str, out_dir: str, epochs: int, seed: int, batch: int = 256
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     history = []
-    models = {"moe": MoE(cfg), "shared_bottom": SharedBottom(cfg)}
+    models = {"moe": MoE(cfg), "shared_bottom": SharedBottom(cfg)} if baseline else {"moe": MoE(cfg)}
     for name, model in models.items():
         # The gate's few weights steer all the experts; a larger step lets it leave the uniform mix.
         gate_params = list(model.gate.parameters()) if name == "moe" else []
@@ -282,9 +314,14 @@ def train(data_path: str, out_dir: str, epochs: int, seed: int, batch: int = 256
             steps = cfg.get("unroll", 1)
             for lo in range(0, len(order), batch):
                 # Trained on its own roll-outs: after the first step the past camera is the model's prediction.
-                g, past, chars, ys, base = tr.unrolled(order[lo:lo + batch], steps, cfg.get("noise", 0.2))
-                w = model.weights(g)
+                g, past, chars, ys, base, style = tr.unrolled(order[lo:lo + batch], steps, cfg.get("noise", 0.2))
                 loss = 0.0
+                if name == "moe" and cfg.get("style"):
+                    logits = model.gate.logits(g)
+                    w = torch.softmax(logits, dim=-1)
+                    loss = cfg["style"] * torch.mean((model.style(logits) - style) ** 2)
+                else:
+                    w = model.weights(g)
                 for r in range(steps):
                     pred = absolute(model.step(torch.cat([past, chars[r]], 1), w), base, cfg)
                     sq = ((pred - ys[r]) ** 2).view(len(pred), cfg["out"], N_CAM).mean(dim=(0, 2))
@@ -335,7 +372,8 @@ def save_weights(model: MoE, cfg: dict, stats: dict, path, about: dict) -> None:
 def load_weights(path) -> tuple[MoE, dict]:
     data = np.load(path)
     cfg = json.loads(str(data["config"]))
-    _sizes(data["char_mean"].shape[-1], data["cam_mean"].shape[-1])
+    _sizes(data["char_mean"].shape[-1], data["cam_mean"].shape[-1],
+           data["style_mean"].shape[-1] if "style_mean" in data.files else 0)
     model = MoE(cfg)
     sd = {}
     for k in model.state_dict():
@@ -360,12 +398,12 @@ def time_sizes(config: str, samples: int, batches: int = 3, batch: int = 256, se
     """Seconds one training batch takes (forward and backward, both networks as trained) for a config's
     sizes, on random inputs, and what an epoch of ``samples`` would take: the cost of a recipe, measured."""
     cfg = json.loads(config)
-    _sizes(cfg.get("n_char", N_CHAR), cfg.get("n_cam", N_CAM))
+    _sizes(cfg.get("n_char", N_CHAR), cfg.get("n_cam", N_CAM), 5 if cfg.get("gate_style") else 0)
     torch.manual_seed(seed)
     model = MoE(cfg)
     opt = torch.optim.Adam(model.parameters(), lr=1e-3)
     n_in = cfg["past"] * N_CAM + (cfg["char_past"] + cfg["char_future"]) * N_CHAR
-    g = torch.randn(batch, cfg["gate_len"], N_CHAR + N_CAM)
+    g = torch.randn(batch, cfg["gate_len"], N_CHAR + N_CAM + N_STYLE)
     x, y = torch.randn(batch, n_in), torch.randn(batch, cfg["out"] * N_CAM)
     times = []
     for k in range(batches + 1):
@@ -394,6 +432,7 @@ def main() -> int:
     t.add_argument("out")
     t.add_argument("--epochs", type=int, default=20)
     t.add_argument("--seed", type=int, default=0)
+    t.add_argument("--moe-only", action="store_true", help="no shared-bottom baseline (sweeps that do not compare)")
     f = sub.add_parser("forward")
     f.add_argument("weights")
     f.add_argument("inputs")
@@ -404,7 +443,7 @@ def main() -> int:
     c.add_argument("--batches", type=int, default=3)
     a = p.parse_args()
     if a.cmd == "train":
-        train(a.data, a.out, a.epochs, a.seed)
+        train(a.data, a.out, a.epochs, a.seed, baseline=not a.moe_only)
     elif a.cmd == "time":
         time_sizes(a.config, a.samples, a.batches)
     else:

@@ -20,6 +20,11 @@
    which way they turn);
 4. writes CSV and plots to --out, and with --install copies the weights to
    usdcrowd/cameras/camera_moe.npz (what the package ships).
+
+Config keys beyond the sizes (usdcrowd.cameras.moe.Config): ``gate_style``
+gives the gate the style features (usdcrowd.cameras.moe.style_features) and
+``style`` weighs an auxiliary loss asking its logits for the controllers'
+parameters (:func:`style_labels`); both off in the shipped recipe.
 """
 
 from __future__ import annotations
@@ -70,7 +75,7 @@ def torch_python() -> str:
 
 
 def make_dataset(path: Path, per_behavior: int, seed: int, frames: int = 480):
-    from usdcrowd.cameras.moe import U
+    from usdcrowd.cameras.moe import U, style_features
     from usdcrowd.cameras.moe_data import held_out_clips, make_clips
 
     train = make_clips(seed, per_behavior, frames)
@@ -82,8 +87,25 @@ def make_dataset(path: Path, per_behavior: int, seed: int, frames: int = 480):
     # The torch side reads where the direction's columns are (its error in degrees) from the data.
     np.savez(path, config=json.dumps({**CONFIG, "u": [U.start, U.stop]}),
              character=f32([c.character for c in clips]), camera=f32([c.camera for c in clips]), ref_character=f32(ref_char), ref_camera=f32(ref_cam),
-             behavior=np.array([c.behavior for c in clips]), test=np.array([0] * len(train) + [1] * len(test)))
+             behavior=np.array([c.behavior for c in clips]), test=np.array([0] * len(train) + [1] * len(test)),
+             style=f32([style_labels(c) for c in clips]),
+             **({"gate_style": f32([style_features(c.character, c.camera) for c in clips]),
+                 "ref_gate_style": f32([style_features(c, m) for c, m in zip(ref_char, ref_cam)])}
+                if CONFIG.get("gate_style") else {}))
     return train, test
+
+
+def style_labels(clip) -> list[float]:
+    """What the controller that filmed ``clip`` was told: its behavior (one-hot), the relative track's offset
+    (/ 60 deg), the orbit's speed (/ 25 deg/s), the side and the shot size (one-hot). Config "style" > 0 asks
+    the gate's logits to predict these (an auxiliary loss): the gate is otherwise taught only through the
+    camera it makes, which reads a style's kind and sign but barely its size (an offset's or orbit's)."""
+    from usdcrowd.cameras.behaviors import BEHAVIORS, SHOT_SIZES
+
+    p = clip.params
+    kind = [float(clip.behavior == b) for b in range(len(BEHAVIORS))]
+    return [*kind, p.offset / 60.0 * kind[1], p.orbit_speed / 25.0 * kind[3], p.side * (1.0 - kind[1]),
+            *[float(p.shot == s) for s in SHOT_SIZES]]
 
 
 def paired_references(clips, rng):
@@ -147,6 +169,8 @@ def prediction_summary(errors_csv: Path) -> list[dict]:
         line = {"behavior": name}
         for model in ("moe", "shared_bottom"):
             sel = [r for r in err if r["model"] == model and int(r["behavior"]) == b]
+            if not sel:                                     # trained --moe-only
+                continue
             line[f"{model}_direction_deg"] = float(np.mean([float(r["err_direction_deg"]) for r in sel]))
             line[f"{model}_screen"] = float(np.mean([float(r[f"err_{k}"]) for r in sel for k in range(4)]))
         summary.append(line)
@@ -201,6 +225,8 @@ def plots(out: Path, errors_csv: Path, history_csv: Path) -> list[str]:
     for b, name in enumerate(BEHAVIORS):
         for model in ("moe", "shared_bottom"):
             v = [float(r["err_direction_deg"]) for r in err if r["model"] == model and int(r["behavior"]) == b]
+            if not v:                                       # trained --moe-only
+                continue
             data.append(v)
             labels.append(f"{name.replace('-track', '')}\n{'MoE' if model == 'moe' else 'shared'}")
     bp = ax[0].boxplot(data, showfliers=False, patch_artist=True)
@@ -227,14 +253,14 @@ def main() -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default="build/camera_moe")
     p.add_argument("--install", action="store_true", help="copy the weights into the package")
-    p.add_argument("--config", default="{}",
-                   help='JSON overriding the model and training config, e.g. \'{"noise": 0.1}\'')
     p.add_argument("--record", action="store_true",
                    help="copy summary.csv, history.csv and the plot into docs/ and record the figures the camera "
                         "researcher's guide quotes (docs/data/camera_moe.json)")
     p.add_argument("--costs", action="store_true",
                    help="only measure what one training epoch costs with the paper's sizes and with this config "
                         "(PyTorch, this machine), print it and, with --record, record it (docs/data/camera_moe_costs.json)")
+    p.add_argument("--moe-only", action="store_true",
+                   help="train no shared-bottom baseline (its columns of summary.csv stay empty): for sweeps")
     p.add_argument("--evaluate-only", action="store_true",
                    help="evaluate the weights, CSV and history already in --out (no training)")
     a = p.parse_args()
@@ -250,7 +276,8 @@ def main() -> int:
         python = torch_python()
         t1 = time.perf_counter()
         subprocess.run([python, str(ROOT / "tools" / "camera_moe_torch.py"), "train", str(out / "dataset.npz"),
-                        str(out), "--epochs", str(a.epochs), "--seed", str(a.seed)], check=True)
+                        str(out), "--epochs", str(a.epochs), "--seed", str(a.seed),
+                        *(["--moe-only"] if a.moe_only else [])], check=True)
         print(f"trained in {time.perf_counter() - t1:.0f} s", flush=True)
     rows = retarget_errors(out / "camera_moe.npz", test)
     with open(out / "retarget.csv", "w", newline="") as f:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from usdcrowd.cameras.behaviors import BEHAVIORS
-from usdcrowd.cameras.moe import N_CAMERA, N_CHARACTER, SPAN, U, WEIGHTS, CameraMoE, poses_of_features
+from usdcrowd.cameras.moe import N_CAMERA, N_CHARACTER, N_STYLE, SPAN, U, WEIGHTS, CameraMoE, poses_of_features
 from usdcrowd.cameras.moe_data import ASPECT, FOV_X, held_out_clips, make_clip, make_clips, refilm_track
 from usdcrowd.cameras.retarget import SETTLE_FRAMES, compare
 from usdcrowd.cli import main
@@ -61,6 +61,47 @@ def test_numpy_inference_equals_pytorchs(moe, rng, tmp_path):
     np.testing.assert_allclose(moe.predict(moe.blend(w[0]), x[:1]), torch_out["pred"][:1], atol=1e-5)
 
 
+@pytest.mark.slow
+def test_a_style_reading_gate_trains_and_reads_its_features_as_pytorch_does(rng, tmp_path):
+    """The training recipe with the gate's style features and its auxiliary loss (config gate_style, style), on
+    a few clips for one epoch: the weights hold the features' normalisation, and numpy's gate, fed a clip's
+    18 features, forms the 5 style features and gates as PyTorch does on all 23 (to 1e-5)."""
+    import json
+    import sys
+
+    from usdcrowd.cameras.moe import style_features
+    from tests.helpers.venvs import tool_python
+
+    python = tool_python("torch", ["torch==2.13.0", "numpy", "scikit-learn"], "USDCROWD_TORCH_VENV")
+    sys.path.insert(0, str(TOOLS))
+    import train_camera_moe as tool
+
+    config = dict(tool.CONFIG)
+    tool.CONFIG.update(gate_style=True, style=0.3)
+    try:
+        _, test = tool.make_dataset(tmp_path / "data.npz", 2, 0, frames=240)
+    finally:
+        tool.CONFIG.clear()
+        tool.CONFIG.update(config)
+    subprocess.run([python, str(TOOLS / "camera_moe_torch.py"), "train", str(tmp_path / "data.npz"), str(tmp_path),
+                    "--epochs", "1", "--moe-only"], check=True, capture_output=True)
+    model = CameraMoE(tmp_path / "camera_moe.npz")
+    assert model.config.gate_style and model.w["style_mean"].shape == (N_STYLE,)
+    assert json.loads(str(np.load(tmp_path / "camera_moe.npz")["config"]))["n_style"] == 10
+    clip = test[0]
+    gate_x = model.gate_input(clip.character, clip.camera)[None]
+    np.testing.assert_allclose(gate_x[0, :, N_CHARACTER + N_CAMERA:] * model.w["style_std"] + model.w["style_mean"],
+                               style_features(clip.character, clip.camera)[
+                                   np.arange(model.config.gate_len) * model.config.gate_step
+                                   + (len(clip.camera) - 1 - (model.config.gate_len - 1) * model.config.gate_step) // 2],
+                               atol=1e-9)
+    np.savez(tmp_path / "inputs.npz", gate_x=gate_x, x=rng.normal(size=(1, model.config.n_in)), w=np.ones((1, 9)) / 9)
+    subprocess.run([python, str(TOOLS / "camera_moe_torch.py"), "forward", str(tmp_path / "camera_moe.npz"),
+                    str(tmp_path / "inputs.npz"), str(tmp_path / "out.npz")], check=True)
+    np.testing.assert_allclose(model.gate(clip.character, clip.camera), np.load(tmp_path / "out.npz")["gate"][0],
+                               atol=1e-5)
+
+
 def test_any_prediction_makes_a_level_camera_at_its_spans_distance(rng):
     """Whatever the network says, the features become a camera: finite, level, at the distance from A the
     predicted span asks (the distance cannot run away as the toric pA/pB placement's 1 / sin(alpha) did)."""
@@ -87,6 +128,31 @@ def test_the_controllers_cameras_are_rebuilt_from_their_features():
                     clip.heads_a, clip.heads_b, FOV_X, ASPECT)
         np.testing.assert_allclose(d["distance_ratio"], 1.0, atol=1e-9)
         assert d["theta_deg"].max() < 1e-6 and d["screen"].max() < 1e-6, (clip.params, d["screen"].max())
+
+
+def test_the_gates_style_features_read_what_each_controller_was_told():
+    """style_features, from a clip's features alone, read back the parameters its controller was given: a
+    relative track's offset from A's shoulders (to 2 degrees), an orbit's speed round a standing pair (to 2
+    degrees a second: the bearing is taken from A, the orbit goes round the midpoint), a side track's pair walking across the camera's bearing at their own speed (to 10 %), hardly toward it (the camera
+    follows their turns a reaction time late)."""
+    from usdcrowd.cameras.moe import style_features
+
+    rng = np.random.default_rng(5)
+    mid = slice(60, -60)                          # the controllers' smoothing settles at the ends
+    for kind in ("talking", "side-by-side", "circling"):
+        clip = make_clip(rng, BEHAVIORS.index("relative-track"), kind=kind)
+        f = style_features(clip.character, clip.camera)
+        offset = np.degrees(np.angle(np.mean(f[mid, 1] + 1j * f[mid, 0])))
+        assert abs(offset - clip.params.offset) < 2.0, (kind, offset, clip.params.offset)
+    for _ in range(3):
+        clip = make_clip(rng, BEHAVIORS.index("orbit"), kind="talking")
+        turn = np.degrees(np.median(style_features(clip.character, clip.camera)[mid, 2]))
+        assert turn == pytest.approx(clip.params.orbit_speed, abs=2.0), (turn, clip.params.orbit_speed)
+    for kind in ("side-by-side", "in-line"):
+        clip = make_clip(rng, BEHAVIORS.index("side-track"), kind=kind)
+        f = style_features(clip.character, clip.camera)[mid]
+        speed = np.median(np.linalg.norm(np.gradient(clip.heads_a[mid, :2], axis=0), axis=1)) * 24.0
+        assert abs(np.median(f[:, 4])) == pytest.approx(speed, rel=0.1) and abs(np.median(f[:, 3])) < 0.2, kind
 
 
 def test_the_gate_carries_the_behavior_a_clip_shows(moe):

@@ -57,6 +57,7 @@ import numpy as np
 
 N_CHARACTER = 10
 N_CAMERA = 8
+N_STYLE = 5         # the gate's style features (style_features), after its character and camera features
 U = slice(4, 7)     # the camera features' direction from A
 SPAN = 7            # and their log span
 WEIGHTS = Path(__file__).with_name("camera_moe.npz")
@@ -92,6 +93,31 @@ def character_features(heads_a, heads_b, yaw_a, yaw_b, fps: float) -> np.ndarray
     turn = moving_average(turn, max(1, int(round(0.5 * fps))))
     return np.column_stack([d, np.sin(s_a), np.cos(s_a), np.sin(s_b), np.cos(s_b), np.sin(s_ab), np.cos(s_ab),
                             np.einsum("ti,ti->t", vel, along), np.einsum("ti,ti->t", vel, across), turn])
+
+
+def style_features(char: np.ndarray, cam: np.ndarray, fps: float = 24.0) -> np.ndarray:
+    """(t, N_STYLE) what a camera does with its characters, for the gate: derived from (t, 10) character and (t, 8)
+    camera features alone, so any reference (a stage, a clip) has them.
+
+    Columns: sin and cos of the camera's bearing from A less A's shoulder angle (constant for a camera
+    that keeps an angle to A's facing: the relative track's offset), the camera's turn about the pair in
+    the world (rad/s: the bearing's rate plus the line AB's, smoothed over half a second: an orbit's
+    speed), and the pair's velocity toward the camera and across its bearing (m/s: a side track's is all
+    across). Each is one easy sum of the gate's inputs, but one an LSTM of the gate's size does not learn
+    to form: trained on the 18 features alone, its expert mix carries the signs of an offset and an orbit
+    speed, hardly their sizes. A model trained with config ``gate_style`` reads them (the shipped one does
+    not: see the camera researcher's guide).
+    """
+    from .smoothing import moving_average
+
+    char, cam = np.asarray(char, dtype=np.float64), np.asarray(cam, dtype=np.float64)
+    bearing = np.arctan2(cam[:, U.start + 1], cam[:, U.start])      # in the pair's frame, from AB
+    s_a = np.arctan2(char[:, 1], char[:, 2])
+    rate = np.gradient(np.unwrap(bearing)) * fps if len(bearing) > 1 else np.zeros_like(bearing)
+    turn = moving_average(rate + char[:, 9], max(1, int(round(0.5 * fps))))
+    c, s = np.cos(bearing), np.sin(bearing)
+    return np.column_stack([np.sin(bearing - s_a), np.cos(bearing - s_a), turn,
+                            char[:, 7] * c + char[:, 8] * s, -char[:, 7] * s + char[:, 8] * c])
 
 
 def camera_features(p_a, p_b, theta, phi, span) -> np.ndarray:
@@ -219,6 +245,7 @@ class Config:
     hidden: int
     gate_hidden: int
     noise: float = 0.0    # training: noise added to the past camera input (robust roll-outs)
+    drift: float = 0.0    # training: the noise is one offset per past window, white only at (1 - drift) of it
     blind: float = 0.0    # training: share of samples shown no past camera (the gate must carry the behavior)
     reset: float = 0.0    # training: share of samples whose past camera is another clip's (a cold start)
     pair: float = 0.0     # training: share of samples gated from the same behavior filming other characters
@@ -227,6 +254,9 @@ class Config:
     residual: bool = False  # the network predicts the camera's change from its last sample
     u: tuple = (4, 7)     # training: the camera features' direction columns (its error in degrees)
     eta: float = 1.0      # training: weight of the predicted samples after the first (the paper's Eq. 6: 0.1)
+    style: float = 0.0    # training: weight of the gate's auxiliary loss on the controllers' parameters
+    gate_style: bool = False  # the gate also reads style_features (the weights hold their normalisation)
+    n_style: int = 0      # training: how many such labels
 
     @property
     def n_in(self) -> int:
@@ -258,10 +288,13 @@ class CameraMoE:
 
     # ------------------------------------------------------------------ gating
     def gate_input(self, char: np.ndarray, cam: np.ndarray) -> np.ndarray:
-        """(gate_len, 18) normalised reference features: the middle of the clip, sampled every gate_step frames."""
+        """(gate_len, 18 or 23) normalised reference features (with :func:`style_features` where the model was
+        trained on them): the middle of the clip, sampled every gate_step frames."""
         c = self.config
-        feats = np.column_stack([(char - self.w["char_mean"]) / self.w["char_std"],
-                                 (cam - self.w["cam_mean"]) / self.w["cam_std"]])
+        parts = [(char - self.w["char_mean"]) / self.w["char_std"], (cam - self.w["cam_mean"]) / self.w["cam_std"]]
+        if "style_mean" in self.w:
+            parts.append((style_features(char, cam) - self.w["style_mean"]) / self.w["style_std"])
+        feats = np.column_stack(parts)
         idx = np.arange(c.gate_len) * c.gate_step
         start = max(0, (len(feats) - 1 - idx[-1]) // 2)
         return feats[np.clip(start + idx, 0, len(feats) - 1)]
