@@ -253,6 +253,8 @@ def main() -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default="build/camera_moe")
     p.add_argument("--install", action="store_true", help="copy the weights into the package")
+    p.add_argument("--config", default="{}",
+                   help='JSON overriding the model and training config, e.g. \'{"noise": 0.1}\'')
     p.add_argument("--record", action="store_true",
                    help="copy summary.csv, history.csv and the plot into docs/ and record the figures the camera "
                         "researcher's guide quotes (docs/data/camera_moe.json)")
