@@ -202,13 +202,7 @@ class Windows:
         if len(reset):
             src = self.index[self.rng.integers(len(self.index), size=len(reset))]
             past[reset] = self.cam[src[:, :1], src[:, 1:] + np.arange(-(cfg["past"] - 1), 1) * cfg["step"]]
-        if cfg.get("drift"):
-            # A roll-out's error is a drift: one offset over the whole past window, a little jitter on top,
-            # so the window's own motion (an orbit's turn) stays readable and is not learnt damped.
-            common = self.rng.normal(0.0, noise, (len(rows), 1, past.shape[-1]))
-            past = past + common + self.rng.normal(0.0, noise * (1.0 - cfg["drift"]), past.shape)
-        else:
-            past = past + self.rng.normal(0.0, noise, past.shape)
+        past = past + self.rng.normal(0.0, noise, past.shape)
         # Some see no past camera at all (config "blind"): the framing must come from the gate and the
         # characters, as in a roll-out that starts blind (`usdcrowd frame --like`).
         past[self.rng.random(len(rows)) < cfg.get("blind", 0.0)] = 0.0

@@ -67,22 +67,15 @@ def test_a_style_reading_gate_trains_and_reads_its_features_as_pytorch_does(rng,
     a few clips for one epoch: the weights hold the features' normalisation, and numpy's gate, fed a clip's
     18 features, forms the 5 style features and gates as PyTorch does on all 23 (to 1e-5)."""
     import json
-    import sys
 
     from usdcrowd.cameras.moe import style_features
+    from tests.helpers.tools import load_tool
     from tests.helpers.venvs import tool_python
 
     python = tool_python("torch", ["torch==2.13.0", "numpy", "scikit-learn"], "USDCROWD_TORCH_VENV")
-    sys.path.insert(0, str(TOOLS))
-    import train_camera_moe as tool
-
-    config = dict(tool.CONFIG)
+    tool = load_tool("train_camera_moe")            # a fresh module: its CONFIG is this test's
     tool.CONFIG.update(gate_style=True, style=0.3)
-    try:
-        _, test = tool.make_dataset(tmp_path / "data.npz", 2, 0, frames=240)
-    finally:
-        tool.CONFIG.clear()
-        tool.CONFIG.update(config)
+    _, test = tool.make_dataset(tmp_path / "data.npz", 2, 0, frames=240)
     subprocess.run([python, str(TOOLS / "camera_moe_torch.py"), "train", str(tmp_path / "data.npz"), str(tmp_path),
                     "--epochs", "1", "--moe-only"], check=True, capture_output=True)
     model = CameraMoE(tmp_path / "camera_moe.npz")

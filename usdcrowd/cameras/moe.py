@@ -245,7 +245,6 @@ class Config:
     hidden: int
     gate_hidden: int
     noise: float = 0.0    # training: noise added to the past camera input (robust roll-outs)
-    drift: float = 0.0    # training: the noise is one offset per past window, white only at (1 - drift) of it
     blind: float = 0.0    # training: share of samples shown no past camera (the gate must carry the behavior)
     reset: float = 0.0    # training: share of samples whose past camera is another clip's (a cold start)
     pair: float = 0.0     # training: share of samples gated from the same behavior filming other characters
