@@ -30,6 +30,7 @@ from torch import nn
 
 N_CHAR, N_CAM = 10, 8          # features per frame (usdcrowd.cameras.moe); set from the data read
 N_STYLE = 0                    # the gate's style features (usdcrowd.cameras.moe.style_features), if trained on
+STYLE_FEATURES = 5             # how many there are (usdcrowd.cameras.moe.N_STYLE; this side runs without usdcrowd)
 
 
 def _sizes(n_char: int, n_cam: int, n_style: int = 0) -> None:
@@ -392,7 +393,7 @@ def time_sizes(config: str, samples: int, batches: int = 3, batch: int = 256, se
     """Seconds one training batch takes (forward and backward, both networks as trained) for a config's
     sizes, on random inputs, and what an epoch of ``samples`` would take: the cost of a recipe, measured."""
     cfg = json.loads(config)
-    _sizes(cfg.get("n_char", N_CHAR), cfg.get("n_cam", N_CAM), 5 if cfg.get("gate_style") else 0)
+    _sizes(cfg.get("n_char", N_CHAR), cfg.get("n_cam", N_CAM), STYLE_FEATURES if cfg.get("gate_style") else 0)
     torch.manual_seed(seed)
     model = MoE(cfg)
     opt = torch.optim.Adam(model.parameters(), lr=1e-3)

@@ -88,11 +88,15 @@ def character_features(heads_a, heads_b, yaw_a, yaw_b, fps: float) -> np.ndarray
     ab = (heads_b - heads_a)[:, :2]
     along = ab / np.maximum(np.linalg.norm(ab, axis=1, keepdims=True), 1e-9)
     across = np.stack([-along[:, 1], along[:, 0]], -1)
-    heading = np.unwrap(np.arctan2(ab[:, 1], ab[:, 0]))
-    turn = np.gradient(heading) * fps if len(heading) > 1 else np.zeros_like(heading)
-    turn = moving_average(turn, max(1, int(round(0.5 * fps))))
+    turn = moving_average(_angle_rate(np.arctan2(ab[:, 1], ab[:, 0]), fps), max(1, int(round(0.5 * fps))))
     return np.column_stack([d, np.sin(s_a), np.cos(s_a), np.sin(s_b), np.cos(s_b), np.sin(s_ab), np.cos(s_ab),
                             np.einsum("ti,ti->t", vel, along), np.einsum("ti,ti->t", vel, across), turn])
+
+
+def _angle_rate(angle: np.ndarray, fps: float) -> np.ndarray:
+    """(t,) rad/s of an angle (t,) radians taken unwrapped (0 for a single frame)."""
+    angle = np.unwrap(angle)
+    return np.gradient(angle) * fps if len(angle) > 1 else np.zeros_like(angle)
 
 
 def style_features(char: np.ndarray, cam: np.ndarray, fps: float = 24.0) -> np.ndarray:
@@ -113,8 +117,7 @@ def style_features(char: np.ndarray, cam: np.ndarray, fps: float = 24.0) -> np.n
     char, cam = np.asarray(char, dtype=np.float64), np.asarray(cam, dtype=np.float64)
     bearing = np.arctan2(cam[:, U.start + 1], cam[:, U.start])      # in the pair's frame, from AB
     s_a = np.arctan2(char[:, 1], char[:, 2])
-    rate = np.gradient(np.unwrap(bearing)) * fps if len(bearing) > 1 else np.zeros_like(bearing)
-    turn = moving_average(rate + char[:, 9], max(1, int(round(0.5 * fps))))
+    turn = moving_average(_angle_rate(bearing, fps) + char[:, 9], max(1, int(round(0.5 * fps))))
     c, s = np.cos(bearing), np.sin(bearing)
     return np.column_stack([np.sin(bearing - s_a), np.cos(bearing - s_a), turn,
                             char[:, 7] * c + char[:, 8] * s, -char[:, 7] * s + char[:, 8] * c])
