@@ -2,7 +2,8 @@
 
 The command line turns SIGTERM (``kill``, ``timeout``, a farm's scheduler)
 into :class:`Terminated`, raised in the main thread like Ctrl-C's
-KeyboardInterrupt, so the same clean-up runs for both. Worker processes
+KeyboardInterrupt, so the same clean-up runs for both
+(:func:`stops_as_exceptions`). Worker processes
 ignore SIGINT (a terminal sends it to the whole process group): the parent
 alone decides, and stops them with :func:`stop_pool`.
 """
@@ -11,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import signal
+import sys
 
 # How long a worker gets to exit after SIGTERM before it is killed.
 WORKER_GRACE_S = 1.0
@@ -20,22 +22,96 @@ class Terminated(BaseException):
     """SIGTERM arrived: stop as for Ctrl-C (a BaseException, so no ``except Exception`` swallows it)."""
 
 
-def _raise_terminated(signum, frame):
-    raise Terminated(signum)
+# A stop that lands inside an import can leave a compiled module half set up (USD then warns that its
+# converters are registered twice, or swallows the stop), and one raised in a finaliser is printed and
+# dropped: either is delivered again this much later (until no import is under way).
+STOP_RETRY_S = 0.05
+
+
+def _stop_for(signum: int) -> BaseException:
+    return KeyboardInterrupt() if signum == signal.SIGINT else Terminated(signum)
+
+
+def _importing(frame) -> bool:
+    """Whether ``frame`` runs inside an import (a module's own code, or what it calls)."""
+    while frame is not None:
+        if frame.f_code.co_filename.startswith("<frozen importlib"):
+            return True
+        frame = frame.f_back
+    return False
 
 
 @contextlib.contextmanager
-def terminate_as_exception():
-    """Within: SIGTERM raises :class:`Terminated` in the main thread (the previous handler is restored)."""
+def stops_as_exceptions():
+    """Within: SIGTERM raises :class:`Terminated` and Ctrl-C KeyboardInterrupt in the main thread, and
+    whatever escapes after either arrived leaves as that stop, as does a normal end after one was
+    swallowed (the previous handlers are restored).
+
+    A stop that lands during an import waits for it to end; one raised in a finaliser is delivered
+    again. One can still land inside a library that
+    turns it into something else: numba's dispatcher raises a SystemError; trimesh's optional imports
+    keep any BaseException in a placeholder that fails later. Those are the stop all the same, and leave
+    as it (chained to what they became).
+    """
+    import os
+    import threading
+
+    asked: list[int] = []
+    retries: list[threading.Timer] = []
+    live = True
+
+    def again(signum):
+        if live:
+            os.kill(os.getpid(), signum)
+
+    def later(signum):
+        retry = threading.Timer(STOP_RETRY_S, again, (signum,))
+        retry.daemon = True
+        retries.append(retry)
+        retry.start()
+
+    def stop(signum, frame):
+        asked.append(signum)
+        if _importing(frame):
+            later(signum)
+            return
+        raise _stop_for(signum)
+
+    def unraisable(report):
+        # Raised inside a finaliser (__del__, a weakref's callback), the stop cannot leave it: Python
+        # would print it as "Exception ignored" and go on. It is delivered again instead.
+        if asked and isinstance(report.exc_value, (KeyboardInterrupt, Terminated)):
+            later(asked[0])
+        else:
+            earlier_hook(report)
+
+    earlier_hook, sys.unraisablehook = sys.unraisablehook, unraisable
+
+    previous = {}
     try:
-        previous = signal.signal(signal.SIGTERM, _raise_terminated)
+        previous[signal.SIGTERM] = signal.signal(signal.SIGTERM, stop)
+        # Ctrl-C is taken only where Python's own handler has it: a shell that started us with it
+        # ignored (a background job) meant it to stay ignored.
+        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            previous[signal.SIGINT] = signal.signal(signal.SIGINT, stop)
     except ValueError:                      # not the main thread: leave signals alone
-        yield
-        return
+        pass
     try:
         yield
+    except BaseException as exc:
+        if asked and not isinstance(exc, (KeyboardInterrupt, Terminated)):
+            raise _stop_for(asked[0]) from exc
+        raise
+    else:
+        if asked:       # swallowed on the way, or still waiting for an import: the exit says it
+            raise _stop_for(asked[0])
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        live = False
+        sys.unraisablehook = earlier_hook
+        for retry in retries:
+            retry.cancel()
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
 
 
 @contextlib.contextmanager

@@ -121,6 +121,17 @@ def test_console_script_runs_as_installed(tmp_path):
     _assert_one_line_error(out.returncode, out.stderr, "missing.usda", "no such file")
 
 
+def test_the_command_line_reads_its_arguments_before_loading_the_heavy_libraries():
+    """Building the parser (every command, --help included) loads none of numba, scipy, trimesh, the
+    renderers or the learning libraries: a command answers at once, and a Ctrl-C in the first second
+    lands in usdcrowd's own handlers rather than in a half-imported library."""
+    heavy = ("numba", "scipy", "trimesh", "mitsuba", "drjit", "torch", "ray", "OpenGL", "mediapipe")
+    probe = ("import sys, usdcrowd.cli as c; c.build_parser(); "
+             f"print(' '.join(m for m in {heavy!r} if m in sys.modules))")
+    loaded = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout
+    assert loaded.split() == []
+
+
 def test_demo_runs_the_whole_chain(tmp_path, capsys):
     code, stdout, _ = _run(capsys, "demo", "-o", str(tmp_path / "demo"), "--no-progress")
     assert code == 0, stdout

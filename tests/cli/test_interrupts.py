@@ -20,6 +20,7 @@ psutil = pytest.importorskip("psutil")
 from tests.helpers.shots import cli_museum_shot  # noqa: E402
 
 from usdcrowd.cli import main  # noqa: E402
+from usdcrowd.interrupts import Terminated  # noqa: E402
 
 pytestmark = pytest.mark.slow
 USDCROWD = [sys.executable, "-m", "usdcrowd"]
@@ -253,30 +254,95 @@ def test_a_part_writer_cut_off_mid_message_ends_quietly():
     assert r.stdout.strip() == "0" and r.stderr == "", r.stderr
 
 
-@pytest.mark.parametrize("stop, code, word", [(KeyboardInterrupt, 130, "interrupted"), (None, 143, "terminated")])
-def test_a_stop_wrapped_by_numbas_dispatcher_is_still_a_stop(monkeypatch, capsys, stop, code, word):
-    """A Ctrl-C (or SIGTERM) that lands while numba loads a compiled loop reaches the CLI as a SystemError
-    whose context is the stop: one line and the stop's exit code, as for the bare stop; any other
-    SystemError stays an error."""
+@pytest.mark.parametrize("signum, code, word", [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated")])
+@pytest.mark.parametrize("becomes", [SystemError, TypeError])
+def test_a_stop_a_library_turned_into_another_error_is_still_a_stop(monkeypatch, capsys, signum, code, word, becomes):
+    """A Ctrl-C (or SIGTERM) that lands inside a library that makes something else of it (numba's
+    dispatcher: a SystemError; trimesh's optional imports: a TypeError later) is reported as the stop it
+    was: one line and the stop's exit code. Without a signal, the same error stays an error."""
     import usdcrowd.cli as cli
-    from usdcrowd.interrupts import Terminated
 
-    stop = stop or Terminated
-
-    def wrapped(args):
+    def library_call():
         try:
-            raise stop()
-        except BaseException:    # raised while handling it: the stop becomes the SystemError's context
-            raise SystemError("CPUDispatcher(<function sight_rounds>) returned a result with an exception set")
+            signal.raise_signal(signum)         # delivered through the command line's own handlers
+        except BaseException:                   # what the library does with it
+            pass
+        raise becomes("unsupported operand type(s) for |: 'ExceptionWrapper' and 'NoneType'")
 
-    monkeypatch.setattr(cli, "_run_guarded", wrapped)
+    monkeypatch.setattr(cli, "_warn_if_stale", lambda args: library_call())
     assert main(["new", "museum", "-o", "unused.usda"]) == code
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and word in err[0], err
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler    # handlers given back
 
     def other(args):
-        raise SystemError("something else")
+        raise becomes("something else")
 
-    monkeypatch.setattr(cli, "_run_guarded", other)
-    with pytest.raises(SystemError):
+    monkeypatch.setattr(cli, "_warn_if_stale", other)
+    with pytest.raises(becomes):
         main(["new", "museum", "-o", "unused.usda"])
+
+
+@pytest.mark.parametrize("signum, stop", [(signal.SIGINT, KeyboardInterrupt), (signal.SIGTERM, Terminated)])
+def test_a_stop_that_lands_in_an_import_waits_for_it_to_end(tmp_path, monkeypatch, signum, stop):
+    """A Ctrl-C or kill that arrives while a module is being imported is raised after the import, never
+    inside it: a compiled module cut half-way through its set-up (USD's) warns at the next import or
+    swallows the stop. The module is whole, and the stop still comes, within a fraction of a second."""
+    from usdcrowd.interrupts import STOP_RETRY_S, stops_as_exceptions
+
+    (tmp_path / "slow_to_set_up.py").write_text(
+        "import signal\n"
+        f"signal.raise_signal({int(signum)})\n"
+        "try:\n"
+        "    import time; time.sleep(0.01)\n"
+        "except BaseException:      # as USD's module set-up does: report and go on\n"
+        "    SWALLOWED = True\n"
+        "WHOLE = True\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.delitem(sys.modules, "slow_to_set_up", raising=False)
+    before = signal.getsignal(signum)
+    done = []
+    with pytest.raises(stop), stops_as_exceptions():
+        import slow_to_set_up
+
+        done.append("import")
+        time.sleep(20 * STOP_RETRY_S)
+        done.append("wait")
+    assert done == ["import"], "the stop came inside the import" if not done else "the stop never came"
+    assert slow_to_set_up.WHOLE and not hasattr(slow_to_set_up, "SWALLOWED")
+    assert signal.getsignal(signum) is before
+
+
+def test_a_stop_swallowed_on_the_way_still_ends_the_command_as_a_stop(tmp_path, monkeypatch, capsys):
+    """Work that ends normally after a library swallowed a Ctrl-C exits as interrupted (130), so a
+    scheduler or a script knows the run was stopped."""
+    import usdcrowd.cli as cli
+
+    def swallowing(args):
+        try:
+            signal.raise_signal(signal.SIGINT)
+        except KeyboardInterrupt:
+            pass
+
+    monkeypatch.setattr(cli, "_warn_if_stale", swallowing)
+    assert main(["new", "museum", "-o", str(tmp_path / "museum.usda")]) == 130
+    assert "interrupted" in capsys.readouterr().err
+
+
+def test_a_stop_raised_in_a_finaliser_is_delivered_again(capsys):
+    """A Ctrl-C whose handler runs inside a __del__ cannot leave it (Python prints "Exception ignored"
+    and goes on): it is delivered again just after, and nothing is printed."""
+    from usdcrowd.interrupts import STOP_RETRY_S, stops_as_exceptions
+
+    class Finalised:
+        def __del__(self):
+            signal.raise_signal(signal.SIGINT)
+
+    done = []
+    with pytest.raises(KeyboardInterrupt), stops_as_exceptions():
+        Finalised()
+        done.append("finalised")
+        time.sleep(20 * STOP_RETRY_S)
+        done.append("wait")
+    assert done == ["finalised"]
+    assert capsys.readouterr().err == ""

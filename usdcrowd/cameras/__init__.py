@@ -15,9 +15,19 @@ Pure numpy/scipy on arrays (no USD, no renderer). Where things are:
 - ``metrics``: seed 000's activity metric and viewed ratio (Algorithm 7).
 """
 
-from .film import film
-from .overview import overview_track
-from .params import CameraParams
-from .placement import generated_agents, static_cameras
+import importlib
 
-__all__ = ["CameraParams", "film", "generated_agents", "overview_track", "static_cameras"]
+# Loaded on first use: the command line reads the behaviors' names from this package while it builds its
+# parser, and must not wait for scipy (nor have a Ctrl-C land in its import) to do so.
+# (``film`` the function is imported from ``film`` the module: here the name would be one or the other
+# depending on what was imported first.)
+_WHERE = {"CameraParams": "params", "generated_agents": "placement", "overview_track": "overview",
+          "static_cameras": "placement"}
+
+__all__ = sorted(_WHERE)
+
+
+def __getattr__(name):
+    if name not in _WHERE:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(importlib.import_module(f".{_WHERE[name]}", __name__), name)

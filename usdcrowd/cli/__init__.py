@@ -14,7 +14,7 @@ import sys
 
 from .. import __version__
 from ..core.errors import UsdcrowdError
-from ..interrupts import Terminated, terminate_as_exception
+from ..interrupts import Terminated, stops_as_exceptions
 from . import (cameras, dataset, demo, edit, export, features, frame, inspect_cmd, metrics, new, place, preview,
                render, replay, simulate, validate)
 
@@ -60,8 +60,8 @@ def _run_guarded(args) -> int:
 
     files = _named(args, getattr(args, "outputs", ()))
     folders = _named(args, getattr(args, "output_folders", ()))
-    with terminate_as_exception(), guard.session(_named(args, getattr(args, "inputs", ())), outputs=files + folders,
-                                                 force=getattr(args, "force", False), command=args.command):
+    with guard.session(_named(args, getattr(args, "inputs", ())), outputs=files + folders,
+                       force=getattr(args, "force", False), command=args.command):
         # Before any work, not when the output is finally written (folders are checked as they are claimed).
         for path in files + folders:
             guard.check_not_input(path)
@@ -91,11 +91,21 @@ def _warn_if_stale(args) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit code."""
-    parser = build_parser()
+    args = None
     try:
-        args = parser.parse_args(argv)
-    except SystemExit as exc:               # a usage error (printed), --help or --version: an exit code, as the rest
-        return int(exc.code or 0)
+        with stops_as_exceptions():         # from the start: a stop never lands in Python's default handlers
+            parser = build_parser()
+            try:
+                args = parser.parse_args(argv)
+            except SystemExit as exc:       # a usage error (printed), --help or --version: an exit code, as the rest
+                return int(exc.code or 0)
+            return _run_reported(args)
+    except (KeyboardInterrupt, Terminated) as exc:
+        return _after_a_stop(getattr(args, "command", None) or "", exc)
+
+
+def _run_reported(args) -> int:
+    """The command, with a user's mistake or the machine's failure said in one line."""
     try:
         return _run_guarded(args)
     except UsdcrowdError as exc:
@@ -113,17 +123,6 @@ def main(argv: list[str] | None = None) -> int:
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"usdcrowd {args.command}: error: {where}{(exc.strerror or str(exc)).lower()}", file=sys.stderr)
         return EXIT_USER_ERROR
-    except (KeyboardInterrupt, Terminated) as exc:
-        return _after_a_stop(args.command, exc)
-    except SystemError as exc:
-        # numba's dispatcher turns a Ctrl-C that lands while it loads a compiled loop into a SystemError
-        # whose context is the KeyboardInterrupt: a stop all the same.
-        stop = exc.__context__
-        while stop is not None and not isinstance(stop, (KeyboardInterrupt, Terminated)):
-            stop = stop.__context__
-        if stop is None:
-            raise
-        return _after_a_stop(args.command, stop)
 
 
 def _after_a_stop(command: str, stop: BaseException) -> int:
@@ -133,7 +132,8 @@ def _after_a_stop(command: str, stop: BaseException) -> int:
     import gc
 
     how, code = ("interrupted", 130) if isinstance(stop, KeyboardInterrupt) else ("terminated", 143)
-    print(f"usdcrowd {command}: {how} (finished outputs kept; run it again to resume)", file=sys.stderr)
+    who = f"usdcrowd {command}" if command else "usdcrowd"      # stopped before its command was read
+    print(f"{who}: {how} (finished outputs kept; run it again to resume)", file=sys.stderr)
     gc.collect()
     return code
 

@@ -5,9 +5,11 @@ from __future__ import annotations
 from .args import add_force, finite_float
 
 
-def add_parser(sub):
-    from ..usd.place import DEFAULT_NAME
+# usdcrowd.usd.place.DEFAULT_NAME, spelled out: importing usdcrowd.usd would load numba for every command.
+DEFAULT_NAME = "Shot"
 
+
+def add_parser(sub):
     p = sub.add_parser("place", help="place a shot in a set: a new stage over the set that references the shot",
                        description="Write a stage that sublayers SET (never rewritten) and references SHOT under "
                                    "the set's default prim, moved to --at and turned by --rotate, with the shot's "

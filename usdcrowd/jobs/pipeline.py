@@ -274,7 +274,8 @@ def film_cameras(scenario: model.Scenario, positions, events: model.EventTable, 
         The crowd's centroid and spread per frame (:func:`cameras.overview.crowd_summary`),
         when already known.
     """
-    from ..cameras import film, generated_agents, overview_track, static_cameras
+    from ..cameras import generated_agents, overview_track, static_cameras
+    from ..cameras.film import film
     from ..cameras.overview import crowd_summary
     from ..cameras.placement import concat_agents, crowd_extent, take_agents
 
