@@ -143,9 +143,6 @@ class Windows:
         if "gate_style" in data:
             self.gate_extra = (data["gate_style"] - stats["style_mean"]) / stats["style_std"]
             self.ref_extra = (data["ref_gate_style"] - stats["style_mean"]) / stats["style_std"]
-            if cfg.get("style_window"):         # read as window means (below): running sums, (c, t + 1, 5)
-                self.gate_extra, self.ref_extra = (np.concatenate([np.zeros_like(a[:, :1]), np.cumsum(a, axis=1)], 1)
-                                                   for a in (self.gate_extra, self.ref_extra))
         self.style = data["style"] if "style" in data else None
         c, t, _ = self.char.shape
         lo = (cfg["past"] - 1) * cfg["step"]
@@ -165,15 +162,7 @@ class Windows:
         else:
             start = np.full(len(clips), (t - 1 - span) // 2)
         idx = start[:, None] + np.arange(cfg["gate_len"]) * cfg["gate_step"]
-
-        def extra(a):
-            if a is None:
-                return []
-            if not cfg.get("style_window"):
-                return [a[clips[:, None], idx]]
-            mean = (a[clips, start + span + 1] - a[clips, start]) / (span + 1)     # every frame of the window
-            return [np.repeat(mean[:, None], cfg["gate_len"], axis=1)]
-
+        extra = lambda a: [] if a is None else [a[clips[:, None], idx]]  # noqa: E731
         own = np.concatenate([self.char[clips[:, None], idx], self.cam[clips[:, None], idx], *extra(self.gate_extra)],
                              axis=-1)
         if not random or self.ref_char is None or not cfg.get("pair", 0.0):

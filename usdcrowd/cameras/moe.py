@@ -258,7 +258,6 @@ class Config:
     eta: float = 1.0      # training: weight of the predicted samples after the first (the paper's Eq. 6: 0.1)
     style: float = 0.0    # training: weight of the gate's auxiliary loss on the controllers' parameters
     gate_style: bool = False  # the gate also reads style_features (the weights hold their normalisation)
-    style_window: bool = False  # ... as their means over the gate's whole window, the same at each sample
     n_style: int = 0      # training: how many such labels
 
     @property
@@ -295,16 +294,11 @@ class CameraMoE:
         trained on them): the middle of the clip, sampled every gate_step frames."""
         c = self.config
         parts = [(char - self.w["char_mean"]) / self.w["char_std"], (cam - self.w["cam_mean"]) / self.w["cam_std"]]
-        idx = np.arange(c.gate_len) * c.gate_step
-        start = max(0, (len(char) - 1 - idx[-1]) // 2)
         if "style_mean" in self.w:
-            style = (style_features(char, cam) - self.w["style_mean"]) / self.w["style_std"]
-            if c.style_window:
-                # Every frame of the window, not only the samples: a clip's estimated bearing wobbles
-                # from frame to frame, the camera's style does not.
-                style = np.broadcast_to(style[start:start + idx[-1] + 1].mean(axis=0), style.shape)
-            parts.append(style)
+            parts.append((style_features(char, cam) - self.w["style_mean"]) / self.w["style_std"])
         feats = np.column_stack(parts)
+        idx = np.arange(c.gate_len) * c.gate_step
+        start = max(0, (len(feats) - 1 - idx[-1]) // 2)
         return feats[np.clip(start + idx, 0, len(feats) - 1)]
 
     def gate(self, char: np.ndarray, cam: np.ndarray) -> np.ndarray:
