@@ -65,7 +65,8 @@ def test_numpy_inference_equals_pytorchs(moe, rng, tmp_path):
 def test_a_style_reading_gate_trains_and_reads_its_features_as_pytorch_does(rng, tmp_path):
     """The training recipe with the gate's style features and its auxiliary loss (config gate_style, style), on
     a few clips for one epoch: the weights hold the features' normalisation, and numpy's gate, fed a clip's
-    18 features, forms the 5 style features and gates as PyTorch does on all 23 (to 1e-5)."""
+    18 features, forms the 5 style features and gates as PyTorch does on all 23 (to 1e-5), and as training's
+    own windows of the test clips did."""
     import json
 
     from usdcrowd.cameras.moe import style_features
@@ -93,6 +94,8 @@ def test_a_style_reading_gate_trains_and_reads_its_features_as_pytorch_does(rng,
                     str(tmp_path / "inputs.npz"), str(tmp_path / "out.npz")], check=True)
     np.testing.assert_allclose(model.gate(clip.character, clip.camera), np.load(tmp_path / "out.npz")["gate"][0],
                                atol=1e-5)
+    trained = np.load(tmp_path / "gates.npz")["gates"]       # PyTorch's gate on its own windows of the test clips
+    np.testing.assert_allclose([model.gate(k.character, k.camera) for k in test], trained, atol=1e-5)
 
 
 def test_any_prediction_makes_a_level_camera_at_its_spans_distance(rng):
