@@ -13,9 +13,10 @@ inputs and outputs. Within it:
   render...) is refused for another;
 - each top-level entry usdcrowd writes in an output folder is recorded in
   ``.usdcrowd/written`` (one JSON line per write: a folder's name, or a
-  file's name, size, mtime and the command that wrote it). A file whose
-  size and mtime match none of the versions usdcrowd wrote was changed by
-  someone else and is theirs now; a folder usdcrowd made is usdcrowd's
+  file's name, size, mtime, content digest and the command that wrote it).
+  A file whose size and mtime match none of the versions usdcrowd wrote,
+  nor its content any of theirs (a copy, ``cp -r``, has new mtimes), was
+  changed by someone else and is theirs now; a folder usdcrowd made is usdcrowd's
   with everything in it. Only usdcrowd's entries are ever replaced or
   removed, ``force`` or not (``force`` replaces only a file the user named).
 
@@ -36,6 +37,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .core.errors import UsdcrowdError
+
+# Files up to this size are also known by a digest of their content (read once more as they are written).
+DIGEST_MAX_BYTES = 64 << 20
 
 # The temporary names usdcrowd writes under before a rename: ".<stem>.partial-<8 hex><suffix>".
 PARTIAL_NAME = re.compile(r"^\..+\.partial-[0-9a-f]{8}(\.[^/]*)?$")
@@ -107,8 +111,14 @@ class Session:
             return True
         if entry["kind"] == "dir":
             return os.path.isdir(root / name) and not os.path.islink(root / name)
-        # Any version usdcrowd wrote: the one a kill left just before its rename, or one a rollback put back.
-        return entry["kind"] == "file" and (st.st_size, st.st_mtime_ns) in entry["states"]
+        # Any version usdcrowd wrote: the one a kill left just before its rename, or one a rollback put back;
+        # or the same bytes with a new mtime (a copied folder).
+        if entry["kind"] != "file":
+            return False
+        if (st.st_size, st.st_mtime_ns) in entry["states"]:
+            return True
+        return (bool(entry["digests"]) and any(st.st_size == size for size, _ in entry["states"])
+                and _digest(root / name, st.st_size) in entry["digests"])
 
     def record(self, root: Path, name: str) -> None:
         """Note that usdcrowd wrote (or made) the entry ``name`` at the top of ``root``."""
@@ -122,13 +132,15 @@ class Session:
         else:
             self.record_file(root, name, st)
 
-    def record_file(self, root: Path, name: str, st: os.stat_result) -> None:
-        """Note the file ``name`` at the top of ``root`` with the size and mtime of ``st`` (once per version)."""
+    def record_file(self, root: Path, name: str, st: os.stat_result, content: Path | None = None) -> None:
+        """Note the file ``name`` at the top of ``root`` with the size and mtime of ``st`` and the digest of
+        ``content`` (the file itself unless given: the temporary file about to be renamed onto it), once per
+        version."""
         now = self.entries(root).get(name, {})
         if now.get("kind") == "file" and (now["size"], now["mtime_ns"]) == (st.st_size, st.st_mtime_ns):
             return
         self._append(root, {"kind": "file", "name": name, "size": st.st_size, "mtime_ns": st.st_mtime_ns,
-                            "by": self.command})
+                            "digest": _digest(content or root / name, st.st_size), "by": self.command})
 
     def record_dir(self, root: Path, name: str) -> None:
         """Note that usdcrowd makes the folder ``name`` at the top of ``root`` (before making it)."""
@@ -152,13 +164,30 @@ class Session:
 
 
 def _merge(table: dict, entry: dict) -> None:
-    """Add a record line to ``{name: entry}``; a file's entry keeps every (size, mtime_ns) usdcrowd gave it."""
+    """Add a record line to ``{name: entry}``; a file's entry keeps every (size, mtime_ns) usdcrowd gave it,
+    and every digest."""
     name = entry["name"]
     if entry["kind"] == "file":
         before = table.get(name, {})
-        entry["states"] = (before.get("states", set()) if before.get("kind") == "file" else set()) | {
-            (entry["size"], entry["mtime_ns"])}
+        if before.get("kind") != "file":
+            before = {}
+        entry["states"] = before.get("states", set()) | {(entry["size"], entry["mtime_ns"])}
+        entry["digests"] = before.get("digests", set()) | ({entry["digest"]} if entry.get("digest") else set())
     table[name] = entry
+
+
+def _digest(path, size: int) -> str | None:
+    """A hex digest of the file's content, or None for one larger than :data:`DIGEST_MAX_BYTES` (a crowd
+    layer of gigabytes is known by its size and mtime alone) or one that cannot be read."""
+    import hashlib
+
+    if size > DIGEST_MAX_BYTES:
+        return None
+    try:
+        with open(path, "rb") as fh:
+            return hashlib.file_digest(fh, "blake2b").hexdigest()[:32]
+    except OSError:
+        return None
 
 
 _SESSION: Session | None = None
@@ -392,7 +421,7 @@ def will_write(tmp, final) -> None:
     root, name = _top(s, final)
     if _partial(name) or root / name != final:
         return                              # inside a folder of usdcrowd's: the folder's entry covers it
-    s.record_file(root, name, os.stat(tmp))
+    s.record_file(root, name, os.stat(tmp), Path(tmp))
 
 
 def wrote(final) -> None:

@@ -163,6 +163,25 @@ def test_cameras_keeps_a_hand_edited_cameras_layer_unless_forced(shot_copy, caps
     assert b"a camera added by hand" not in cams.read_bytes()
 
 
+def test_a_shot_folder_copied_with_new_mtimes_is_still_usdcrowds(shot_copy, tmp_path, capsys):
+    """``cp -r`` gives every file a new mtime: the copy's camera layer is known by its content and replaced
+    without --force; an edit made in the copy is still the user's and kept."""
+    import shutil
+
+    copy = tmp_path / "copy"
+    shutil.copytree(shot_copy, copy, copy_function=shutil.copy)     # content, not times
+    cams = copy / "cameras.usda"
+    assert cams.stat().st_mtime_ns != (shot_copy / "cameras.usda").stat().st_mtime_ns
+    assert main(["cameras", str(copy / "shot.usda"), "--count", "1", "--no-progress"]) == 0
+    text = cams.read_text()
+    cams.write_text(text.replace("usdcrowd cameras", "usdcrowd Cameras", 1))   # the same size: read it
+    before = cams.read_bytes()
+    capsys.readouterr()
+    assert main(["cameras", str(copy / "shot.usda"), "--count", "1", "--no-progress"]) == 2
+    one_line_error(capsys, "cameras.usda", "changed since usdcrowd wrote it")
+    assert cams.read_bytes() == before
+
+
 def test_a_folder_of_one_kind_is_refused_for_another(shot_copy, tmp_path, capsys):
     before = digest_tree(shot_copy)
     capsys.readouterr()
