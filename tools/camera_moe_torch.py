@@ -86,21 +86,30 @@ class MoE(nn.Module):
     def __init__(self, cfg: dict):
         super().__init__()
         self.gate = Gate(cfg["gate_hidden"], cfg["experts"])
+        # Config "expert_style": the experts also read the reference's style features (their means over the
+        # gate's window), after the past camera and the characters.
+        self.expert_style = bool(cfg.get("expert_style")) and N_STYLE > 0
         n_in = cfg["past"] * N_CAM + (cfg["char_past"] + cfg["char_future"]) * N_CHAR
-        self.experts = Experts(cfg["experts"], n_in, cfg["hidden"], cfg["out"] * N_CAM)
+        self.experts = Experts(cfg["experts"], n_in + (N_STYLE if self.expert_style else 0), cfg["hidden"],
+                               cfg["out"] * N_CAM)
         if cfg.get("style") and cfg.get("n_style"):
             # Training only: the style labels read linearly from the gate's logits (config "style").
             self.style = nn.Linear(cfg["experts"], cfg["n_style"])
 
     def forward(self, gate_x, x):
-        w = self.gate(gate_x)
-        return self.experts(x, w), w
+        w = self.weights(gate_x)
+        return self.step(x, w), w[..., :self.gate.fc.out_features]
 
     def weights(self, gate_x):
-        return self.gate(gate_x)
+        """(b, m) expert weights, followed with config "expert_style" by the (b, 5) style the experts read."""
+        return self.with_style(self.gate(gate_x), gate_x)
+
+    def with_style(self, w, gate_x):
+        return torch.cat([w, gate_x[:, :, -N_STYLE:].mean(1)], 1) if self.expert_style else w
 
     def step(self, x, w):
-        return self.experts(x, w)
+        m = self.gate.fc.out_features
+        return self.experts(torch.cat([x, w[:, m:]], 1) if self.expert_style else x, w[:, :m])
 
 
 class SharedBottom(nn.Module):
@@ -313,7 +322,7 @@ def train(data_path: str, out_dir: str, epochs: int, seed: int, batch: int = 256
                 loss = 0.0
                 if name == "moe" and cfg.get("style"):
                     logits = model.gate.logits(g)
-                    w = torch.softmax(logits, dim=-1)
+                    w = model.with_style(torch.softmax(logits, dim=-1), g)
                     loss = cfg["style"] * torch.mean((model.style(logits) - style) ** 2)
                 else:
                     w = model.weights(g)
@@ -384,8 +393,8 @@ def forward(weights: str, inputs: str, out: str) -> None:
     torch.set_default_dtype(torch.float64)
     model = model.double()
     with torch.no_grad():
-        gate = model.gate(torch.tensor(data["gate_x"], dtype=torch.float64))
-        pred = model.experts(torch.tensor(data["x"], dtype=torch.float64), torch.tensor(data["w"], dtype=torch.float64))
+        gate = model.weights(torch.tensor(data["gate_x"], dtype=torch.float64))
+        pred = model.step(torch.tensor(data["x"], dtype=torch.float64), torch.tensor(data["w"], dtype=torch.float64))
     np.savez(out, gate=gate.numpy(), pred=pred.numpy())
 
 

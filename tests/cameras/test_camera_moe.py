@@ -62,11 +62,14 @@ def test_numpy_inference_equals_pytorchs(moe, rng, tmp_path):
 
 
 @pytest.mark.slow
-def test_a_style_reading_gate_trains_and_reads_its_features_as_pytorch_does(rng, tmp_path):
+@pytest.mark.parametrize("experts_read_it", [False, True])
+def test_a_style_reading_gate_trains_and_reads_its_features_as_pytorch_does(rng, tmp_path, experts_read_it):
     """The training recipe with the gate's style features and its auxiliary loss (config gate_style, style), on
     a few clips for one epoch: the weights hold the features' normalisation, and numpy's gate, fed a clip's
     18 features, forms the 5 style features and gates as PyTorch does on all 23 (to 1e-5), and as training's
-    own windows of the test clips did."""
+    own windows of the test clips did. With config expert_style the experts also read the style (its mean
+    over the gate's window): numpy's gate hands it on after the mix, and numpy's experts, blended for a
+    roll-out with the style folded into the first bias, predict as PyTorch's."""
     import json
 
     from usdcrowd.cameras.moe import style_features
@@ -75,27 +78,34 @@ def test_a_style_reading_gate_trains_and_reads_its_features_as_pytorch_does(rng,
 
     python = tool_python("torch", ["torch==2.13.0", "numpy", "scikit-learn"], "USDCROWD_TORCH_VENV")
     tool = load_tool("train_camera_moe")            # a fresh module: its CONFIG is this test's
-    tool.CONFIG.update(gate_style=True, style=0.3)
+    tool.CONFIG.update(gate_style=True, style=0.3, expert_style=experts_read_it)
     _, test = tool.make_dataset(tmp_path / "data.npz", 2, 0, frames=240)
     subprocess.run([python, str(TOOLS / "camera_moe_torch.py"), "train", str(tmp_path / "data.npz"), str(tmp_path),
                     "--epochs", "1", "--moe-only"], check=True, capture_output=True)
     model = CameraMoE(tmp_path / "camera_moe.npz")
-    assert model.config.gate_style and model.w["style_mean"].shape == (N_STYLE,)
+    c = model.config
+    assert c.gate_style and c.expert_style == experts_read_it and model.w["style_mean"].shape == (N_STYLE,)
     assert json.loads(str(np.load(tmp_path / "camera_moe.npz")["config"]))["n_style"] == 10
     clip = test[0]
     gate_x = model.gate_input(clip.character, clip.camera)[None]
+    style = (style_features(clip.character, clip.camera)[np.arange(c.gate_len) * c.gate_step
+                                                         + (len(clip.camera) - 1 - (c.gate_len - 1) * c.gate_step) // 2])
     np.testing.assert_allclose(gate_x[0, :, N_CHARACTER + N_CAMERA:] * model.w["style_std"] + model.w["style_mean"],
-                               style_features(clip.character, clip.camera)[
-                                   np.arange(model.config.gate_len) * model.config.gate_step
-                                   + (len(clip.camera) - 1 - (model.config.gate_len - 1) * model.config.gate_step) // 2],
-                               atol=1e-9)
-    np.savez(tmp_path / "inputs.npz", gate_x=gate_x, x=rng.normal(size=(1, model.config.n_in)), w=np.ones((1, 9)) / 9)
+                               style, atol=1e-9)
+    w = model.gate(clip.character, clip.camera)
+    assert len(w) == 9 + (N_STYLE if experts_read_it else 0)
+    if experts_read_it:                             # the normalised style, averaged over the window
+        np.testing.assert_allclose(w[9:] * model.w["style_std"] + model.w["style_mean"], style.mean(0), atol=1e-9)
+    x = rng.normal(size=(1, c.n_in))
+    np.savez(tmp_path / "inputs.npz", gate_x=gate_x, x=x, w=w[None])
     subprocess.run([python, str(TOOLS / "camera_moe_torch.py"), "forward", str(tmp_path / "camera_moe.npz"),
                     str(tmp_path / "inputs.npz"), str(tmp_path / "out.npz")], check=True)
-    np.testing.assert_allclose(model.gate(clip.character, clip.camera), np.load(tmp_path / "out.npz")["gate"][0],
-                               atol=1e-5)
+    torch_out = np.load(tmp_path / "out.npz")
+    np.testing.assert_allclose(w, torch_out["gate"][0], atol=1e-5)
+    np.testing.assert_allclose(model.predict_experts(w[None], x), torch_out["pred"], atol=1e-5)
+    np.testing.assert_allclose(model.predict(model.blend(w), x), torch_out["pred"], atol=1e-5)
     trained = np.load(tmp_path / "gates.npz")["gates"]       # PyTorch's gate on its own windows of the test clips
-    np.testing.assert_allclose([model.gate(k.character, k.camera) for k in test], trained, atol=1e-5)
+    np.testing.assert_allclose([model.gate(k.character, k.camera)[:9] for k in test], trained, atol=1e-5)
 
 
 def test_any_prediction_makes_a_level_camera_at_its_spans_distance(rng):

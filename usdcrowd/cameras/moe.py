@@ -258,6 +258,7 @@ class Config:
     eta: float = 1.0      # training: weight of the predicted samples after the first (the paper's Eq. 6: 0.1)
     style: float = 0.0    # training: weight of the gate's auxiliary loss on the controllers' parameters
     gate_style: bool = False  # the gate also reads style_features (the weights hold their normalisation)
+    expert_style: bool = False  # ... and so do the experts: their means over the gate's window, after n_in
     n_style: int = 0      # training: how many such labels
 
     @property
@@ -302,8 +303,16 @@ class CameraMoE:
         return feats[np.clip(start + idx, 0, len(feats) - 1)]
 
     def gate(self, char: np.ndarray, cam: np.ndarray) -> np.ndarray:
-        """(m,) expert weights (sum 1) for a reference clip's (t, 10) character and (t, 8) camera features."""
-        return self.gate_sequence(self.gate_input(char, cam)[None])[0]
+        """(m,) expert weights (sum 1) for a reference clip's (t, 10) character and (t, 8) camera features; a
+        model trained with ``expert_style`` follows them with the (N_STYLE,) normalised style its experts read
+        (a mix and a style, interpolated alike between references)."""
+        x = self.gate_input(char, cam)
+        w = self.gate_sequence(x[None])[0]
+        return np.concatenate([w, x[:, -N_STYLE:].mean(axis=0)]) if self.config.expert_style else w
+
+    @property
+    def n_experts(self) -> int:
+        return int(self.w["gate.fc.bias"].shape[0])
 
     def gate_sequence(self, x: np.ndarray) -> np.ndarray:
         """(b, m) expert weights of (b, gate_len, 18) normalised sequences: the LSTM's last state, FC, softmax."""
@@ -332,9 +341,16 @@ class CameraMoE:
 
     # -------------------------------------------------------------- prediction
     def blend(self, weights: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
-        """The prediction network's three layers for one expert mix: [(W (in, out), b (out,)), ...]."""
+        """The prediction network's three layers for one expert mix (:meth:`gate`): [(W (in, out), b (out,)),
+        ...]; the style an ``expert_style`` model's experts read is constant over a roll-out, so it is folded
+        into the first layer's bias."""
         wt = np.asarray(weights, dtype=np.float64)
-        return [(np.tensordot(wt, self.w[f"experts.w{k}"], 1), wt @ self.w[f"experts.b{k}"]) for k in (1, 2, 3)]
+        mix, style = wt[:self.n_experts], wt[self.n_experts:]
+        layers = [(np.tensordot(mix, self.w[f"experts.w{k}"], 1), mix @ self.w[f"experts.b{k}"]) for k in (1, 2, 3)]
+        if len(style):
+            w1, b1 = layers[0]
+            layers[0] = (w1[:-len(style)], b1 + style @ w1[-len(style):])
+        return layers
 
     def predict(self, layers, x: np.ndarray) -> np.ndarray:
         """(b, out * 8) normalised camera features of the next ``out`` samples from (b, n_in) normalised inputs."""
@@ -342,11 +358,13 @@ class CameraMoE:
         return _elu(_elu(x @ w1 + b1) @ w2 + b2) @ w3 + b3
 
     def predict_experts(self, weights: np.ndarray, x: np.ndarray) -> np.ndarray:
-        """As :meth:`predict` with a mix per row ((b, m) weights): the training's form, for the tests."""
-        out = x
+        """As :meth:`predict` with a mix per row ((b, m) weights, or (b, m + N_STYLE) as :meth:`gate` gives an
+        ``expert_style`` model's): the training's form, for the tests."""
+        m = self.n_experts
+        out = np.concatenate([x, weights[:, m:]], axis=1)
         for k in (1, 2, 3):
             per = np.einsum("bi,mio->bmo", out, self.w[f"experts.w{k}"]) + self.w[f"experts.b{k}"][None]
-            out = np.einsum("bm,bmo->bo", weights, per)
+            out = np.einsum("bm,bmo->bo", weights[:, :m], per)
             if k < 3:
                 out = _elu(out)
         return out
