@@ -241,19 +241,25 @@ def experts(record: dict, epochs: int) -> str:
 PAPER_RECIPE = {"past": 12, "eta": 0.1}
 # The shipped recipe with a gate that also reads the style features and learns the controllers' parameters.
 STYLE_GATE = {"gate_style": True, "style": 0.3}
+# ... and experts that read the style features too (their means over the gate's window).
+EXPERTS_STYLE = {**STYLE_GATE, "expert_style": True}
+
+
+RECIPE_NAMES = ("shipped", "paper_recipe", "style_gate", "experts_style")
 
 
 def recipes(record: dict) -> None:
-    """The shipped recipe, the paper's (its windows and Eq. 6) and one whose gate reads the style features,
-    trained alike, 25 epochs each, and scored on the same held-out clips (train_camera_moe's evaluation, from
-    build/camera_moe_recipe_ours, build/camera_moe_paper_recipe and build/camera_moe_style_gate, each
-    trained first unless it is there)."""
+    """The shipped recipe, the paper's (its windows and Eq. 6), one whose gate reads the style features and
+    one whose experts read them too, trained alike, 25 epochs each, and scored on the same held-out clips
+    (train_camera_moe's evaluation, from build/camera_moe_recipe_ours, build/camera_moe_paper_recipe,
+    build/camera_moe_style_gate and build/camera_moe_experts_style, each trained first unless it is there)."""
     import csv
 
     out = {}
     for name, folder, config in (("shipped", ROOT / "build" / "camera_moe_recipe_ours", {}),
                                  ("paper_recipe", ROOT / "build" / "camera_moe_paper_recipe", PAPER_RECIPE),
-                                 ("style_gate", ROOT / "build" / "camera_moe_style_gate", STYLE_GATE)):
+                                 ("style_gate", ROOT / "build" / "camera_moe_style_gate", STYLE_GATE),
+                                 ("experts_style", ROOT / "build" / "camera_moe_experts_style", EXPERTS_STYLE)):
         if not (folder / "retarget_summary.csv").exists():
             subprocess.run([sys.executable, str(ROOT / "tools" / "train_camera_moe.py"), "--out", str(folder),
                             "--epochs", "25", "--config", json.dumps(config), "--moe-only"], check=True,
@@ -311,7 +317,7 @@ def tables(figures: dict) -> dict:
         rows = []
         for b in ("direct_track", "relative_track", "side_track", "orbit"):
             line = [b.replace("_", " ")]
-            for name in (n for n in ("shipped", "paper_recipe", "style_gate") if n in figures["recipes"]):
+            for name in (n for n in RECIPE_NAMES if n in figures["recipes"]):
                 r = figures["recipes"][name][b]
                 extra = (f", {r['orbit_same_way']:.0%} the right way at {r['orbit_speed']:.2f}x"
                          if "orbit_same_way" in r else "")
@@ -319,7 +325,8 @@ def tables(figures: dict) -> dict:
                             f"{r['distance_ratio_median']:.2f}{extra}")
             rows.append(line)
         columns = ["behavior", "shipped recipe: one prediction (deg) / retargeted theta (deg, median) / distance "
-                   "ratio", "the paper's windows and Eq. 6: the same", "a gate reading the style features: the same"]
+                   "ratio", "the paper's windows and Eq. 6: the same", "a gate reading the style features: the same",
+                   "experts reading them too: the same"]
         out["recipes"] = {"columns": columns[:len(rows[0])], "rows": rows}
     if "generality" in figures:
         names = {"distance": "distance between them (m)", "speed": "animation speed (x)",
