@@ -254,9 +254,19 @@ def test_a_part_writer_cut_off_mid_message_ends_quietly():
     assert r.stdout.strip() == "0" and r.stderr == "", r.stderr
 
 
+@pytest.fixture
+def ctrl_c_handled():
+    """Ctrl-C handled as in a command started from a terminal: Python's default handler (a test run started
+    in the background, ``cmd &``, inherits it ignored, and usdcrowd then leaves it ignored)."""
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, before)
+
+
 @pytest.mark.parametrize("signum, code, word", [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated")])
 @pytest.mark.parametrize("becomes", [SystemError, TypeError])
-def test_a_stop_a_library_turned_into_another_error_is_still_a_stop(monkeypatch, capsys, signum, code, word, becomes):
+def test_a_stop_a_library_turned_into_another_error_is_still_a_stop(monkeypatch, capsys, signum, code, word, becomes,
+                                                                    ctrl_c_handled):
     """A Ctrl-C (or SIGTERM) that lands inside a library that makes something else of it (numba's
     dispatcher: a SystemError; trimesh's optional imports: a TypeError later) is reported as the stop it
     was: one line and the stop's exit code. Without a signal, the same error stays an error."""
@@ -284,7 +294,7 @@ def test_a_stop_a_library_turned_into_another_error_is_still_a_stop(monkeypatch,
 
 
 @pytest.mark.parametrize("signum, stop", [(signal.SIGINT, KeyboardInterrupt), (signal.SIGTERM, Terminated)])
-def test_a_stop_that_lands_in_an_import_waits_for_it_to_end(tmp_path, monkeypatch, signum, stop):
+def test_a_stop_that_lands_in_an_import_waits_for_it_to_end(tmp_path, monkeypatch, signum, stop, ctrl_c_handled):
     """A Ctrl-C or kill that arrives while a module is being imported is raised after the import, never
     inside it: a compiled module cut half-way through its set-up (USD's) warns at the next import or
     swallows the stop. The module is whole, and the stop still comes, within a fraction of a second."""
@@ -313,7 +323,7 @@ def test_a_stop_that_lands_in_an_import_waits_for_it_to_end(tmp_path, monkeypatc
     assert signal.getsignal(signum) is before
 
 
-def test_a_stop_swallowed_on_the_way_still_ends_the_command_as_a_stop(tmp_path, monkeypatch, capsys):
+def test_a_stop_swallowed_on_the_way_still_ends_the_command_as_a_stop(tmp_path, monkeypatch, capsys, ctrl_c_handled):
     """Work that ends normally after a library swallowed a Ctrl-C exits as interrupted (130), so a
     scheduler or a script knows the run was stopped."""
     import usdcrowd.cli as cli
@@ -329,7 +339,7 @@ def test_a_stop_swallowed_on_the_way_still_ends_the_command_as_a_stop(tmp_path, 
     assert "interrupted" in capsys.readouterr().err
 
 
-def test_a_stop_raised_in_a_finaliser_is_delivered_again(capsys):
+def test_a_stop_raised_in_a_finaliser_is_delivered_again(capsys, ctrl_c_handled):
     """A Ctrl-C whose handler runs inside a __del__ cannot leave it (Python prints "Exception ignored"
     and goes on): it is delivered again just after, and nothing is printed."""
     from usdcrowd.interrupts import STOP_RETRY_S, stops_as_exceptions
