@@ -48,10 +48,9 @@ def stops_as_exceptions():
     swallowed (the previous handlers are restored).
 
     A stop that lands during an import waits for it to end; one raised in a finaliser is delivered
-    again. One can still land inside a library that
-    turns it into something else: numba's dispatcher raises a SystemError; trimesh's optional imports
-    keep any BaseException in a placeholder that fails later. Those are the stop all the same, and leave
-    as it (chained to what they became).
+    again. One can still land inside a library that turns it into something else: numba's dispatcher
+    raises a SystemError; trimesh's optional imports keep any BaseException in a placeholder that fails
+    later. Those are the stop all the same, and leave as it (chained to what they became).
     """
     import os
     import threading
