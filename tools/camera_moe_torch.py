@@ -152,6 +152,11 @@ class Windows:
         if "gate_style" in data:
             self.gate_extra = (data["gate_style"] - stats["style_mean"]) / stats["style_std"]
             self.ref_extra = (data["ref_gate_style"] - stats["style_mean"]) / stats["style_std"]
+        # The same with the pair's motion unknown, as a film clip gives it (config "unseen_motion").
+        self.gate_still = self.ref_still = None
+        if "gate_style_still" in data:
+            self.gate_still = (data["gate_style_still"] - stats["style_mean"]) / stats["style_std"]
+            self.ref_still = (data["ref_gate_style_still"] - stats["style_mean"]) / stats["style_std"]
         self.style = data["style"] if "style" in data else None
         c, t, _ = self.char.shape
         lo = (cfg["past"] - 1) * cfg["step"]
@@ -174,11 +179,21 @@ class Windows:
         extra = lambda a: [] if a is None else [a[clips[:, None], idx]]  # noqa: E731
         own = np.concatenate([self.char[clips[:, None], idx], self.cam[clips[:, None], idx], *extra(self.gate_extra)],
                              axis=-1)
-        if not random or self.ref_char is None or not cfg.get("pair", 0.0):
-            return own
-        paired = np.concatenate([self.ref_char[clips[:, None], idx], self.ref_cam[clips[:, None], idx],
-                                 *extra(self.ref_extra)], axis=-1)
-        return np.where((self.rng.random(len(clips)) < cfg["pair"])[:, None, None], paired, own)
+        x, from_ref = own, np.zeros(len(clips), bool)
+        if random and self.ref_char is not None and cfg.get("pair", 0.0):
+            paired = np.concatenate([self.ref_char[clips[:, None], idx], self.ref_cam[clips[:, None], idx],
+                                     *extra(self.ref_extra)], axis=-1)
+            from_ref = self.rng.random(len(clips)) < cfg["pair"]
+            x = np.where(from_ref[:, None, None], paired, own)
+        if not random or self.gate_still is None or not cfg.get("unseen_motion"):
+            return x
+        # As a clip: the pair's velocity and turn at the training mean (0 once normalised), the style made from it.
+        hide = self.rng.random(len(clips)) < cfg["unseen_motion"]
+        still = np.where(from_ref[:, None, None], self.ref_still[clips[:, None], idx],
+                         self.gate_still[clips[:, None], idx])
+        x[hide, :, 7:N_CHAR] = 0.0
+        x[hide, :, -N_STYLE:] = still[hide]
+        return x
 
     def batch(self, rows, random_gate=True):
         """An evaluation batch: the true past camera (training's batches are :meth:`unrolled`)."""
@@ -289,7 +304,7 @@ def train(data_path: str, out_dir: str, epochs: int, seed: int, batch: int = 256
            data["gate_style"].shape[-1] if "gate_style" in data.files else 0)
     split = data["test"]                                # 1 for test clips
     keys = [k for k in ("character", "camera", "behavior", "ref_character", "ref_camera", "style", "gate_style",
-                        "ref_gate_style") if k in data.files]
+                        "ref_gate_style", "gate_style_still", "ref_gate_style_still") if k in data.files]
     if "style" in data.files:
         cfg["n_style"] = int(data["style"].shape[-1])
     train_d = {k: data[k][split == 0] for k in keys}

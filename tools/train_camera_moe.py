@@ -25,6 +25,9 @@ Config keys beyond the sizes (usdcrowd.cameras.moe.Config): ``gate_style``
 gives the gate the style features (usdcrowd.cameras.moe.style_features) and
 ``style`` weighs an auxiliary loss asking its logits for the controllers'
 parameters (:func:`style_labels`); both off in the shipped recipe.
+``expert_style`` has the experts read the style too; ``unseen_motion`` (a
+share) gates that many training windows from a reference without its pair
+motion, as a film clip gives it (:func:`unseen_motion_styles`).
 """
 
 from __future__ import annotations
@@ -91,8 +94,28 @@ def make_dataset(path: Path, per_behavior: int, seed: int, frames: int = 480):
              style=f32([style_labels(c) for c in clips]),
              **({"gate_style": f32([style_features(c.character, c.camera) for c in clips]),
                  "ref_gate_style": f32([style_features(c, m) for c, m in zip(ref_char, ref_cam)])}
-                if CONFIG.get("gate_style") else {}))
+                if CONFIG.get("gate_style") else {}),
+             **(unseen_motion_styles(clips, ref_char, ref_cam, len(train))
+                if CONFIG.get("gate_style") and CONFIG.get("unseen_motion") else {}))
     return train, test
+
+
+def unseen_motion_styles(clips, ref_char, ref_cam, n_train: int) -> dict:
+    """The style features as a film clip's reference gives them (config "unseen_motion"): a picture
+    shows no pair motion, so a clip's character columns 7-9 are the training mean
+    (usdcrowd.cameras.estimator.FeatureEstimator.features), and its style's turn and velocity columns
+    are made from that mean. Training gates some windows from these so the experts learn not to
+    trust what a clip cannot give."""
+    from usdcrowd.cameras.moe import style_features
+
+    mean = np.concatenate([c.character for c in clips[:n_train]]).astype(np.float32).mean(0)[7:10]
+
+    def still(char):
+        return np.concatenate([char[:, :7], np.broadcast_to(mean, (len(char), 3))], 1)
+
+    f32 = lambda a: np.asarray(a, dtype=np.float32)  # noqa: E731
+    return {"gate_style_still": f32([style_features(still(c.character), c.camera) for c in clips]),
+            "ref_gate_style_still": f32([style_features(still(c), m) for c, m in zip(ref_char, ref_cam)])}
 
 
 def style_labels(clip) -> list[float]:

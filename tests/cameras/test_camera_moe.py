@@ -108,6 +108,56 @@ def test_a_style_reading_gate_trains_and_reads_its_features_as_pytorch_does(rng,
     np.testing.assert_allclose([model.gate(k.character, k.camera)[:9] for k in test], trained, atol=1e-5)
 
 
+UNSEEN_WINDOWS = """
+import json, sys
+import numpy as np
+sys.path.insert(0, sys.argv[4])
+import camera_moe_torch as T
+data, w = np.load(sys.argv[1]), np.load(sys.argv[2])
+cfg = json.loads(str(data["config"]))
+T._sizes(data["character"].shape[-1], data["camera"].shape[-1], data["gate_style"].shape[-1])
+test = data["test"] == 1
+windows = T.Windows({k: data[k][test] for k in data.files if k not in ("config", "test")}, cfg,
+                    {k: w[k] for k in ("char_mean", "char_std", "cam_mean", "cam_std", "style_mean", "style_std")},
+                    np.random.default_rng(5))
+clips = np.arange(int(test.sum()))
+x = windows.gate_inputs(clips)
+span = (cfg["gate_len"] - 1) * cfg["gate_step"]
+start = np.random.default_rng(5).integers(0, data["character"].shape[1] - span, len(clips))
+np.savez(sys.argv[3], x=x, start=start)
+"""
+
+
+@pytest.mark.slow
+def test_training_hides_the_pairs_motion_as_a_film_clip_reference_does(tmp_path):
+    """Config unseen_motion: the gate windows training draws with the pair's motion unknown are what numpy's
+    gate reads from a film clip of the same shot (character columns 7-9 at the weights' mean, as the feature
+    estimator fills them, and the style features made from those), to float32's precision."""
+    from tests.helpers.tools import load_tool
+    from tests.helpers.venvs import tool_python
+
+    python = tool_python("torch", ["torch==2.13.0", "numpy", "scikit-learn"], "USDCROWD_TORCH_VENV")
+    tool = load_tool("train_camera_moe")
+    tool.CONFIG.update(gate_style=True, style=0.3, expert_style=True, pair=0.0, unseen_motion=1.0)
+    _, test = tool.make_dataset(tmp_path / "data.npz", 2, 0, frames=240)
+    subprocess.run([python, str(TOOLS / "camera_moe_torch.py"), "train", str(tmp_path / "data.npz"), str(tmp_path),
+                    "--epochs", "1", "--moe-only"], check=True, capture_output=True)
+    subprocess.run([python, "-c", UNSEEN_WINDOWS, str(tmp_path / "data.npz"), str(tmp_path / "camera_moe.npz"),
+                    str(tmp_path / "windows.npz"), str(TOOLS)], check=True)
+    drawn = np.load(tmp_path / "windows.npz")
+    model = CameraMoE(tmp_path / "camera_moe.npz")
+    assert model.config.unseen_motion == 1.0
+    middle = (240 - 1 - (model.config.gate_len - 1) * model.config.gate_step) // 2   # where numpy's gate reads
+    rows = np.flatnonzero(drawn["start"] == middle)
+    assert len(rows) >= 2
+    for i in rows:
+        char = test[i].character.copy()
+        char[:, 7:10] = model.w["char_mean"][7:10]
+        np.testing.assert_allclose(drawn["x"][i], model.gate_input(char, test[i].camera), atol=1e-4)
+        seen = model.gate_input(test[i].character, test[i].camera)       # with the motion: not what it drew
+        assert np.abs(drawn["x"][i][:, N_CHARACTER + N_CAMERA + 2:] - seen[:, N_CHARACTER + N_CAMERA + 2:]).max() > 0.1
+
+
 def test_any_prediction_makes_a_level_camera_at_its_spans_distance(rng):
     """Whatever the network says, the features become a camera: finite, level, at the distance from A the
     predicted span asks (the distance cannot run away as the toric pA/pB placement's 1 / sin(alpha) did)."""

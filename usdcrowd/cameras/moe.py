@@ -260,6 +260,7 @@ class Config:
     gate_style: bool = False  # the gate also reads style_features (the weights hold their normalisation)
     expert_style: bool = False  # ... and so do the experts: their means over the gate's window, after n_in
     n_style: int = 0      # training: how many such labels
+    unseen_motion: float = 0.0  # training: share of gate windows whose pair motion is unknown, as a clip's
 
     @property
     def n_in(self) -> int:
