@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 
 import numpy as np
@@ -111,7 +112,6 @@ def test_a_style_reading_gate_trains_and_reads_its_features_as_pytorch_does(rng,
 UNSEEN_WINDOWS = """
 import json, sys
 import numpy as np
-sys.path.insert(0, sys.argv[4])
 import camera_moe_torch as T
 data, w = np.load(sys.argv[1]), np.load(sys.argv[2])
 cfg = json.loads(str(data["config"]))
@@ -143,7 +143,7 @@ def test_training_hides_the_pairs_motion_as_a_film_clip_reference_does(tmp_path)
     subprocess.run([python, str(TOOLS / "camera_moe_torch.py"), "train", str(tmp_path / "data.npz"), str(tmp_path),
                     "--epochs", "1", "--moe-only"], check=True, capture_output=True)
     subprocess.run([python, "-c", UNSEEN_WINDOWS, str(tmp_path / "data.npz"), str(tmp_path / "camera_moe.npz"),
-                    str(tmp_path / "windows.npz"), str(TOOLS)], check=True)
+                    str(tmp_path / "windows.npz")], check=True, env={**os.environ, "PYTHONPATH": str(TOOLS)})
     drawn = np.load(tmp_path / "windows.npz")
     model = CameraMoE(tmp_path / "camera_moe.npz")
     assert model.config.unseen_motion == 1.0
