@@ -9,15 +9,34 @@ the rig: edit one of those, and numba would go on running the old values.
 Each kernel module therefore calls :func:`forget_stale_machine_code` with the
 modules it reads before any loop runs: when their constants differ from the
 ones the cached code was built with, that code is deleted and built again.
+
+numba's cache is also not safe to share between processes as it stands: an
+overload is saved as an index (signature to file) written before its data
+file, each read, changed and written back whole, so two runs compiling at
+once can point one's index at the other's data, and a stop that lands
+between the two leaves them out of step. A run that then loads the pair
+crashes inside LLVM (a segmentation fault, no traceback). Each kernel
+module therefore ends with :func:`cache_one_process_at_a_time`: every load
+and save of its machine code holds a lock on the cache folder and defers
+Ctrl-C and SIGTERM until it is done (a compile itself stays interruptible).
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
+import signal
 from types import ModuleType
 
 import numpy as np
+
+try:
+    import fcntl
+except ImportError:         # not POSIX: numba's cache goes unlocked there
+    fcntl = None
+
+LOCK_NAME = "usdcrowd-machine-code.lock"
 
 
 def constants_digest(*modules: ModuleType) -> str:
@@ -49,9 +68,23 @@ def forget_stale_machine_code(module_file: str, *sources: ModuleType) -> bool:
                 return False
     except OSError:
         pass
-    deleted = False
     try:
         os.makedirs(folder, exist_ok=True)
+    except OSError:
+        return False
+    with cache_folder_held(folder):
+        try:
+            with open(stamp, encoding="ascii") as f:
+                if f.read() == key:         # another run did it while this one waited
+                    return False
+        except OSError:
+            pass
+        return _forget(folder, stem, stamp, key)
+
+
+def _forget(folder: str, stem: str, stamp: str, key: str) -> bool:
+    deleted = False
+    try:
         for name in os.listdir(folder):
             if name.startswith(f"{stem}.") and name.endswith((".nbi", ".nbc")):
                 os.unlink(os.path.join(folder, name))
@@ -64,3 +97,63 @@ def forget_stale_machine_code(module_file: str, *sources: ModuleType) -> bool:
     except OSError:
         pass
     return deleted
+
+
+_held: set[str] = set()     # folders this process holds (a load inside a save, a module's two kernels)
+
+
+@contextlib.contextmanager
+def cache_folder_held(folder: str):
+    """Within: no other process reads or writes numba's cache in ``folder``, and Ctrl-C and SIGTERM
+    wait (they are delivered on leaving). Where the lock file cannot be made, only the signals wait."""
+    from .interrupts import signals_held
+
+    with signals_held(signal.SIGINT, signal.SIGTERM):
+        if fcntl is None or folder in _held:
+            yield
+            return
+        try:
+            fd = os.open(os.path.join(folder, LOCK_NAME), os.O_RDWR | os.O_CREAT, 0o666)
+        except OSError:
+            yield
+            return
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+            _held.add(folder)
+            try:
+                yield
+            finally:
+                _held.discard(folder)
+                fcntl.flock(fd, fcntl.LOCK_UN)
+        finally:
+            os.close(fd)
+
+
+def _held_while(method, folder: str):
+    def call(*args, **kwargs):
+        with cache_folder_held(folder):
+            return method(*args, **kwargs)
+    call.__wrapped__ = method
+    return call
+
+
+def cache_one_process_at_a_time(namespace: dict) -> int:
+    """Make every load and save of the cached machine code of the numba functions in ``namespace`` (a
+    module's ``globals()``; a loop's ``serial`` and ``parallel`` twins too) hold the cache folder
+    (:func:`cache_folder_held`). Returns how many functions were guarded."""
+    from numba.core.dispatcher import Dispatcher
+
+    found = []
+    for value in list(namespace.values()):
+        found += [d for d in (value, getattr(value, "serial", None), getattr(value, "parallel", None))
+                  if isinstance(d, Dispatcher)]
+    guarded = 0
+    for dispatcher in found:
+        cache = getattr(dispatcher, "_cache", None)       # numba's FunctionCache; NullCache: not cached
+        folder = getattr(cache, "cache_path", None)
+        if folder is None or hasattr(cache.load_overload, "__wrapped__"):
+            continue
+        cache.load_overload = _held_while(cache.load_overload, folder)
+        cache.save_overload = _held_while(cache.save_overload, folder)
+        guarded += 1
+    return guarded

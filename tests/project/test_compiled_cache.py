@@ -52,3 +52,68 @@ def test_the_step_and_the_pose_record_what_they_were_built_with():
     for module, sources in ((step_kernels, (params,)), (pose_kernels, (gait, rig))):
         stamp = Path(module.__file__).parent / "__pycache__" / "kernels.constants"
         assert stamp.read_text() == constants_digest(*sources)
+
+
+LOADER = """
+import numpy as np
+from usdcrowd.sim import kernels
+print("calling", flush=True)
+kernels.moved_beyond(np.zeros((2, 3), np.float32), np.arange(3), np.zeros((2, 3), np.float32), 1.0)
+print("done", flush=True)
+"""
+
+
+def test_machine_code_is_loaded_one_process_at_a_time_and_a_kill_waits_for_the_load(tmp_path):
+    """numba's index and data files, read or written by two runs at once or cut by a stop between the
+    two, crash the next run inside LLVM: every load holds the cache folder and defers SIGTERM."""
+    import fcntl
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from usdcrowd.compiled import LOCK_NAME
+    from usdcrowd.sim import kernels          # its constants' stamp is written before the folder is held
+
+    folder = kernels.moved_beyond._cache.cache_path
+    assert os.path.samefile(folder, Path(kernels.__file__).parent / "__pycache__")
+    root = Path(kernels.__file__).parents[2]
+    fd, proc = os.open(os.path.join(folder, LOCK_NAME), os.O_RDWR | os.O_CREAT, 0o666), None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)                 # another run is loading or saving
+        proc = subprocess.Popen([sys.executable, "-c", LOADER], stdout=subprocess.PIPE, text=True,
+                                cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(root)})
+        try:
+            assert proc.stdout.readline() == "calling\n"
+            time.sleep(2.0)
+            assert proc.poll() is None, "loaded while another run held the cache"
+            proc.send_signal(signal.SIGTERM)
+            time.sleep(1.0)
+            assert proc.poll() is None, "a kill landed while waiting to load"
+        finally:
+            fcntl.flock(fd, fcntl.LOCK_UN)
+        assert proc.wait(120) == -signal.SIGTERM        # delivered once the load is done
+        assert proc.stdout.read() == ""
+    finally:
+        os.close(fd)
+        if proc is not None and proc.poll() is None:
+            proc.kill()
+
+
+def test_every_cached_kernel_loads_through_the_lock():
+    from numba.core.dispatcher import Dispatcher
+
+    from usdcrowd.character import kernels as pose
+    from usdcrowd.render.preview import instancing
+    from usdcrowd.sim import kernels as crowd
+
+    found = 0
+    for module in (crowd, pose, instancing):
+        for value in vars(module).values():
+            for d in (value, getattr(value, "serial", None), getattr(value, "parallel", None)):
+                if isinstance(d, Dispatcher) and getattr(d._cache, "cache_path", None):
+                    assert hasattr(d._cache.load_overload, "__wrapped__"), d
+                    assert hasattr(d._cache.save_overload, "__wrapped__"), d
+                    found += 1
+    assert found >= 40

@@ -24,7 +24,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..compiled import forget_stale_machine_code
+from ..compiled import cache_one_process_at_a_time, forget_stale_machine_code
 from . import gait as A
 from . import rig
 from .rig import PELVIS_HEIGHT, REST_TRANSLATIONS
@@ -183,3 +183,6 @@ def root_motion(rotations, translations, position, heading, scale):
     tr_out = np.empty(tr.shape, np.float32)
     _root(rot, tr, position, np.ascontiguousarray(heading), np.ascontiguousarray(scale, np.float64), rot_usd, tr_out)
     return rot_usd, tr_out
+
+
+cache_one_process_at_a_time(globals())

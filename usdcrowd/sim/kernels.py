@@ -47,7 +47,7 @@ import types
 import numpy as np
 from numba import njit, prange
 
-from ..compiled import forget_stale_machine_code
+from ..compiled import cache_one_process_at_a_time, forget_stale_machine_code
 from . import params as P
 
 forget_stale_machine_code(__file__, P)
@@ -1035,3 +1035,4 @@ def choose_ways(pos, vel, radius, nb, rows, ux, uy, speed, cos_offsets, horizon,
     return out, free, follows
 
 
+cache_one_process_at_a_time(globals())

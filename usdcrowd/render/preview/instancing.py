@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from ...compiled import cache_one_process_at_a_time
 from ...core.geometry import face_normals, vertex_normals
 
 N_JOINTS = 3
@@ -322,3 +323,6 @@ def _pack_poses(joints, bind, pal, id_bits, out):
                 out[i, 9 + k, c] = pal[i, src, c]
             out[i, 9 + k, 3] = 0.0
         out[i, 9, 3] = id_bits[i]
+
+
+cache_one_process_at_a_time(globals())
