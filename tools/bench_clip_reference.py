@@ -108,13 +108,13 @@ def truth_of(shot: Path, name: str, clip_camera: np.ndarray):
 def run(gallery_png: Path | None = None) -> dict:
     from calibrate_pose_joints import video_python
     from usdcrowd.cameras.features import head_and_facing
-    from usdcrowd.cameras.moe import CameraMoE, character_features
+    from usdcrowd.cameras.moe import CLIP_WEIGHTS, PAIR_MOTION, CameraMoE, character_features
     from usdcrowd.cameras.moe_data import ASPECT, FOV_X
     from usdcrowd.cameras.retarget import compare, retarget_poses
     from usdcrowd.core.resources import data_dir
     from usdcrowd.scenario.shot_scene import ShotScene
 
-    model = CameraMoE()
+    model = CameraMoE(CLIP_WEIGHTS)      # the model `frame --like` reads a clip with, for clip and stage alike
     results = {}
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
@@ -144,7 +144,7 @@ def run(gallery_png: Path | None = None) -> dict:
                 continue
             truths[case] = truth_of(shot, f"Ref_{_key(*case)}", np.array(est["camera"]))
             unknown = truths[case].character.copy()
-            unknown[:, 7:10] = model.w["char_mean"][7:10]
+            unknown[:, PAIR_MOTION] = model.w["char_mean"][PAIR_MOTION]
             gates[case] = (model.gate(np.array(est["character"]), np.array(est["camera"])),
                            model.gate(unknown, truths[case].camera_features))
         for behavior, size in CASES:

@@ -19,7 +19,8 @@
    filming them itself (theta and phi errors; for orbits also how far and
    which way they turn);
 4. writes CSV and plots to --out, and with --install copies the weights to
-   usdcrowd/cameras/camera_moe.npz (what the package ships).
+   usdcrowd/cameras/camera_moe.npz (the model the package reads stage
+   references with), with --install-clip to camera_moe_clip.npz (film clips).
 
 Config keys beyond the sizes (usdcrowd.cameras.moe.Config): ``gate_style``
 gives the gate the style features (usdcrowd.cameras.moe.style_features) and
@@ -106,12 +107,12 @@ def unseen_motion_styles(clips, ref_char, ref_cam, n_train: int) -> dict:
     (usdcrowd.cameras.estimator.FeatureEstimator.features), and its style's turn and velocity columns
     are made from that mean. Training gates some windows from these so the experts learn not to
     trust what a clip cannot give."""
-    from usdcrowd.cameras.moe import style_features
+    from usdcrowd.cameras.moe import PAIR_MOTION, style_features
 
-    mean = np.concatenate([c.character for c in clips[:n_train]]).astype(np.float32).mean(0)[7:10]
+    mean = np.concatenate([c.character for c in clips[:n_train]]).astype(np.float32).mean(0)[PAIR_MOTION]
 
     def still(char):
-        return np.concatenate([char[:, :7], np.broadcast_to(mean, (len(char), 3))], 1)
+        return np.concatenate([char[:, :PAIR_MOTION.start], np.broadcast_to(mean, (len(char), len(mean)))], 1)
 
     f32 = lambda a: np.asarray(a, dtype=np.float32)  # noqa: E731
     return {"gate_style_still": f32([style_features(still(c.character), c.camera) for c in clips]),
@@ -275,7 +276,10 @@ def main() -> int:
     p.add_argument("--per-behavior", type=int, default=400, help="training clips per behavior (20 s each)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default="build/camera_moe")
-    p.add_argument("--install", action="store_true", help="copy the weights into the package")
+    p.add_argument("--install", action="store_true",
+                   help="copy the weights into the package as the model for stage references (camera_moe.npz)")
+    p.add_argument("--install-clip", action="store_true",
+                   help="copy them as the model for film clips (camera_moe_clip.npz)")
     p.add_argument("--config", default="{}",
                    help='JSON overriding the model and training config, e.g. \'{"noise": 0.1}\'')
     p.add_argument("--record", action="store_true",
@@ -324,8 +328,9 @@ def main() -> int:
     print("plots:", *plots(out, out / "errors.csv", out / "history.csv"))
     if a.record:
         record_figures(out, summary, retarget, sil)
-    if a.install:
-        dest = ROOT / "usdcrowd" / "cameras" / "camera_moe.npz"
+    from usdcrowd.cameras.moe import CLIP_WEIGHTS, WEIGHTS
+
+    for dest in [WEIGHTS] * a.install + [CLIP_WEIGHTS] * a.install_clip:
         shutil.copy(out / "camera_moe.npz", dest)
         print(f"installed {dest} ({dest.stat().st_size / 1e6:.2f} MB)")
     return 0

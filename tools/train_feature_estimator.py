@@ -140,9 +140,9 @@ def evaluate(weights: Path, test, seed: int) -> dict:
     """Per component, medians and 95th percentiles over the held-out clips' frames; and the gate."""
     from usdcrowd.cameras.behaviors import BEHAVIORS
     from usdcrowd.cameras.estimator import FeatureEstimator
-    from usdcrowd.cameras.moe import CameraMoE
+    from usdcrowd.cameras.moe import CLIP_WEIGHTS, PAIR_MOTION, CameraMoE
 
-    est, model = FeatureEstimator(weights), CameraMoE()
+    est, model = FeatureEstimator(weights), CameraMoE(CLIP_WEIGHTS)     # the model that reads clips
     rng = np.random.default_rng(seed + 4000)
     per = {}
     gates = {b: [] for b in BEHAVIORS}
@@ -151,7 +151,7 @@ def evaluate(weights: Path, test, seed: int) -> dict:
         for k, v in component_errors(char, cam, clip.character, clip.camera).items():
             per.setdefault(k, []).append(v)
         unknown = clip.character.copy()
-        unknown[:, 7:10] = model.w["char_mean"][7:10]
+        unknown[:, PAIR_MOTION] = model.w["char_mean"][PAIR_MOTION]
         w_true, w_unknown, w_est = (model.gate(c, m) for c, m in ((clip.character, clip.camera),
                                                                    (unknown, clip.camera), (char, cam)))
         gates[BEHAVIORS[clip.behavior]].append((np.abs(w_est - w_true).sum(), np.abs(w_unknown - w_true).sum(),

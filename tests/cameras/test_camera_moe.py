@@ -344,6 +344,8 @@ def test_frame_like_films_a_new_pair_like_a_reference_camera(tmp_path, capsys):
     prim = scene.stage.GetPrimAtPath("/World/Cameras/Learned")
     weights = np.array(prim.GetAttribute("crowd:toric:expertWeights").Get())
     assert weights.sum() == pytest.approx(1.0, abs=1e-5) and len(weights) == CameraMoE().config.experts
+    style = prim.GetAttribute("crowd:toric:referenceStyle").Get()       # the style the experts read, apart
+    assert (len(style) if style is not None else 0) == (N_STYLE if CameraMoE().config.expert_style else 0)
     # Not a toric reference and no characters named: one line.
     assert _run("frame", shot / "shot.usda", "--like", shot / "shot.usda", "--camera", "/World/Cameras/CrowdCam",
                 "--targets", "A", "B", "--no-progress") == 2

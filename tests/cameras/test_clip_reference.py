@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from usdcrowd.cameras.moe import CameraMoE, camera_angles
+from usdcrowd.cameras.moe import CLIP_WEIGHTS, PAIR_MOTION, CameraMoE, camera_angles
 from usdcrowd.core.resources import data_dir
 
 from tests.helpers.paths import ROOT
@@ -88,7 +88,7 @@ def _truth(shot, name, clip_camera):
     return load_tool("bench_clip_reference").truth_of(shot, f"Ref_{name}", clip_camera)
 
 
-def test_frame_like_a_video_films_the_pair_and_records_the_clip(video_python, filmed_dialogue):
+def test_frame_like_a_video_films_the_pair_and_records_the_clip(video_python, filmed_dialogue, clip_features):
     shot, clips = filmed_dialogue
     r = _usdcrowd("frame", shot, "--like", clips["orbit"], "--targets", "C", "D", "--name", "FromClip",
                   "--no-progress", python=video_python)
@@ -101,6 +101,12 @@ def test_frame_like_a_video_films_the_pair_and_records_the_clip(video_python, fi
     prim = stage.GetPrimAtPath("/World/Cameras/FromClip")
     assert prim.IsValid() and prim.IsA(UsdGeom.Camera)
     assert Path(prim.GetAttribute("crowd:toric:reference").Get().path).name == "orbit.mp4"
+    # Read by the model for film clips (one whose experts read no style a picture cannot give).
+    clip_model = CameraMoE(CLIP_WEIGHTS)
+    est = clip_features["orbit"]
+    np.testing.assert_allclose(prim.GetAttribute("crowd:toric:expertWeights").Get(),
+                               clip_model.gate(est["character"], est["camera"]), atol=1e-4)
+    assert not clip_model.config.expert_style and not prim.GetAttribute("crowd:toric:referenceStyle").HasValue()
     xform = UsdGeom.Xformable(prim)
     eyes = np.array([np.array(xform.ComputeLocalToWorldTransform(t))[3, :3] for t in range(1, FRAMES + 1)])
     assert np.isfinite(eyes).all() and np.linalg.norm(np.diff(eyes, axis=0), axis=1).max() < 0.5
@@ -175,12 +181,12 @@ def test_the_gate_reads_each_clip_nearer_its_own_stage_than_the_other(filmed_dia
     """The expert weights from the clip against those from the stage the clip was drawn from (the
     pair's motion, which a picture cannot show, set as unknown in both)."""
     shot, _ = filmed_dialogue
-    model = CameraMoE()
+    model = CameraMoE(CLIP_WEIGHTS)
     gates = {}
     for name in CLIPS:
         truth = _truth(shot, name, clip_features[name]["camera"])
         char = truth.character.copy()
-        char[:, 7:10] = model.w["char_mean"][7:10]
+        char[:, PAIR_MOTION] = model.w["char_mean"][PAIR_MOTION]
         gates[name] = (model.gate(clip_features[name]["character"], clip_features[name]["camera"]),
                        model.gate(char, truth.camera_features))
     for name, other in (("direct", "orbit"), ("orbit", "direct")):
@@ -231,7 +237,7 @@ def test_an_orbit_read_from_its_clip_turns_a_new_pair_as_the_stage_does(filmed_d
     from usdcrowd.scenario.shot_scene import ShotScene
 
     shot, _ = filmed_dialogue
-    model = CameraMoE()
+    model = CameraMoE(CLIP_WEIGHTS)
     scene = ShotScene(shot)
     rows = [scene.agent_row("C"), scene.agent_row("D")]
     heads, yaws = map(np.array, zip(*(head_and_facing(scene.agents(t, rows).joints_world)
@@ -240,7 +246,7 @@ def test_an_orbit_read_from_its_clip_turns_a_new_pair_as_the_stage_does(filmed_d
     est = clip_features["orbit"]
     truth = _truth(shot, "orbit", est["camera"])
     stage_char = truth.character.copy()
-    stage_char[:, 7:10] = model.w["char_mean"][7:10]
+    stage_char[:, PAIR_MOTION] = model.w["char_mean"][PAIR_MOTION]
     poses = [retarget_poses(model, model.gate(c, m), char, heads[:, 0], heads[:, 1], FOV_X, ASPECT)[0]
              for c, m in ((est["character"], est["camera"]), (stage_char, truth.camera_features))]
     d = compare(poses[0], poses[1], heads[:, 0], heads[:, 1], FOV_X, ASPECT)

@@ -39,6 +39,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .moe import PAIR_MOTION
+
 JOINTS = ("head", "neck", "shoulder_l", "shoulder_r", "hip", "hip_l", "hip_r", "nose")
 HEAD = 1.625            # the rig's head point (midway between neck and head top) on the canonical body, metres
 # Where the joints sit on the canonical body (usdcrowd.character.body): x forward, y to its left, z up, metres.
@@ -167,7 +169,7 @@ class FeatureEstimator:
         sincos = est[:, 5:11].reshape(len(est), 3, 2)
         sincos = (sincos / np.maximum(np.linalg.norm(sincos, axis=2, keepdims=True), 1e-9)).reshape(len(est), 6)
         char = np.column_stack([np.maximum(est[:, 4], 0.05), sincos,
-                                np.tile(np.asarray(char_mean, dtype=np.float64)[7:10], (len(est), 1))])
+                                np.tile(np.asarray(char_mean, dtype=np.float64)[PAIR_MOTION], (len(est), 1))])
         heads = np.asarray(joints, dtype=np.float64)[:, :, 0]
         cam = np.column_stack([heads[:, 0], heads[:, 1], u, est[:, 3]])
         return char, cam

@@ -8,8 +8,13 @@ features around the present it predicts the camera's next ones. Rolled out
 over a new scene, it films a new pair the way the reference was filmed.
 
 Training is PyTorch's (``tools/train_camera_moe.py``, in its own venv); the
-weights ship in the package (``camera_moe.npz``, float32) and everything
-here is numpy: using a trained model needs no PyTorch.
+weights ship in the package (float32) and everything here is numpy: using a
+trained model needs no PyTorch. Two models ship: ``camera_moe.npz`` for
+references read from a stage, whose pair's motion is known, and
+``camera_moe_clip.npz`` for film clips (:data:`CLIP_WEIGHTS`), where the
+pair's motion is not: a model whose experts read the reference's style
+films stage references best and clips worst (the camera researcher's
+guide has the numbers), so a clip is read by one trained without it.
 
 Features per frame
 ------------------
@@ -60,7 +65,9 @@ N_CAMERA = 8
 N_STYLE = 5         # the gate's style features (style_features), after its character and camera features
 U = slice(4, 7)     # the camera features' direction from A
 SPAN = 7            # and their log span
-WEIGHTS = Path(__file__).with_name("camera_moe.npz")
+WEIGHTS = Path(__file__).with_name("camera_moe.npz")             # references read from a stage
+CLIP_WEIGHTS = Path(__file__).with_name("camera_moe_clip.npz")   # film clips (no pair motion known)
+PAIR_MOTION = slice(7, 10)  # the character features a picture cannot show: the pair's velocity and turn
 CLIP = 4.0          # standard deviations a fed-back camera feature may reach (and the training's range, if stored)
 
 
@@ -314,6 +321,12 @@ class CameraMoE:
     @property
     def n_experts(self) -> int:
         return int(self.w["gate.fc.bias"].shape[0])
+
+    def mix_and_style(self, gated: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """:meth:`gate`'s output split into the (m,) expert weights and the (N_STYLE,) style the experts
+        read (None for a model whose experts read no style)."""
+        m = self.n_experts
+        return gated[:m], (gated[m:] if self.config.expert_style else None)
 
     def gate_sequence(self, x: np.ndarray) -> np.ndarray:
         """(b, m) expert weights of (b, gate_len, 18) normalised sequences: the LSTM's last state, FC, softmax."""

@@ -458,6 +458,14 @@ class Reference:
     character: np.ndarray      # (t, 10)
     camera_features: np.ndarray  # (t, 8)
     shot_size: str
+    from_clip: bool = False    # estimated from a film clip's 2D poses: its pair motion is unknown
+
+    @property
+    def weights(self) -> Path:
+        """The camera model that reads it (:data:`usdcrowd.cameras.moe.CLIP_WEIGHTS` for a film clip)."""
+        from ..cameras.moe import CLIP_WEIGHTS, WEIGHTS
+
+        return CLIP_WEIGHTS if self.from_clip else WEIGHTS
 
 
 def read_reference(shot_path, camera: str | None = None, targets: tuple[str, str] | None = None,
@@ -542,7 +550,7 @@ def read_clip_reference(path, focal_length: float = FOCAL_LENGTH, fps: float | N
     """
     from ..cameras import clip_poses
     from ..cameras.estimator import FeatureEstimator
-    from ..cameras.moe import SPAN, CameraMoE
+    from ..cameras.moe import CLIP_WEIGHTS, SPAN, CameraMoE
     from ..cameras.moe_data import ASPECT, FOV_X, FPS
     from .pipeline import frame_progress
 
@@ -566,10 +574,10 @@ def read_clip_reference(path, focal_length: float = FOCAL_LENGTH, fps: float | N
         flat = joints.reshape(len(joints), -1)
         joints = np.column_stack([np.interp(dst, src, col) for col in flat.T]).reshape(-1, *joints.shape[1:])
     if char_mean is None:
-        char_mean = CameraMoE().w["char_mean"]
+        char_mean = CameraMoE(CLIP_WEIGHTS).w["char_mean"]
     char, cam = FeatureEstimator().features(joints, char_mean)
     return Reference(os.fspath(path), "the camera", "the main character", "the other", char, cam,
-                     _nearest_shot_size(float(np.exp(np.median(cam[:, SPAN])))))
+                     _nearest_shot_size(float(np.exp(np.median(cam[:, SPAN])))), from_clip=True)
 
 
 def toric_camera(scene) -> str:
@@ -634,7 +642,15 @@ def frame_like(shot_path, reference: Reference | list[tuple[Reference, float]], 
     from ..cameras.smoothing import smooth_track
     from ..scenario.shot_scene import ShotScene
 
-    model = model or CameraMoE()
+    models = {}
+
+    def model_for(r: Reference):        # a stage reference and a film clip are read by their own models
+        if model is not None:
+            return model
+        if r.weights not in models:
+            models[r.weights] = CameraMoE(r.weights)
+        return models[r.weights]
+
     scene = ShotScene(shot_path)
     times = scene.time_codes
     if isinstance(spans, str):
@@ -645,12 +661,12 @@ def frame_like(shot_path, reference: Reference | list[tuple[Reference, float]], 
     signals = target_signals(scene, spans, times, TRANSITION, progress)
     timeline = reference if isinstance(reference, list) else [(reference, times[0])]
     reference = timeline[0][0]
-    gates = [model.gate(r.character, r.camera_features) for r, _ in timeline]
+    gates = [model_for(r).gate(r.character, r.camera_features) for r, _ in timeline]
     char = character_features(signals.heads_a, signals.heads_b, signals.yaw_a, signals.yaw_b, scene.fps)
     fov_x = 2.0 * np.arctan(0.5 * APERTURE / focal_length)
     # A model trained with blind samples frames the new pair itself; the reference's first framing is
     # another pair's (an older model starts from it).
-    cams = [retarget_features(model, g, char, None if model.config.blind > 0 else r.camera_features[0])
+    cams = [retarget_features(model_for(r), g, char, None if model_for(r).config.blind > 0 else r.camera_features[0])
             for g, (r, _) in zip(gates, timeline)]
     cam = cams[0] if len(cams) == 1 else blend_features(
         cams, switch_weights([f for _, f in timeline], times, scene.fps, STYLE_TRANSITION))
@@ -665,9 +681,11 @@ def frame_like(shot_path, reference: Reference | list[tuple[Reference, float]], 
     result = _track_features(m, signals, fov_x, aspect)
     track = _camera_track(path, times, result.cam_to_world, focal_length, aspect)
     here = os.path.dirname(scene.path)
-    extra = {"expert_weights": gates[0], "reference": os.path.relpath(reference.path, here)}
+    mixes, styles = zip(*(model_for(r).mix_and_style(g) for g, (r, _) in zip(gates, timeline)))
+    extra = {"expert_weights": mixes[0], "reference": os.path.relpath(reference.path, here),
+             "reference_style": styles[0]}
     if len(timeline) > 1:
         extra.update({"references": [os.path.relpath(r.path, here) for r, _ in timeline],
-                      "reference_from": [times[0]] + [f for _, f in timeline[1:]], "reference_weights": gates})
+                      "reference_from": [times[0]] + [f for _, f in timeline[1:]], "reference_weights": mixes})
     written = _author(scene, track, result, signals, "learned", reference.shot_size, smooth, extra)
-    return written, track, result, signals, gates[0] if len(gates) == 1 else np.array(gates)
+    return written, track, result, signals, mixes[0] if len(mixes) == 1 else np.array(mixes)

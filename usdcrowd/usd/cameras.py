@@ -174,7 +174,8 @@ def add_camera(cameras_path: str | os.PathLike, track: model.CameraTrack, toric:
         ``behavior``, ``shot_size``, ``smoothed`` and per frame ``target_a``,
         ``target_b`` (lists of prim paths), ``p_a``, ``p_b`` ((t, 2) NDC),
         ``theta``, ``phi`` ((t,) radians); for a learned camera also
-        ``expert_weights`` and ``reference`` (the reference stage's path);
+        ``expert_weights`` and ``reference`` (the reference stage's path),
+        and ``reference_style`` where the model's experts read one;
         for a style switched over time also ``references``, ``reference_from``
         (time codes) and ``reference_weights`` (one row per reference).
     parents : ParentSpace, optional
@@ -256,6 +257,9 @@ def _toric_values(layer, spec, track: model.CameraTrack, toric: dict) -> None:
         _set(spec, "crowd:toric:expertWeights", T.FloatArray,
              Vt.FloatArray([float(v) for v in toric["expert_weights"]]), uniform=True)
         _set(spec, "crowd:toric:reference", T.Asset, Sdf.AssetPath(toric["reference"]), uniform=True)
+    if toric.get("reference_style") is not None:
+        _set(spec, "crowd:toric:referenceStyle", T.FloatArray,
+             Vt.FloatArray([float(v) for v in toric["reference_style"]]), uniform=True)
     if toric.get("references"):
         _set(spec, "crowd:toric:references", T.AssetArray,
              Sdf.AssetPathArray([Sdf.AssetPath(r) for r in toric["references"]]), uniform=True)
