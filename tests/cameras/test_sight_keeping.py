@@ -103,11 +103,12 @@ def test_a_camera_looks_under_tree_crowns_between_it_and_its_event():
 
 def test_a_camera_told_to_film_an_event_faces_it_when_it_begins():
     """A camera pinned to an event that begins at 5 s, 20 m behind it, has turned to where it begins by
-    then (without ``ready_seconds`` they are not yet in its picture)."""
+    then (without ``ready_seconds`` they are not yet in its picture: it scouts the crowd in front of it)."""
     t = 24 * 8
     times = np.arange(1, t + 1, dtype=np.float64)
-    pos = np.zeros((t, 2, 3))
+    pos = np.zeros((t, 6, 3))
     pos[:, 0, :2], pos[:, 1, :2] = [20.0, -0.5], [20.0, 0.5]
+    pos[:, 2:, :2] = [[-12.0, -3.0], [-12.0, -1.0], [-12.0, 1.0], [-12.0, 3.0]]     # the rest of the crowd
     start = 5 * 24
     events = model.EventTable([make_event("/E/Later", INTERACTION, pos, [0, 1], start, t - 1, times)])
     cams = _one_camera([0.0, 0.0, 2.0], [-10.0, 0.0, 1.5], [1.5, 4.0])
@@ -115,7 +116,7 @@ def test_a_camera_told_to_film_an_event_faces_it_when_it_begins():
 
     def in_picture(track, k):
         m = track.cam_to_world[k]
-        rel = (pos[k, :, :] + [0.0, 0.0, 1.1] - m[3, :3]) @ m[:3, :3].T      # along right, up, back
+        rel = (pos[k, :2, :] + [0.0, 0.0, 1.1] - m[3, :3]) @ m[:3, :3].T     # along right, up, back
         z = -rel[:, 2]
         tx = 0.5 * track.horizontal_aperture / track.focal_length[k]
         ty = 0.5 * track.vertical_aperture / track.focal_length[k]
@@ -306,3 +307,29 @@ def test_someone_who_leaves_is_held_where_they_were_last_seen():
         assert here.tolist() == [True, False]
         np.testing.assert_array_equal(got[1], pos[2, 1])        # where they left, not (0, 10, 0)
         np.testing.assert_array_equal(got[0], pos[k, 0])
+
+
+def test_a_scout_looking_at_a_wall_turns_to_the_crowd_it_has_behind_it():
+    """A scout 4 m from a 3 m wall, looking at it, the crowd behind its back (well inside the containing
+    radius, so only the wall can turn it): whatever its wandering draws, it has people in the picture
+    within 2.5 s, and most of the time after (it wanders on; the paper's wander left it filming the wall
+    for up to 7 s, or never turned)."""
+    t = 24 * 8
+    times = np.arange(1, t + 1, dtype=np.float64)
+    crowd = np.array([[x, y, 0.0] for x in (-6.0, -8.0, -10.0) for y in (-6.0, -2.0, 2.0, 6.0)])
+    pos = np.broadcast_to(crowd, (t, len(crowd), 3)).copy()
+    wall = model.Obstacles(["/Wall"], [np.array([[4.0, -20.0], [4.3, -20.0], [4.3, 20.0], [4.0, 20.0]])],
+                           np.array([3.0]))
+    first, share = [], []
+    for seed in range(6):
+        cams = _one_camera([0.0, 0.0, 2.5], [4.0, 0.0, 1.1], [2.0, 3.0])
+        track = film(pos, times, FPS, cams, model.EventTable([]), wall, seed=seed)[0]
+        m = track.cam_to_world
+        rel = np.einsum("tpj,tij->tpi", pos + [0.0, 0.0, 1.1] - m[:, None, 3, :3], m[:, :3, :3])
+        z = -rel[..., 2]
+        tx = 0.5 * track.horizontal_aperture / track.focal_length[:, None]
+        seen = ((z > 0) & (np.abs(rel[..., 0]) <= tx * z)).any(axis=1)        # someone in the picture
+        first.append(int(np.argmax(seen)) if seen.any() else t)
+        share.append(float(seen[3 * 24:].mean()))
+    assert max(first) <= 2.5 * FPS, first
+    assert np.mean(share) >= 0.75, share

@@ -76,8 +76,8 @@ class CameraParams:
         (at ``look_height``): the wandering torque.
     wander_turn : float
         Radians per second a scout's wandering direction turns toward the
-        crowd's centre while it is beyond the containment radius or points
-        out of the scene's bounds.
+        crowd's centre while it is beyond the containment radius, points
+        out of the scene's bounds, or looks at a point scenery hides.
     occlusion_lookahead : float
         Seconds ahead a tracking camera checks whether people walking on
         will hide its event (it cranes up before they do).

@@ -110,6 +110,7 @@ class CameraAgents:
         self.rng = np.random.default_rng(seed)
         fwd = axes(self.q)[0] if c else np.zeros((0, 3))
         self.wander = np.arctan2(fwd[:, 1], fwd[:, 0]) if c else np.zeros(0)
+        self.returning = np.zeros(c, bool)     # scouts turning their wandering toward the crowd (_head_back)
         self.visible = None if visible is None else np.asarray(visible, bool)
         self.visible_rows = None if visible is None else np.flatnonzero(visible)
         self.bounds = None if bounds is None else np.asarray(bounds, dtype=np.float64)
@@ -377,8 +378,10 @@ class CameraAgents:
         """(k, 3) the wandering force of scouting cameras ``scouting`` (k,); sets their aim points in
         ``look`` (c, 3)."""
         prm, t = self.params, self.table
-        self.wander[scouting] += self.rng.normal(0.0, prm.wander_jitter * np.sqrt(dt), len(scouting))
-        self._head_back(scouting, crowd_centre, crowd_radius, dt)
+        jitter = self.rng.normal(0.0, prm.wander_jitter * np.sqrt(dt), len(scouting))
+        # One heading back turns steadily: the jitter (86 degrees a second) would outrun its turn.
+        back = self._head_back(scouting, crowd_centre, crowd_radius, dt)
+        self.wander[scouting[~back]] += jitter[~back]
         wander = prm.w_wander * forces.wandering(self.v[scouting], self.wander[scouting], t.max_speed[scouting],
                                                  prm.wander_speed)
         # The wandering torque (section 4.4): aim at a point along the camera's own wandering
@@ -718,25 +721,31 @@ class CameraAgents:
         tau += prm.w_avoid * avoid * np.where(scouting | (off < 0.5 * self.half_x), 1.0, 0.0)[:, None]
         return tau
 
-    def _head_back(self, cams: np.ndarray, centre: np.ndarray, radius: float, dt: float) -> None:
+    def _head_back(self, cams: np.ndarray, centre: np.ndarray, radius: float, dt: float) -> np.ndarray:
         """Turn the wandering direction of scouts toward the crowd's centre while they are beyond the
         containment radius (the paper's containing force brings the camera back, and its wandering
-        torque looks where it goes) or while it points out of the scene's bounds (a scout would
-        otherwise stand at the edge looking out)."""
+        torque looks where it goes), while it points out of the scene's bounds (a scout would
+        otherwise stand at the edge looking out), or while scenery hides the point it looks at (a
+        room's wall, a partition: it would film the wall; scenery is known, people are not). Once
+        turning, a scout turns until it wanders toward the centre: stopped as soon as the wall left
+        its look point, it would look along the wall. Returns which of ``cams`` (k,) bool turned."""
         prm = self.params
         d = centre[None, :2] - self.p[cams, :2]
-        back = np.linalg.norm(d, axis=1) > radius + prm.contain_margin
+        back = (np.linalg.norm(d, axis=1) > radius + prm.contain_margin) | self.returning[cams]
+        ahead = self.p[cams, :2] + prm.wander_look_distance * np.column_stack(
+            [np.cos(self.wander[cams]), np.sin(self.wander[cams])])
         if self.bounds is not None:
-            ahead = self.p[cams, :2] + prm.wander_look_distance * np.column_stack(
-                [np.cos(self.wander[cams]), np.sin(self.wander[cams])])
             lo, hi = self.bounds[0] + prm.bounds_margin, self.bounds[1] - prm.bounds_margin
             back |= ((ahead < lo) | (ahead > hi)).any(axis=1)
-        if not back.any():
-            return
-        cams, d = cams[back], d[back]
-        turn = np.angle(np.exp(1j * (np.arctan2(d[:, 1], d[:, 0]) - self.wander[cams])))
-        step = prm.wander_turn * dt
-        self.wander[cams] += np.clip(turn, -step, step)
+        if len(self._prisms):
+            back |= self._prisms.blocks(self.p[cams], np.column_stack([ahead, np.full(len(cams), prm.look_height)]))
+        if back.any():
+            turning, d = cams[back], d[back]
+            turn = np.angle(np.exp(1j * (np.arctan2(d[:, 1], d[:, 0]) - self.wander[turning])))
+            step = prm.wander_turn * dt
+            self.wander[turning] += np.clip(turn, -step, step)
+            self.returning[turning] = np.abs(turn) > step
+        return back
 
     def _brake_at_bounds(self, force: np.ndarray, dt: float) -> np.ndarray:
         """``force`` (c, 3) changed so that no camera heads for the scene's bounds faster than it can stop
