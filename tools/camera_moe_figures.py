@@ -1,4 +1,4 @@
-"""Seed 002's Figures 10 and 11 for the shipped camera model, and its experts swept (section 6).
+"""Seed 002's Figures 10 and 11 for the shipped stage model, and the base recipe's experts swept (section 6).
 
     python tools/camera_moe_figures.py [gates] [generality] [experts] [recipes] [--record] [--epochs 10]
 
@@ -12,12 +12,12 @@ generality
     (Fig. 11): the distance between the two characters, the speed of the
     animation, and one character's height against the other's. Each
     changed clip is filmed by the controller with another clip's drawn
-    parameters and by the shipped model gated from that clip, blind, as
+    parameters and by the shipped stage model gated from that clip, blind, as
     `frame --like` runs; the figure is the tracks' median theta error and
     the median distance ratio (and the share of orbits turning the right
     way, in the data).
 recipes
-    the shipped recipe against the paper's (its past window and Eq. 6
+    the base recipe (the film clips' model) against the paper's (its past window and Eq. 6
     loss over the same time spans), trained alike, on the same held-out
     clips.
 main
@@ -27,7 +27,7 @@ main
     reference but is no input of the network.
 experts
     the model trained with 4, 6, 9 and 12 experts (fewer epochs than the
-    shipped model's, the same seed and data otherwise), each evaluated on
+    shipped models', the same seed and data otherwise), each evaluated on
     the held-out clips: one-prediction error and retargeting (Fig. 10,
     left: the paper sweeps the number of experts the same way).
 
@@ -74,7 +74,7 @@ def gates(record: dict) -> str:
 
     model = CameraMoE()
     clips = _clips(50)
-    w = np.array([model.gate(c.character, c.camera) for c in clips])
+    w = np.array([model.mix_and_style(model.gate(c.character, c.camera))[0] for c in clips])   # the expert mix
     labels = np.array([c.behavior for c in clips])
     with tempfile.TemporaryDirectory() as tmp:
         np.savez(Path(tmp) / "gates.npz", gates=w, labels=labels)
@@ -239,7 +239,7 @@ def experts(record: dict, epochs: int) -> str:
 
 # The paper's recipe over the same time spans at 24 fps: 1 s of past camera (12 samples) and its Eq. 6 loss.
 PAPER_RECIPE = {"past": 12, "eta": 0.1}
-# The shipped recipe with a gate that also reads the style features and learns the controllers' parameters.
+# The base recipe with a gate that also reads the style features and learns the controllers' parameters.
 STYLE_GATE = {"gate_style": True, "style": 0.3}
 # ... and experts that read the style features too (their means over the gate's window).
 EXPERTS_STYLE = {**STYLE_GATE, "expert_style": True}
@@ -249,8 +249,9 @@ RECIPE_NAMES = ("shipped", "paper_recipe", "style_gate", "experts_style")
 
 
 def recipes(record: dict) -> None:
-    """The shipped recipe, the paper's (its windows and Eq. 6), one whose gate reads the style features and
-    one whose experts read them too, trained alike, 25 epochs each, and scored on the same held-out clips
+    """The base recipe (recorded as "shipped": the film clips' model), the paper's (its windows and Eq. 6),
+    one whose gate reads the style features and one whose experts read them too, trained alike, 25 epochs
+    each, and scored on the same held-out clips
     (train_camera_moe's evaluation, from build/camera_moe_recipe_ours, build/camera_moe_paper_recipe,
     build/camera_moe_style_gate and build/camera_moe_experts_style, each trained first unless it is there)."""
     import csv
@@ -324,8 +325,8 @@ def tables(figures: dict) -> dict:
                 line.append(f"{r['direction_deg']:.1f} / {r['theta_deg_median']:.1f} / "
                             f"{r['distance_ratio_median']:.2f}{extra}")
             rows.append(line)
-        columns = ["behavior", "shipped recipe: one prediction (deg) / retargeted theta (deg, median) / distance "
-                   "ratio", "the paper's windows and Eq. 6: the same", "a gate reading the style features: the same",
+        columns = ["behavior", "base recipe (the film clips' model): one prediction (deg) / retargeted theta (deg, "
+                   "median) / distance ratio", "the paper's windows and Eq. 6: the same", "a gate reading the style features: the same",
                    "experts reading them too: the same"]
         out["recipes"] = {"columns": columns[:len(rows[0])], "rows": rows}
     if "generality" in figures:
@@ -355,12 +356,17 @@ def main(argv=None) -> int:
     data_path = ROOT / "docs" / "data" / "camera_moe_figures.json"
     figures = json.loads(data_path.read_text())["figures"] if data_path.exists() else {}
     images = []
+    from docfigures import commit, machine
+
     for part in parts:
         if part in ("recipes", "main"):
             {"recipes": recipes, "main": main_character}[part](figures)
-            continue
-        images.append({"gates": lambda: gates(figures), "generality": lambda: generality(figures),
-                       "experts": lambda: experts(figures, a.epochs)}[part]())
+        else:
+            images.append({"gates": lambda: gates(figures), "generality": lambda: generality(figures),
+                           "experts": lambda: experts(figures, a.epochs)}[part]())
+        # Parts are run apart (the sweeps take an hour): each says when, where and from what it was measured.
+        figures[{"main": "main_character"}.get(part, part)]["measured"] = {
+            "date": time.strftime("%Y-%m-%d", time.gmtime()), "commit": commit(), "machine": machine()}
     if a.record:
         from docfigures import record
 

@@ -1,7 +1,11 @@
 """Train the learned camera behaviors (seed 002, section 5) and evaluate them as the paper does.
 
-    python tools/train_camera_moe.py [--epochs 50] [--per-behavior 400] [--seed 0] [--out build/camera_moe]
-                                     [--install] [--config JSON] [--evaluate-only]
+    python tools/train_camera_moe.py [--recipe base|stage] [--epochs 50] [--per-behavior 400] [--seed 0]
+                                     [--out build/camera_moe] [--install | --install-clip] [--config JSON]
+                                     [--evaluate-only]
+
+The shipped models: ``--recipe stage --install`` (stage references) and
+``--install-clip`` (film clips, the base recipe), 50 epochs, seed 0 each.
 
 1. makes a seeded dataset with usdcrowd: two-character motions filmed by the
    four controllers with drawn parameters (usdcrowd.cameras.moe_data), and
@@ -25,10 +29,11 @@
 Config keys beyond the sizes (usdcrowd.cameras.moe.Config): ``gate_style``
 gives the gate the style features (usdcrowd.cameras.moe.style_features) and
 ``style`` weighs an auxiliary loss asking its logits for the controllers'
-parameters (:func:`style_labels`); both off in the shipped recipe.
-``expert_style`` has the experts read the style too; ``unseen_motion`` (a
-share) gates that many training windows from a reference without its pair
-motion, as a film clip gives it (:func:`unseen_motion_styles`).
+parameters (:func:`style_labels`). ``expert_style`` has the experts read
+the style too; ``unseen_motion`` (a share) gates that many training windows
+from a reference without its pair motion, as a film clip gives it
+(:func:`unseen_motion_styles`). All four are off in the base recipe and on
+in the stage recipe (:data:`STAGE_RECIPE`).
 """
 
 from __future__ import annotations
@@ -53,6 +58,10 @@ TORCH_PACKAGES = ["torch==2.13.0", "numpy", "scikit-learn"]
 CONFIG = {"step": 2, "past": 4, "char_past": 12, "char_future": 12, "out": 6, "gate_step": 4, "gate_len": 60,
           "experts": 9, "hidden": 128, "gate_hidden": 32, "noise": 0.3, "blind": 0.2, "residual": True,
           "pair": 0.8, "gate_lr": 10.0}
+# The model `frame --like` reads stage references with (camera_moe.npz): the base recipe above with experts
+# that read the reference's style, taught on a quarter of the gate's windows what a film clip gives (no pair
+# motion). The base recipe itself is the film clips' model (camera_moe_clip.npz).
+STAGE_RECIPE = {"gate_style": True, "style": 0.3, "expert_style": True, "unseen_motion": 0.25}
 
 
 # The paper's recipe (section 5.2, appendix A) at its own frame rate (60 fps, every frame): 60 past and 120
@@ -280,6 +289,8 @@ def main() -> int:
                    help="copy the weights into the package as the model for stage references (camera_moe.npz)")
     p.add_argument("--install-clip", action="store_true",
                    help="copy them as the model for film clips (camera_moe_clip.npz)")
+    p.add_argument("--recipe", choices=("base", "stage"), default="base",
+                   help="base: the film clips' model; stage: the stage references' model (STAGE_RECIPE)")
     p.add_argument("--config", default="{}",
                    help='JSON overriding the model and training config, e.g. \'{"noise": 0.1}\'')
     p.add_argument("--record", action="store_true",
@@ -293,7 +304,10 @@ def main() -> int:
     p.add_argument("--evaluate-only", action="store_true",
                    help="evaluate the weights, CSV and history already in --out (no training)")
     a = p.parse_args()
+    CONFIG.update(STAGE_RECIPE if a.recipe == "stage" else {})
     CONFIG.update(json.loads(a.config))
+    if CONFIG.get("unseen_motion") and not CONFIG.get("gate_style"):
+        p.error("unseen_motion needs gate_style (it replaces the style features the gate reads)")
     if a.costs:
         return costs(a.record)
     out = Path(a.out)

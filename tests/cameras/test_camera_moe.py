@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from usdcrowd.cameras.behaviors import BEHAVIORS
-from usdcrowd.cameras.moe import N_CAMERA, N_CHARACTER, N_STYLE, SPAN, U, WEIGHTS, CameraMoE, poses_of_features
+from usdcrowd.cameras.moe import (CLIP_WEIGHTS, N_CAMERA, N_CHARACTER, N_STYLE, SPAN, U, WEIGHTS, CameraMoE,
+                                   poses_of_features)
 from usdcrowd.cameras.moe_data import ASPECT, FOV_X, held_out_clips, make_clip, make_clips, refilm_track
 from usdcrowd.cameras.retarget import SETTLE_FRAMES, compare
 from usdcrowd.cli import main
@@ -26,38 +27,55 @@ def moe():
     return CameraMoE()
 
 
-def test_the_shipped_weights_are_small_and_say_what_they_are(moe):
+@pytest.fixture(params=["stage", "clip"])
+def shipped(request):
+    """Each model the package ships: (its weights file, the model)."""
+    path = {"stage": WEIGHTS, "clip": CLIP_WEIGHTS}[request.param]
+    return path, CameraMoE(path)
+
+
+def _gated(model, rng, rows: int) -> np.ndarray:
+    """(rows, m [+ N_STYLE]) random outputs of the model's gate: a mix, and a style where its experts read one."""
+    w = rng.dirichlet(np.ones(model.config.experts), size=rows)
+    return np.hstack([w, rng.normal(size=(rows, N_STYLE))]) if model.config.expert_style else w
+
+
+def test_the_shipped_weights_are_small_and_say_what_they_are(shipped):
+    path, moe = shipped
     c = moe.config
-    assert WEIGHTS.stat().st_size < 3e6 and moe.size_bytes < 3e6
-    assert moe.w["experts.w1"].shape == (c.experts, c.n_in, c.hidden)
+    assert path.stat().st_size < 3e6 and moe.size_bytes < 3e6
+    assert moe.w["experts.w1"].shape == (c.experts, c.n_in + N_STYLE * c.expert_style, c.hidden)
     assert moe.w["experts.w3"].shape == (c.experts, c.hidden, c.out * N_CAMERA)
-    assert moe.w["gate.lstm.weight_ih"].shape == (4 * c.gate_hidden, N_CHARACTER + N_CAMERA)
+    assert moe.w["gate.lstm.weight_ih"].shape == (4 * c.gate_hidden, N_CHARACTER + N_CAMERA + N_STYLE * c.gate_style)
     assert moe.about["train_clips"] > 0 and moe.about["torch"].startswith("2.13.0")
+    # Stage references are read by experts that read the style; film clips, which cannot show it, are not.
+    assert c.expert_style == (path == WEIGHTS)
 
 
-def test_blending_the_weights_equals_blending_each_layers_outputs(moe, rng):
+def test_blending_the_weights_equals_blending_each_layers_outputs(shipped, rng):
     """The prediction network with blended weights (inference) is the training's per-layer mix of experts."""
-    c = moe.config
-    w = rng.dirichlet(np.ones(c.experts))
-    x = rng.normal(size=(5, c.n_in))
+    _, moe = shipped
+    w = _gated(moe, rng, 1)[0]
+    x = rng.normal(size=(5, moe.config.n_in))
     np.testing.assert_allclose(moe.predict(moe.blend(w), x), moe.predict_experts(np.tile(w, (5, 1)), x), atol=1e-9)
 
 
 @pytest.mark.slow
-def test_numpy_inference_equals_pytorchs(moe, rng, tmp_path):
+def test_numpy_inference_equals_pytorchs(shipped, rng, tmp_path):
     """The gating LSTM and the blended prediction network, in numpy and in PyTorch (its own venv), to 1e-5."""
     from tests.helpers.venvs import tool_python
 
     python = tool_python("torch", ["torch==2.13.0", "numpy", "scikit-learn"], "USDCROWD_TORCH_VENV")
+    path, moe = shipped
     c = moe.config
-    gate_x = rng.normal(size=(3, c.gate_len, N_CHARACTER + N_CAMERA))
+    gate_x = rng.normal(size=(3, c.gate_len, N_CHARACTER + N_CAMERA + N_STYLE * c.gate_style))
     x = rng.normal(size=(4, c.n_in))
-    w = rng.dirichlet(np.ones(c.experts), size=4)
+    w = _gated(moe, rng, 4)
     np.savez(tmp_path / "inputs.npz", gate_x=gate_x, x=x, w=w)
-    subprocess.run([python, str(TOOLS / "camera_moe_torch.py"), "forward", str(WEIGHTS), str(tmp_path / "inputs.npz"),
+    subprocess.run([python, str(TOOLS / "camera_moe_torch.py"), "forward", str(path), str(tmp_path / "inputs.npz"),
                     str(tmp_path / "out.npz")], check=True)
     torch_out = np.load(tmp_path / "out.npz")
-    np.testing.assert_allclose(moe.gate_sequence(gate_x), torch_out["gate"], atol=1e-5)
+    np.testing.assert_allclose(moe.gate_sequence(gate_x), torch_out["gate"][:, :c.experts], atol=1e-5)
     np.testing.assert_allclose(moe.predict_experts(w, x), torch_out["pred"], atol=1e-5)
     np.testing.assert_allclose(moe.predict(moe.blend(w[0]), x[:1]), torch_out["pred"][:1], atol=1e-5)
 
