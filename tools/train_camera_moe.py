@@ -285,10 +285,11 @@ def main() -> int:
     p.add_argument("--per-behavior", type=int, default=400, help="training clips per behavior (20 s each)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default="build/camera_moe")
-    p.add_argument("--install", action="store_true",
-                   help="copy the weights into the package as the model for stage references (camera_moe.npz)")
-    p.add_argument("--install-clip", action="store_true",
-                   help="copy them as the model for film clips (camera_moe_clip.npz)")
+    slot = p.add_mutually_exclusive_group()
+    slot.add_argument("--install", action="store_true",
+                      help="copy the weights into the package as the model for stage references (camera_moe.npz)")
+    slot.add_argument("--install-clip", action="store_true",
+                      help="copy them as the model for film clips (camera_moe_clip.npz)")
     p.add_argument("--recipe", choices=("base", "stage"), default="base",
                    help="base: the film clips' model; stage: the stage references' model (STAGE_RECIPE)")
     p.add_argument("--config", default="{}",
@@ -345,6 +346,12 @@ def main() -> int:
     from usdcrowd.cameras.moe import CLIP_WEIGHTS, WEIGHTS
 
     for dest in [WEIGHTS] * a.install + [CLIP_WEIGHTS] * a.install_clip:
+        # Stage references are read by experts that read the style; film clips cannot give it.
+        reads_style = json.loads(str(np.load(out / "camera_moe.npz")["config"])).get("expert_style", False)
+        if reads_style != (dest == WEIGHTS):
+            print(f"not installed: {dest.name} takes a model whose experts read the style "
+                  f"{'(--recipe stage)' if dest == WEIGHTS else 'not at all (--recipe base)'}", file=sys.stderr)
+            return 2
         shutil.copy(out / "camera_moe.npz", dest)
         print(f"installed {dest} ({dest.stat().st_size / 1e6:.2f} MB)")
     return 0

@@ -18,7 +18,8 @@ between the two leaves them out of step. A run that then loads the pair
 crashes inside LLVM (a segmentation fault, no traceback). Each kernel
 module therefore ends with :func:`cache_one_process_at_a_time`: every load
 and save of its machine code holds a lock on the cache folder and defers
-Ctrl-C and SIGTERM until it is done (a compile itself stays interruptible).
+Ctrl-C and SIGTERM until it is done (waiting for the lock and a compile
+itself stay interruptible).
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ import contextlib
 import hashlib
 import os
 import signal
+import threading
 from types import ModuleType
 
 import numpy as np
@@ -99,34 +101,40 @@ def _forget(folder: str, stem: str, stamp: str, key: str) -> bool:
     return deleted
 
 
-_held: set[str] = set()     # folders this process holds (a load inside a save, a module's two kernels)
+_held = threading.local()    # .folders: those this thread holds (a module's kernels share one folder)
 
 
 @contextlib.contextmanager
 def cache_folder_held(folder: str):
     """Within: no other process reads or writes numba's cache in ``folder``, and Ctrl-C and SIGTERM
-    wait (they are delivered on leaving). Where the lock file cannot be made, only the signals wait."""
+    wait (they are delivered on leaving). Waiting for the lock can be interrupted; where the lock cannot
+    be had (no lock file, a file system without locks), only the signals wait."""
     from .interrupts import signals_held
 
-    with signals_held(signal.SIGINT, signal.SIGTERM):
-        if fcntl is None or folder in _held:
-            yield
-            return
+    folders = _held.__dict__.setdefault("folders", set())
+    fd = None
+    if fcntl is not None and folder not in folders:
         try:
             fd = os.open(os.path.join(folder, LOCK_NAME), os.O_RDWR | os.O_CREAT, 0o666)
         except OSError:
-            yield
-            return
+            fd = None
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX)
-            _held.add(folder)
-            try:
-                yield
-            finally:
-                _held.discard(folder)
-                fcntl.flock(fd, fcntl.LOCK_UN)
-        finally:
+            if fd is not None:
+                fcntl.flock(fd, fcntl.LOCK_EX)
+        except BaseException as exc:     # no locks here (carry on unlocked), or a stop while waiting
             os.close(fd)
+            fd = None
+            if not isinstance(exc, OSError):
+                raise
+    try:
+        if fd is not None:
+            folders.add(folder)
+        with signals_held(signal.SIGINT, signal.SIGTERM):
+            yield
+    finally:
+        if fd is not None:
+            folders.discard(folder)
+            os.close(fd)            # closing releases the lock
 
 
 def _held_while(method, folder: str):

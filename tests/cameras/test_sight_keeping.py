@@ -333,3 +333,24 @@ def test_a_scout_looking_at_a_wall_turns_to_the_crowd_it_has_behind_it():
         share.append(float(seen[3 * 24:].mean()))
     assert max(first) <= 2.5 * FPS, first
     assert np.mean(share) >= 0.75, share
+
+
+def test_a_scout_does_not_stare_at_scenery_that_hides_the_crowds_centre():
+    """People in a ring round a 3 m kiosk, a scout inside the ring looking at the kiosk: the crowd's centre
+    is behind the kiosk from everywhere, so turning toward it cannot clear its view; the scout wanders on
+    (always facing the kiosk, had the kiosk alone turned it)."""
+    from usdcrowd.cameras.sightlines import Prisms
+
+    t = 24 * 8
+    times = np.arange(1, t + 1, dtype=np.float64)
+    ring = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
+    pos = np.broadcast_to(np.column_stack([9.0 * np.cos(ring), 9.0 * np.sin(ring), np.zeros(16)]), (t, 16, 3))
+    kiosk = model.Obstacles(["/Kiosk"], [np.array([[-3.0, -3.0], [3.0, -3.0], [3.0, 3.0], [-3.0, 3.0]])],
+                            np.array([3.0]))
+    facing = []
+    for seed in range(6):
+        cams = _one_camera([-6.0, 0.0, 2.5], [0.0, 0.0, 1.1], [2.0, 3.0])
+        m = film(pos.copy(), times, FPS, cams, model.EventTable([]), kiosk, seed=seed)[0].cam_to_world
+        eye = m[:, 3, :3]
+        facing.append(Prisms.of(kiosk).blocks(eye, eye - 15.0 * m[:, 2, :3])[2 * 24:].mean())
+    assert np.mean(facing) <= 0.5, facing

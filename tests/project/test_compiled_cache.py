@@ -63,9 +63,21 @@ print("done", flush=True)
 """
 
 
+HELD = """
+import os, signal, sys, time
+from usdcrowd.compiled import cache_folder_held
+with cache_folder_held(sys.argv[1]):
+    os.kill(os.getpid(), signal.SIGTERM)      # lands mid-load
+    time.sleep(0.3)
+    print("loaded", flush=True)
+print("after", flush=True)
+"""
+
+
 def test_machine_code_is_loaded_one_process_at_a_time_and_a_kill_waits_for_the_load(tmp_path):
     """numba's index and data files, read or written by two runs at once or cut by a stop between the
-    two, crash the next run inside LLVM: every load holds the cache folder and defers SIGTERM."""
+    two, crash the next run inside LLVM: every load holds the cache folder (another run waits, and can
+    be stopped while it waits) and a stop that lands during the load is delivered once it is done."""
     import fcntl
     import os
     import signal
@@ -79,26 +91,25 @@ def test_machine_code_is_loaded_one_process_at_a_time_and_a_kill_waits_for_the_l
     folder = kernels.moved_beyond._cache.cache_path
     assert os.path.samefile(folder, Path(kernels.__file__).parent / "__pycache__")
     root = Path(kernels.__file__).parents[2]
+    env = {**os.environ, "PYTHONPATH": str(root)}
     fd, proc = os.open(os.path.join(folder, LOCK_NAME), os.O_RDWR | os.O_CREAT, 0o666), None
     try:
         fcntl.flock(fd, fcntl.LOCK_EX)                 # another run is loading or saving
         proc = subprocess.Popen([sys.executable, "-c", LOADER], stdout=subprocess.PIPE, text=True,
-                                cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(root)})
-        try:
-            assert proc.stdout.readline() == "calling\n"
-            time.sleep(2.0)
-            assert proc.poll() is None, "loaded while another run held the cache"
-            proc.send_signal(signal.SIGTERM)
-            time.sleep(1.0)
-            assert proc.poll() is None, "a kill landed while waiting to load"
-        finally:
-            fcntl.flock(fd, fcntl.LOCK_UN)
-        assert proc.wait(120) == -signal.SIGTERM        # delivered once the load is done
-        assert proc.stdout.read() == ""
+                                cwd=tmp_path, env=env)
+        assert proc.stdout.readline() == "calling\n"
+        time.sleep(2.0)
+        assert proc.poll() is None, "loaded while another run held the cache"
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(10) == -signal.SIGTERM and proc.stdout.read() == ""   # stopped while it waited
     finally:
+        fcntl.flock(fd, fcntl.LOCK_UN)
         os.close(fd)
         if proc is not None and proc.poll() is None:
             proc.kill()
+    held = subprocess.run([sys.executable, "-c", HELD, str(tmp_path)], capture_output=True, text=True,
+                          env=env, timeout=60)
+    assert held.returncode == -signal.SIGTERM and held.stdout == "loaded\n", (held.stdout, held.stderr)
 
 
 def test_every_cached_kernel_loads_through_the_lock():

@@ -335,6 +335,7 @@ class CameraAgents:
         self._keep_pace(time, positions)
         tracking = np.flatnonzero(self.tracked >= 0)
         scouting = np.flatnonzero(self.tracked < 0)
+        self.returning[tracking] = False            # a scout again later wanders afresh
         look = self.p + fwd * prm.wander_look_distance
         height = 0.5 * (t.elevation[:, 0] + t.elevation[:, 1])
         if len(tracking):
@@ -726,7 +727,8 @@ class CameraAgents:
         containment radius (the paper's containing force brings the camera back, and its wandering
         torque looks where it goes), while it points out of the scene's bounds (a scout would
         otherwise stand at the edge looking out), or while scenery hides the point it looks at (a
-        room's wall, a partition: it would film the wall; scenery is known, people are not). Once
+        room's wall, a partition: it would film the wall; scenery is known, people are not), unless
+        scenery hides the way to the centre as well. Once
         turning, a scout turns until it wanders toward the centre: stopped as soon as the wall left
         its look point, it would look along the wall. Returns which of ``cams`` (k,) bool turned."""
         prm = self.params
@@ -738,7 +740,13 @@ class CameraAgents:
             lo, hi = self.bounds[0] + prm.bounds_margin, self.bounds[1] - prm.bounds_margin
             back |= ((ahead < lo) | (ahead > hi)).any(axis=1)
         if len(self._prisms):
-            back |= self._prisms.blocks(self.p[cams], np.column_stack([ahead, np.full(len(cams), prm.look_height)]))
+            # Only toward a centre it can see over: one behind scenery too (a kiosk the crowd walks round)
+            # would hold the scout staring at the kiosk.
+            toward = self.p[cams, :2] + prm.wander_look_distance * d / np.maximum(
+                np.linalg.norm(d, axis=1, keepdims=True), 1e-9)
+            height = np.full(len(cams), prm.look_height)
+            hidden = self._prisms.blocks(self.p[cams], np.column_stack([ahead, height]))
+            back |= hidden & ~self._prisms.blocks(self.p[cams], np.column_stack([toward, height]))
         if back.any():
             turning, d = cams[back], d[back]
             turn = np.angle(np.exp(1j * (np.arctan2(d[:, 1], d[:, 0]) - self.wander[turning])))

@@ -461,7 +461,7 @@ class Reference:
     from_clip: bool = False    # estimated from a film clip's 2D poses: its pair motion is unknown
 
     @property
-    def weights(self) -> Path:
+    def model_path(self) -> Path:
         """The camera model that reads it (:data:`usdcrowd.cameras.moe.CLIP_WEIGHTS` for a film clip)."""
         from ..cameras.moe import CLIP_WEIGHTS, WEIGHTS
 
@@ -647,9 +647,9 @@ def frame_like(shot_path, reference: Reference | list[tuple[Reference, float]], 
     def model_for(r: Reference):        # a stage reference and a film clip are read by their own models
         if model is not None:
             return model
-        if r.weights not in models:
-            models[r.weights] = CameraMoE(r.weights)
-        return models[r.weights]
+        if r.model_path not in models:
+            models[r.model_path] = CameraMoE(r.model_path)
+        return models[r.model_path]
 
     scene = ShotScene(shot_path)
     times = scene.time_codes
