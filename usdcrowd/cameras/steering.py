@@ -742,11 +742,11 @@ class CameraAgents:
         if len(self._prisms):
             # Only toward a centre it can see over: one behind scenery too (a kiosk the crowd walks round)
             # would hold the scout staring at the kiosk.
-            toward = self.p[cams, :2] + prm.wander_look_distance * d / np.maximum(
-                np.linalg.norm(d, axis=1, keepdims=True), 1e-9)
-            height = np.full(len(cams), prm.look_height)
-            hidden = self._prisms.blocks(self.p[cams], np.column_stack([ahead, height]))
-            back |= hidden & ~self._prisms.blocks(self.p[cams], np.column_stack([toward, height]))
+            height = np.full((len(cams), 1), prm.look_height)
+            hidden = np.flatnonzero(self._prisms.blocks(self.p[cams], np.hstack([ahead, height])))
+            toward = self.p[cams[hidden], :2] + prm.wander_look_distance * d[hidden] / np.maximum(
+                np.linalg.norm(d[hidden], axis=1, keepdims=True), 1e-9)
+            back[hidden] |= ~self._prisms.blocks(self.p[cams[hidden]], np.hstack([toward, height[hidden]]))
         if back.any():
             turning, d = cams[back], d[back]
             turn = np.angle(np.exp(1j * (np.arctan2(d[:, 1], d[:, 0]) - self.wander[turning])))
