@@ -475,7 +475,7 @@ def test_switching_references_refuses_what_does_not_add_up_in_one_line(dialogue_
 
 def test_the_recorded_retargeting_figures_are_what_the_shipped_weights_give():
     """The pages' retargeting table (docs/data/camera_moe.json, from tools/train_camera_moe.py) is recomputed
-    from the shipped weights on the same 400 held-out clips: every figure the same, so a figure the code no
+    from the shipped weights on the same 1,600 held-out clips: every figure the same, so a figure the code no
     longer gives fails here."""
     import json
 
@@ -483,7 +483,7 @@ def test_the_recorded_retargeting_figures_are_what_the_shipped_weights_give():
     from tests.helpers.tools import load_tool
 
     tool = load_tool("train_camera_moe")
-    rows = tool.retarget_summary(tool.retarget_errors(WEIGHTS, held_out_clips(100)))
+    rows = tool.retarget_summary(tool.retarget_errors(WEIGHTS, held_out_clips(tool.RETARGET_PER_BEHAVIOR)))
     recorded = json.loads((ROOT / "docs" / "data" / "camera_moe.json").read_text())["figures"]["retarget"]
     assert len(recorded) == len(rows) == 16
     for row in rows:
@@ -491,6 +491,18 @@ def test_the_recorded_retargeting_figures_are_what_the_shipped_weights_give():
         for name, value in row.items():
             if name not in ("behavior", "shot"):
                 assert recorded[key][name] == pytest.approx(value, rel=1e-9, abs=1e-12), (key, name)
+
+
+def test_the_orbits_right_way_share_comes_with_the_wilson_interval_scipy_gives():
+    """The guide quotes the orbits' right-way share with a 95 % interval: the same as scipy's Wilson interval."""
+    from scipy.stats import binomtest
+
+    from tests.helpers.tools import load_tool
+
+    tool = load_tool("train_camera_moe")
+    for hits, n in ((385, 400), (94, 100), (0, 12), (12, 12), (1, 3)):
+        ci = binomtest(hits, n).proportion_ci(confidence_level=0.95, method="wilson")
+        assert tool.wilson_interval(hits, n) == pytest.approx((ci.low, ci.high), abs=2e-4), (hits, n)
 
 
 def _clip_inputs(tmp_path) -> dict:
