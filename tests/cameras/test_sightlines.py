@@ -79,7 +79,7 @@ def test_sight_lines_agree_with_the_id_pass_of_the_preview(harbour_frames):
             tx, ty = lens_tangents(tracks, j)
             v = views(mats, tx, ty, np.array([t.near for t in tracks]), np.array([t.far for t in tracks]),
                       np.asarray(sc.positions[i], dtype=np.float64), people=rows,
-                      prisms=Prisms.of(sc.scenario.obstacles), occluders=vis)
+                      prisms=Prisms.of(sc.scenario.obstacles), occluders=vis, heights=sc.scenario.agents.height)
             for c, track in enumerate(tracks):
                 counts = np.bincount(r.render(float(track.times[j]), track.path).ids.ravel().astype(np.int64),
                                      minlength=int(ids.max()) + 1)
@@ -92,14 +92,14 @@ def test_sight_lines_agree_with_the_id_pass_of_the_preview(harbour_frames):
     finally:
         r.release()
     visible, scenery, people = (np.array(seen[k]) for k in ("visible", "scenery", "people"))
-    assert len(visible) > 100 and len(scenery) > 10 and len(people) > 20, {k: len(a) for k, a in seen.items()}
+    # Partly hidden people whose chest, head, shoulders, crown or a side shows are visible: those left hidden by
+    # others are few (measured: 8 against 623 visible) and show little of themselves.
+    assert len(visible) > 100 and len(scenery) > 10 and len(people) > 4, {k: len(a) for k, a in seen.items()}
     assert np.mean(visible > 0.01) > 0.97
-    # Measured: 53 of the 57 people called hidden by scenery show no pixel; 4 show 5-41 % of their area (the
-    # sight lines test points on a person, the id pass counts the whole body's pixels; not looked into).
-    assert np.mean(scenery < 0.01) > 0.9
-    # Partly hidden people show their edges (measured: a median 0.24 of a person's area against 0.47 for
-    # those in plain view, the harbour's queues standing close).
-    assert np.median(people) < 0.3 and np.median(people) < 0.6 * np.median(visible)
+    # Measured: 55 of the 56 people called hidden by scenery show under 1 % of their area, one 5 %.
+    assert np.mean(scenery < 0.01) > 0.97
+    # Measured: a median 0.06 of a person's area against 0.43 for those in plain view.
+    assert np.median(people) < 0.15 and np.median(people) < 0.3 * np.median(visible)
 
 
 def test_an_awning_hides_people_from_above_but_not_from_under_it():

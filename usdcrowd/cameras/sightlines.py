@@ -4,10 +4,11 @@ Seed 000's metrics call a character seen when its chest is inside the
 frustum (:mod:`.metrics`). A director choosing the camera on air, and a
 measure of how well a tracking camera frames its event, need more: a wall
 or another person between the camera and someone hides them. Here each
-(camera, person) pair is tested with sight lines to the person's chest and
-head: against the scenery's footprints (convex prisms up to their height,
+(camera, person) pair is tested with sight lines to points on the person
+(chest and head, then shoulders, crown and the sides: :data:`SIGHT_POINTS`,
+scaled to the person's height): against the scenery's footprints (convex prisms up to their height,
 as the simulation and the cameras know the scenery) and against the other
-people (upright cylinders). A person is visible when either line is clear.
+people (upright cylinders). A person is visible when any line is clear.
 
 The test is geometric and conservative where it must choose: a person is a
 body :data:`PERSON_RADIUS` in radius up to the shoulders and a head
@@ -33,6 +34,14 @@ HEAD_HEIGHT = 1.6
 SHOULDER_HEIGHT = 1.45
 PERSON_RADIUS = 0.25
 HEAD_RADIUS = 0.12
+SHOULDER_HALF_WIDTH = 0.2
+CROWN_HEIGHT = 1.66
+# The points sight lines end at (metres across the view, metres up, for a person PERSON_HEIGHT tall): the
+# chest and the head first; then the shoulders' middle, the crown and the chest's sides, which a person
+# under the frame's top, behind a wall seen from above or at a wall's edge may show alone. (Not the
+# shoulders' sides: they would call a person seen whose shoulder shows beside the head of one in front.)
+SIGHT_POINTS = ((0.0, CHEST_HEIGHT), (0.0, HEAD_HEIGHT), (0.0, SHOULDER_HEIGHT), (0.0, CROWN_HEIGHT),
+                (-SHOULDER_HALF_WIDTH, CHEST_HEIGHT), (SHOULDER_HALF_WIDTH, CHEST_HEIGHT))
 # Pair-by-occluder tests are done in chunks of about this many (memory, not speed).
 _CHUNK = 500_000
 
@@ -144,11 +153,11 @@ class Views:
     Attributes
     ----------
     in_frame : (c, n) bool
-        The chest or the head is inside the frustum.
+        A point of the person (:data:`SIGHT_POINTS`) is inside the frustum.
     visible : (c, n) bool
-        In frame, with a clear sight line to the chest or the head.
+        With a clear sight line to one of those in frame.
     hidden_by_scenery, hidden_by_people : (c, n) bool
-        In frame, both sight lines blocked by the scenery (or, failing that, by people).
+        In frame, every sight line blocked by the scenery (or, failing that, by people).
     height : (c, n) float64
         A person's height on screen, as a share of the frame's height (0 behind the camera).
     depth : (c, n) float64
@@ -174,7 +183,7 @@ def lens_tangents(tracks: list[model.CameraTrack], frame: int) -> tuple[np.ndarr
 
 def views(cam_to_world: np.ndarray, tan_x: np.ndarray, tan_y: np.ndarray, near: np.ndarray, far: np.ndarray,
           ground: np.ndarray, people: np.ndarray | None = None, prisms: Prisms | None = None,
-          occluders: np.ndarray | None = None) -> Views:
+          occluders: np.ndarray | None = None, heights: np.ndarray | None = None) -> Views:
     """Every camera's view of the ``people`` rows at one frame.
 
     Parameters
@@ -192,6 +201,9 @@ def views(cam_to_world: np.ndarray, tan_x: np.ndarray, tan_y: np.ndarray, near: 
     occluders : (n,) bool, optional
         Rows that can hide others (default: all; pass the rendered ones:
         an invisible leader hides nobody).
+    heights : (n,) float, optional
+        Everyone's body height, metres (default :data:`PERSON_HEIGHT`): the
+        points on a person scale with it.
 
     Returns
     -------
@@ -201,6 +213,7 @@ def views(cam_to_world: np.ndarray, tan_x: np.ndarray, tan_y: np.ndarray, near: 
     ground = np.asarray(ground, dtype=np.float64)
     rows = np.arange(len(ground)) if people is None else np.asarray(people, dtype=np.int64)
     occ_rows = np.arange(len(ground)) if occluders is None else np.flatnonzero(occluders)
+    tall = np.full(len(rows), PERSON_HEIGHT) if heights is None else np.asarray(heights, dtype=np.float64)[rows]
     c, p = len(cam_to_world), len(rows)
     eye = cam_to_world[:, 3, :3]
     right, up, back = cam_to_world[:, 0, :3], cam_to_world[:, 1, :3], cam_to_world[:, 2, :3]
@@ -208,35 +221,39 @@ def views(cam_to_world: np.ndarray, tan_x: np.ndarray, tan_y: np.ndarray, near: 
     if c == 0 or p == 0:
         z = np.zeros(shape, bool)
         return Views(z, z.copy(), z.copy(), z.copy(), np.zeros(shape), np.zeros(shape))
-
-    def cam_space(points):                                   # (c, q, 3) -> x, y, depth
-        d = points[None] - eye[:, None]
-        return (np.einsum("cqi,ci->cq", d, right), np.einsum("cqi,ci->cq", d, up),
-                -np.einsum("cqi,ci->cq", d, back))
-
-    targets = {h: ground[rows] + [0.0, 0.0, h] for h in (CHEST_HEIGHT, HEAD_HEIGHT)}
-    inside, clear_s, clear_p = {}, {}, {}
-    for h, pts in targets.items():
-        x, y, z = cam_space(pts)
-        inside[h] = (z > near[:, None]) & (z < far[:, None]) & (np.abs(x) <= tan_x[:, None] * z) & (
+    # Sideways on a person is the camera's horizontal right (a camera looking straight down has none: 0).
+    side = right * [1.0, 1.0, 0.0]
+    side /= np.maximum(np.linalg.norm(side, axis=1, keepdims=True), 1e-9)
+    base = ground[rows][None]                                     # (1, p, 3)
+    in_frame, visible, scenery_clear = (np.zeros(shape, bool) for _ in range(3))
+    for k, (across, h) in enumerate(SIGHT_POINTS):
+        pts = base + np.stack([np.zeros(p), np.zeros(p), h / PERSON_HEIGHT * tall], -1)[None] \
+            + across * side[:, None]                              # (c, p, 3)
+        d = pts - eye[:, None]
+        x, y = np.einsum("cpi,ci->cp", d, right), np.einsum("cpi,ci->cp", d, up)
+        z = -np.einsum("cpi,ci->cp", d, back)
+        inside = (z > near[:, None]) & (z < far[:, None]) & (np.abs(x) <= tan_x[:, None] * z) & (
             np.abs(y) <= tan_y[:, None] * z)
-        clear_s[h] = np.ones(shape, bool)
-        clear_p[h] = np.ones(shape, bool)
-        cam_i, who = np.nonzero(inside[h])
-        if len(cam_i) and prisms is not None and len(prisms):
-            clear_s[h][cam_i, who] = ~prisms.blocks(eye[cam_i], pts[who])
-        if len(cam_i):
-            clear_p[h][cam_i, who] = ~_people_block(eye, right, up, back, cam_i, pts[who], rows[who], ground,
-                                                    occ_rows)
-    in_frame = inside[CHEST_HEIGHT] | inside[HEAD_HEIGHT]
-    line = {h: inside[h] & clear_s[h] & clear_p[h] for h in targets}
-    visible = line[CHEST_HEIGHT] | line[HEAD_HEIGHT]
-    by_scenery = in_frame & ~visible & ~((inside[CHEST_HEIGHT] & clear_s[CHEST_HEIGHT]) |
-                                         (inside[HEAD_HEIGHT] & clear_s[HEAD_HEIGHT]))
+        in_frame |= inside
+        # Each point is tried only where no point before it showed the person (chest and head first).
+        cam_i, who = np.nonzero(inside & ~visible)
+        if not len(cam_i):
+            continue
+        clear = np.ones(len(cam_i), bool)
+        if prisms is not None and len(prisms):
+            clear = ~prisms.blocks(eye[cam_i], pts[cam_i, who])
+        scenery_clear[cam_i[clear], who[clear]] = True
+        seen = clear.copy()
+        if clear.any():
+            seen[clear] = ~_people_block(eye, right, up, back, cam_i[clear], pts[cam_i[clear], who[clear]],
+                                         rows[who[clear]], ground, occ_rows)
+        visible[cam_i[seen], who[seen]] = True
+    by_scenery = in_frame & ~visible & ~scenery_clear
     by_people = in_frame & ~visible & ~by_scenery
-    _, _, depth = cam_space(ground[rows] + [0.0, 0.0, CHEST_HEIGHT])
+    chest = ground[rows] + np.column_stack([np.zeros((p, 2)), CHEST_HEIGHT / PERSON_HEIGHT * tall])
+    depth = -np.einsum("cpi,ci->cp", chest[None] - eye[:, None], back)
     with np.errstate(divide="ignore", invalid="ignore"):
-        height = np.where(depth > 1e-6, PERSON_HEIGHT / (2.0 * tan_y[:, None] * depth), 0.0)
+        height = np.where(depth > 1e-6, tall[None] / (2.0 * tan_y[:, None] * depth), 0.0)
     return Views(in_frame, visible, by_scenery, by_people, height, depth)
 
 

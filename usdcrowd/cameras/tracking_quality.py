@@ -90,7 +90,8 @@ def _shares(share: np.ndarray, walled: np.ndarray, seconds_to_frame: list) -> di
 
 def tracking_quality(tracks: list[model.CameraTrack], positions, events: model.EventTable, visible: np.ndarray,
                      obstacles: model.Obstacles, fps: float,
-                     overhead: model.Obstacles | None = None) -> list[TrackingQuality]:
+                     overhead: model.Obstacles | None = None,
+                     heights: np.ndarray | None = None) -> list[TrackingQuality]:
     """Measure every camera agent of ``tracks`` (those with a per-frame state) over the shot.
 
     Parameters
@@ -105,6 +106,8 @@ def tracking_quality(tracks: list[model.CameraTrack], positions, events: model.E
     fps : float
     overhead : Obstacles, optional
         Raised scenery that hides people from cameras above it.
+    heights : (n,) float, optional
+        Body heights, metres (the points sight lines end at scale with them).
     """
     agents = [tr for tr in tracks if tr.tracked is not None]
     if not agents:
@@ -128,7 +131,7 @@ def tracking_quality(tracks: list[model.CameraTrack], positions, events: model.E
         mats = np.stack([tr.cam_to_world[i] for tr in agents])
         tx, ty = lens_tangents(agents, i)
         v = views(mats, tx, ty, near, far, np.asarray(positions[i], dtype=np.float64), people=rows, prisms=prisms,
-                  occluders=visible)
+                  occluders=visible, heights=heights)
         for k, tr in enumerate(agents):
             e = by_path.get(tr.tracked[i])
             if e is None:

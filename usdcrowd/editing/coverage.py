@@ -60,7 +60,7 @@ class Coverage:
 
 def coverage(tracks: list[model.CameraTrack], positions, events: model.EventTable, visible: np.ndarray,
              obstacles: model.Obstacles, params: EditParams, fps: float, progress=None,
-             overhead: model.Obstacles | None = None) -> Coverage:
+             overhead: model.Obstacles | None = None, heights: np.ndarray | None = None) -> Coverage:
     """Measure every camera's view of every event at every frame.
 
     Parameters
@@ -79,6 +79,8 @@ def coverage(tracks: list[model.CameraTrack], positions, events: model.EventTabl
         Called with the number of frames done since the last call.
     overhead : Obstacles, optional
         Raised scenery that hides people from cameras above it.
+    heights : (n,) float, optional
+        Body heights, metres (the points sight lines end at scale with them).
     """
     times = np.asarray(tracks[0].times, dtype=np.float64)
     c, e, t = len(tracks), len(events), len(times)
@@ -99,7 +101,8 @@ def coverage(tracks: list[model.CameraTrack], positions, events: model.EventTabl
         ground = np.asarray(positions[i], dtype=np.float64)
         mats = np.stack([tr.cam_to_world[i] for tr in tracks])
         tx, ty = lens_tangents(tracks, i)
-        v = views(mats, tx, ty, near, far, ground, people=vis_rows, prisms=prisms, occluders=visible)
+        v = views(mats, tx, ty, near, far, ground, people=vis_rows, prisms=prisms, occluders=visible,
+                  heights=heights)
         legible = np.where(v.visible, np.clip(v.height / params.legible_height, 0.0, 1.0), 0.0)
         shown[:, i] = legible.sum(axis=1)
         for k in running:

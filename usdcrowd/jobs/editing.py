@@ -148,7 +148,7 @@ def edit_shot(shot_path: str | os.PathLike, out_dir: str | os.PathLike, cameras:
     visible = np.asarray(sc.scenario.agents.visible, bool)
     with frame_progress(len(times), "coverage", progress) as bar:
         cov = coverage(tracks, sc.positions, sc.events, visible, sc.scenario.obstacles, params, fps,
-                       progress=bar.update, overhead=sc.scenario.overhead)
+                       progress=bar.update, overhead=sc.scenario.overhead, heights=sc.scenario.agents.height)
     cut = plan_cut(cov, sc.events, fps, params, visible)
     reasons = [shot_reason(cut, cov, k, sc.events, params, fps) for k in range(len(cut.shots))]
     result = EditResult(cut, cov, paths, [e.path for e in sc.events], times, fps, reasons)
