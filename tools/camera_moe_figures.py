@@ -257,7 +257,7 @@ RECIPE_NAMES = ("shipped", "paper_recipe", "style_gate", "experts_style", "stage
 def recipes(record: dict) -> None:
     """The base recipe (recorded as "shipped": the film clips' model), the paper's (its windows and Eq. 6),
     one whose gate reads the style features and one whose experts read them too, trained alike, 25 epochs
-    each, and scored on the same held-out clips
+    each, and scored on the same held-out clips, SWEEP_RETARGET_CLIPS per behavior
     (train_camera_moe's evaluation, from build/camera_moe_recipe_ours, build/camera_moe_paper_recipe,
     build/camera_moe_style_gate and build/camera_moe_experts_style, each trained first unless it is there)."""
     import csv

@@ -1,6 +1,7 @@
 """Train the learned camera behaviors (seed 002, section 5) and evaluate them as the paper does.
 
     python tools/train_camera_moe.py [--recipe base|stage] [--epochs 50] [--per-behavior 400] [--seed 0]
+                                     [--retarget-clips 400]
                                      [--out build/camera_moe] [--install | --install-clip] [--config JSON]
                                      [--evaluate-only]
 
@@ -330,6 +331,9 @@ def main() -> int:
         p.error("unseen_motion needs gate_style (it replaces the style features the gate reads)")
     if a.costs:
         return costs(a.record)
+    if a.record and a.retarget_clips != RETARGET_PER_BEHAVIOR:
+        p.error(f"--record measures on the pages' {RETARGET_PER_BEHAVIOR} references per behavior: "
+                "leave --retarget-clips out")
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()

@@ -48,6 +48,19 @@ def test_a_person_in_front_hides_the_one_behind_but_not_one_beside():
     assert v.visible.all()
 
 
+def test_the_points_on_a_person_and_the_people_in_the_way_scale_with_their_heights():
+    m, tx, ty, near, far = _camera([0, 0, 1.7], [10, 0, 1.1])
+    people = np.array([[10.0, 0.0, 0.0], [5.0, 0.05, 0.0]])
+    # Two tall people in line: the crown of the one behind is behind the head of the one in front.
+    tall = views(m, tx, ty, near, far, people, heights=np.array([1.95, 1.95]))
+    assert tall.visible.tolist() == [[False, True]] and tall.hidden_by_people.tolist() == [[True, False]]
+    # Two short ones: the eye at 1.7 m sees the crown behind over the head in front.
+    assert views(m, tx, ty, near, far, people, heights=np.array([1.5, 1.5])).visible.all()
+    # A person's height on screen is their own.
+    v = views(m, tx, ty, near, far, people[:1], heights=np.array([1.9]))
+    assert v.height[0, 0] == pytest.approx(1.9 / 1.7 * views(m, tx, ty, near, far, people[:1]).height[0, 0], rel=0.02)
+
+
 def test_people_out_of_frame_or_behind_are_not_shown_and_sizes_follow_the_lens():
     m, tx, ty, near, far = _camera([0, 0, 1.6], [10, 0, 1.1], focal=50.0)
     people = np.array([[10.0, 0.0, 0.0], [10.0, 9.0, 0.0], [-5.0, 0.0, 0.0], [20.0, 0.0, 0.0]])

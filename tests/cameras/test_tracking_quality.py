@@ -123,7 +123,8 @@ def test_harbour_tracking_cameras_are_rarely_blank_whatever_the_seed(simulated_h
         tracks = film_cameras(sc.scenario, sc.positions, sc.events, sc.default_prim, False, count=4, static=0,
                               seed=seed, summary=summary)
         quality = tracking_quality([t for t in tracks if t.state is not None], sc.positions, sc.events, visible,
-                                   sc.scenario.obstacles, FPS, overhead=sc.scenario.overhead)
+                                   sc.scenario.obstacles, FPS, overhead=sc.scenario.overhead,
+                                   heights=sc.scenario.agents.height)
         p = pooled(quality)
         blank.append(p["blank"])
         walled.append(p["walled"])

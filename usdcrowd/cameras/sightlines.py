@@ -213,7 +213,8 @@ def views(cam_to_world: np.ndarray, tan_x: np.ndarray, tan_y: np.ndarray, near: 
     ground = np.asarray(ground, dtype=np.float64)
     rows = np.arange(len(ground)) if people is None else np.asarray(people, dtype=np.int64)
     occ_rows = np.arange(len(ground)) if occluders is None else np.flatnonzero(occluders)
-    tall = np.full(len(rows), PERSON_HEIGHT) if heights is None else np.asarray(heights, dtype=np.float64)[rows]
+    everyone = None if heights is None else np.asarray(heights, dtype=np.float64)
+    tall = np.full(len(rows), PERSON_HEIGHT) if everyone is None else everyone[rows]
     c, p = len(cam_to_world), len(rows)
     eye = cam_to_world[:, 3, :3]
     right, up, back = cam_to_world[:, 0, :3], cam_to_world[:, 1, :3], cam_to_world[:, 2, :3]
@@ -221,7 +222,8 @@ def views(cam_to_world: np.ndarray, tan_x: np.ndarray, tan_y: np.ndarray, near: 
     if c == 0 or p == 0:
         z = np.zeros(shape, bool)
         return Views(z, z.copy(), z.copy(), z.copy(), np.zeros(shape), np.zeros(shape))
-    # Sideways on a person is the camera's horizontal right (a camera looking straight down has none: 0).
+    # Sideways on a person is the camera's right, levelled (a camera rolled a quarter turn has none: the
+    # side points fall on the chest then).
     side = right * [1.0, 1.0, 0.0]
     side /= np.maximum(np.linalg.norm(side, axis=1, keepdims=True), 1e-9)
     base = ground[rows][None]                                     # (1, p, 3)
@@ -246,7 +248,7 @@ def views(cam_to_world: np.ndarray, tan_x: np.ndarray, tan_y: np.ndarray, near: 
         seen = clear.copy()
         if clear.any():
             seen[clear] = ~_people_block(eye, right, up, back, cam_i[clear], pts[cam_i[clear], who[clear]],
-                                         rows[who[clear]], ground, occ_rows)
+                                         rows[who[clear]], ground, occ_rows, everyone)
         visible[cam_i[seen], who[seen]] = True
     by_scenery = in_frame & ~visible & ~scenery_clear
     by_people = in_frame & ~visible & ~by_scenery
@@ -257,7 +259,7 @@ def views(cam_to_world: np.ndarray, tan_x: np.ndarray, tan_y: np.ndarray, near: 
     return Views(in_frame, visible, by_scenery, by_people, height, depth)
 
 
-def _in_the_way(eye, forward, right, target, feet) -> np.ndarray:
+def _in_the_way(eye, forward, right, target, feet, scale=1.0) -> np.ndarray:
     """Whether a person standing at ``feet`` is in the sight line from ``eye`` to ``target``.
 
     A person is a body up to the shoulders (:data:`PERSON_RADIUS` wide) and a
@@ -266,7 +268,8 @@ def _in_the_way(eye, forward, right, target, feet) -> np.ndarray:
     heads). Tested where the line passes the person's axis: the line's offset
     across the view (the camera's ``right``, level for these cameras) and its
     height above their feet. Arguments are (..., 3) arrays broadcast against
-    each other; the result has their broadcast shape.
+    each other (``scale``, the person's height over :data:`PERSON_HEIGHT`, against
+    their leading axes); the result has their broadcast shape.
     """
     def dot(a, b):
         return (a * b).sum(axis=-1)
@@ -277,22 +280,25 @@ def _in_the_way(eye, forward, right, target, feet) -> np.ndarray:
     along = oz / np.maximum(tz, 1e-9)
     across = np.abs(tx * along - ox)
     above = eye[..., 2] + (target[..., 2] - eye[..., 2]) * along - feet[..., 2]
-    body = (above >= 0.0) & (above <= SHOULDER_HEIGHT) & (across < PERSON_RADIUS)
-    head = (above > SHOULDER_HEIGHT) & (above <= PERSON_HEIGHT) & (across < HEAD_RADIUS)
+    body = (above >= 0.0) & (above <= SHOULDER_HEIGHT * scale) & (across < PERSON_RADIUS)
+    head = (above > SHOULDER_HEIGHT * scale) & (above <= PERSON_HEIGHT * scale) & (across < HEAD_RADIUS)
     return (oz > 0.2) & (oz < tz - PERSON_RADIUS) & (body | head)
 
 
-def _people_block(eye, right, up, back, cam_i, target, owner, ground, occ_rows) -> np.ndarray:
-    """(m,) bool: another person (:func:`_in_the_way`) stands between camera ``cam_i`` and ``target`` ((m, 3))."""
+def _people_block(eye, right, up, back, cam_i, target, owner, ground, occ_rows, tall=None) -> np.ndarray:
+    """(m,) bool: another person (:func:`_in_the_way`) stands between camera ``cam_i`` and ``target`` ((m, 3));
+    ``tall`` (n,) is everyone's height (default :data:`PERSON_HEIGHT`)."""
     m = len(cam_i)
     out = np.zeros(m, bool)
     if len(occ_rows) == 0:
         return out
     occ = ground[occ_rows]
+    scale = 1.0 if tall is None else (np.asarray(tall, dtype=np.float64)[occ_rows] / PERSON_HEIGHT)[None]
     step = max(1, _CHUNK // len(occ_rows))
     for lo in range(0, m, step):
         ci = cam_i[lo:lo + step]
-        hit = _in_the_way(eye[ci, None], -back[ci, None], right[ci, None], target[lo:lo + step, None], occ[None])
+        hit = _in_the_way(eye[ci, None], -back[ci, None], right[ci, None], target[lo:lo + step, None], occ[None],
+                          scale)
         hit &= occ_rows[None] != owner[lo:lo + step, None]
         out[lo:lo + step] = hit.any(axis=1)
     return out
@@ -303,8 +309,11 @@ def seen_points(eye: np.ndarray, axes3: tuple, tan_x: np.ndarray, tan_y: np.ndar
                 prisms: Prisms | None = None) -> np.ndarray:
     """(m,) bool: each person ``owner[k]`` is in frame of camera ``k`` with a clear line to chest or head.
 
-    The batched form of :func:`views` for many (camera, person) pairs at once
-    (the camera agents' own check, every few frames): each pair has its
+    A cheaper, stricter check than :func:`views` for many (camera, person)
+    pairs at once (the camera agents' own check, every few frames, and seed
+    000's metrics): two points only, the chest and the head of a person
+    :data:`PERSON_HEIGHT` tall, so a person showing only a side or the crown
+    counts as unseen here and as visible in :func:`views`. Each pair has its
     camera's eye ``(m, 3)`` and axes (right, up, forward: three (m, 3)
     arrays), lens tangents and clipping range ``(m,)``; ``ground`` (n, 3) is
     everyone's position; ``candidates`` = (pair index (q,), row (q,)) says
