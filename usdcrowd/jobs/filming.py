@@ -241,8 +241,7 @@ def evaluate_shot(shot_path: str | os.PathLike, out_dir: str | os.PathLike, coun
             series = {"autonomous": coverage(agents, sc.positions, active, visible, obstacles=sc.scenario.obstacles,
                                         overhead=sc.scenario.overhead)}
             quality = tracking_quality(agents, sc.positions, sc.events, visible, sc.scenario.obstacles,
-                                       sc.scenario.time.fps, overhead=sc.scenario.overhead,
-                                       heights=sc.scenario.agents.height)
+                                       sc.scenario.time.fps, overhead=sc.scenario.overhead, heights=sc.scenario.agents.height)
             tracking[n] = pooled(quality)
             _write_tracking_csv(out / f"tracking_{n}.csv", quality)
             if n == counts[0]:
