@@ -226,11 +226,11 @@ def views(cam_to_world: np.ndarray, tan_x: np.ndarray, tan_y: np.ndarray, near: 
     # side points fall on the chest then).
     side = right * [1.0, 1.0, 0.0]
     side /= np.maximum(np.linalg.norm(side, axis=1, keepdims=True), 1e-9)
-    base = ground[rows][None]                                     # (1, p, 3)
+    lift = np.zeros((p, 3))
+    lift[:, 2] = tall / PERSON_HEIGHT                             # metres up per metre of a standard person
     in_frame, visible, scenery_clear = (np.zeros(shape, bool) for _ in range(3))
-    for k, (across, h) in enumerate(SIGHT_POINTS):
-        pts = base + np.stack([np.zeros(p), np.zeros(p), h / PERSON_HEIGHT * tall], -1)[None] \
-            + across * side[:, None]                              # (c, p, 3)
+    for across, h in SIGHT_POINTS:
+        pts = (ground[rows] + h * lift)[None] + across * side[:, None]                 # (c, p, 3)
         d = pts - eye[:, None]
         x, y = np.einsum("cpi,ci->cp", d, right), np.einsum("cpi,ci->cp", d, up)
         z = -np.einsum("cpi,ci->cp", d, back)
@@ -252,7 +252,7 @@ def views(cam_to_world: np.ndarray, tan_x: np.ndarray, tan_y: np.ndarray, near: 
         visible[cam_i[seen], who[seen]] = True
     by_scenery = in_frame & ~visible & ~scenery_clear
     by_people = in_frame & ~visible & ~by_scenery
-    chest = ground[rows] + np.column_stack([np.zeros((p, 2)), CHEST_HEIGHT / PERSON_HEIGHT * tall])
+    chest = ground[rows] + CHEST_HEIGHT * lift
     depth = -np.einsum("cpi,ci->cp", chest[None] - eye[:, None], back)
     with np.errstate(divide="ignore", invalid="ignore"):
         height = np.where(depth > 1e-6, tall[None] / (2.0 * tan_y[:, None] * depth), 0.0)

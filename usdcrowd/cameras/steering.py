@@ -744,8 +744,7 @@ class CameraAgents:
             # would hold the scout staring at the kiosk.
             height = np.full((len(cams), 1), prm.look_height)
             hidden = np.flatnonzero(self._prisms.blocks(self.p[cams], np.hstack([ahead, height])))
-            toward = self.p[cams[hidden], :2] + prm.wander_look_distance * d[hidden] / np.maximum(
-                np.linalg.norm(d[hidden], axis=1, keepdims=True), 1e-9)
+            toward = self.p[cams[hidden], :2] + prm.wander_look_distance * _unit(d[hidden])
             back[hidden] |= ~self._prisms.blocks(self.p[cams[hidden]], np.hstack([toward, height[hidden]]))
         if back.any():
             turning, d = cams[back], d[back]
