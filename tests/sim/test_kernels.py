@@ -105,7 +105,7 @@ def test_the_force_is_its_terms_summed(packed_crowd, pillars_among_the_crowd, wa
     gain = np.where(np.arange(n) % 3 == 0, 1.0 / P.SIGHT_RELAX, 1.0 / P.TAU_RELAX).astype(np.float32)
     want = _reference_forces(pos, vel, v_des, gain, radius, idx, mates, grid if walls else None, lo, hi)
     got = K.forces(pos, vel, v_des, gain, radius, idx, mates, walls, *grid.lookup, grid.flat_sdf, grid.flat_nx,
-                   grid.flat_ny, lo, hi)
+                   grid.flat_ny, *grid.exact, lo, hi)
     steering = (v_des - vel[:, :n]) * gain
     assert (np.hypot(*(want - steering)) > 10.0).sum() > 50       # the terms are not negligible here
     if walls:
@@ -141,20 +141,22 @@ def _reference_cells(g, x, y):
     return iy * g.w + ix
 
 
-def test_grid_lookups_give_the_reference_bits(walled_grid):
-    g = walled_grid
+@pytest.mark.parametrize("which", ["bench square", "pillars"])
+def test_grid_lookups_give_the_reference_bits(walled_grid, pillars_among_the_crowd, which):
+    g, span = (walled_grid, 104.0) if which == "bench square" else (pillars_among_the_crowd, 9.0)
     rng = np.random.default_rng(3)
     for dtype in (np.float32, np.float64):
-        x, y = rng.uniform(-104.0, 104.0, (2, 5000)).astype(dtype)
+        x, y = rng.uniform(-span, span, (2, 5000)).astype(dtype)
         f = _reference_cells(g, x, y)
         np.testing.assert_array_equal(g.flat_index(x, y), f)
         far = np.array([-1e4, 1e4], dtype)                     # beyond the grid: clamped to its corners
         np.testing.assert_array_equal(g.flat_index(far, far), [0, g.w * g.h - 1])
         sdf, nx, ny = g.clearance(x, y)
-        np.testing.assert_allclose(sdf, _reference_clearance(g, x, y), rtol=0, atol=1e-5)
-        np.testing.assert_array_equal(nx, g.flat_nx[f])
-        np.testing.assert_array_equal(ny, g.flat_ny[f])
-        bx, by = rng.uniform(-104.0, 104.0, (2, 5000)).astype(dtype)
+        want, normal = _reference_clearance(g, x, y)
+        assert (want < 1.0).sum() > 20                       # some near walls
+        np.testing.assert_allclose(sdf, want, rtol=0, atol=1e-5)
+        np.testing.assert_allclose(np.stack([nx, ny], axis=1), normal, rtol=0, atol=1e-5)
+        bx, by = rng.uniform(-span, span, (2, 5000)).astype(dtype)
         bx[:2500], by[:2500] = x[:2500] + (bx[:2500] - x[:2500]) * 0.02, y[:2500] + (by[:2500] - y[:2500]) * 0.02
         want = _reference_sight(g, x, y, bx, by)
         got = g.line_of_sight(x, y, bx, by)
@@ -163,15 +165,44 @@ def test_grid_lookups_give_the_reference_bits(walled_grid):
 
 
 def _reference_clearance(g, x, y):
-    """The clearance between the four nearest cell centres, bilinear, in float64."""
+    """Between four cell centres that each have an obstacle whose distance is their clearance, the
+    least exact distance to those obstacles and the direction away from it; elsewhere bilinear between
+    the centres and the nearest cell's slope, in float64."""
     fx = (x.astype(np.float64) - g.origin[0]) / g.cell - 0.5
     fy = (y.astype(np.float64) - g.origin[1]) / g.cell - 0.5
     ix = np.clip(np.floor(fx).astype(int), 0, g.w - 2)
     iy = np.clip(np.floor(fy).astype(int), 0, g.h - 2)
     tx, ty = np.clip(fx - ix, 0.0, 1.0), np.clip(fy - iy, 0.0, 1.0)
     s = g.sdf.astype(np.float64)
-    return ((s[iy, ix] * (1 - tx) + s[iy, ix + 1] * tx) * (1 - ty)
-            + (s[iy + 1, ix] * (1 - tx) + s[iy + 1, ix + 1] * tx) * ty)
+    out = ((s[iy, ix] * (1 - tx) + s[iy, ix + 1] * tx) * (1 - ty)
+           + (s[iy + 1, ix] * (1 - tx) + s[iy + 1, ix + 1] * tx) * ty)
+    f = _reference_cells(g, x, y)
+    normal = np.stack([g.flat_nx[f], g.flat_ny[f]], axis=1).astype(np.float64)
+    near = np.stack([g.near[iy, ix], g.near[iy, ix + 1], g.near[iy + 1, ix], g.near[iy + 1, ix + 1]], axis=1)
+    p = np.stack([x, y], axis=1).astype(np.float64)
+    for i in np.flatnonzero((near >= 0).all(axis=1)):
+        k = np.unique(near[i])
+        d, c, _ = polygon_signed_distance(np.repeat(p[i:i + 1], len(k), 0), g.polygons[k])
+        j = np.argmin(d)
+        out[i] = d[j]
+        if abs(d[j]) > 1e-9:
+            normal[i] = (p[i] - c[j]) / d[j]
+    return out, normal
+
+
+def test_a_passage_between_two_walls_is_as_wide_between_cell_centres_as_it_stands():
+    """A 0.8 m door whose walls fall between cell centres: its middle is 0.40 m from both (blending the
+    centres' clearances read 0.275 m there), and every point in and around it is as far from the walls
+    as the two boxes say."""
+    walls = [(0.0, -2.4, 0.5, 2.0), (0.0, 2.4, 0.5, 2.0)]            # the gap: y from -0.4 to 0.4
+    g = WalkGrid(S.scenario(S.agents(np.zeros((1, 2))), S.groups([[5.0, 0.0, 0.0]]),
+                            obstacles=[S.box(*b) for b in walls], bounds=((-10, -10), (10, 10))))
+    middle = np.linspace(-0.5, 0.5, 21)
+    np.testing.assert_allclose(g.clearance(middle, np.zeros(21))[0], 0.4, atol=1e-6)
+    x, y = np.random.default_rng(4).uniform([-1.5, -0.4], [1.5, 0.4], (4000, 2)).T
+    want = np.min([np.hypot(np.maximum(np.abs(x - cx) - hx, 0.0), np.maximum(np.abs(y - cy) - hy, 0.0))
+                   for cx, cy, hx, hy in walls], axis=0)
+    np.testing.assert_allclose(g.clearance(x, y)[0], want, atol=1e-5)
 
 
 def _reference_sight(g, x, y, bx, by):
@@ -712,7 +743,7 @@ def test_on_one_thread_or_spread_over_the_cores_the_loops_give_the_same_bytes(pa
     lo, hi = np.array([-5.0, -5.0], np.float32), np.array([5.0, 5.0], np.float32)
     gain = np.full(n, 1.0 / P.TAU_RELAX, np.float32)
     args = (pos, vel, v_des, gain, radius, idx, mates, True, *grid.lookup, grid.flat_sdf, grid.flat_nx, grid.flat_ny,
-            lo, hi)
+            *grid.exact, lo, hi)
     np.testing.assert_array_equal(K.forces.serial(*args), K.forces.parallel(*args))
     x, y = pos[0, :n].astype(np.float64), pos[1, :n].astype(np.float64)
     np.testing.assert_array_equal(K.nearest_within.serial(x, y, 8, 4.6), K.nearest_within.parallel(x, y, 8, 4.6))

@@ -193,7 +193,8 @@ def _wall_terms(px, py, vx, vy, r, sdf, nx, ny):
 
 
 @_loop(lambda pos, vel, v_des, *rest: v_des.shape[1])
-def forces(pos, vel, v_des, steer, radius, idx, mates, walls, ox, oy, inv_cell, w, h, sdf, nx, ny, lo, hi):
+def forces(pos, vel, v_des, steer, radius, idx, mates, walls, ox, oy, inv_cell, w, h, sdf, nx, ny, near, polys,
+           lo, hi):
     """The force on each agent (m/s^2, before its clip): steering toward the desired velocity, then
     avoidance of the neighbours, personal space, flocking, avoidance of walls and containment in the
     bounds, added in that order.
@@ -212,7 +213,8 @@ def forces(pos, vel, v_des, steer, radius, idx, mates, walls, ox, oy, inv_cell, 
     mates : (n, k) float32
         Group-mate (and line-of-sight) mask.
     walls : bool
-        Whether the grid (``ox`` ... ``ny``, see WalkGrid.lookup) has walls to avoid.
+        Whether the grid (``ox`` ... ``polys``: WalkGrid.lookup, flat_sdf, flat_nx, flat_ny and exact) has
+        walls to avoid.
     lo, hi : (2,) float32
         Walkable bounds.
 
@@ -231,9 +233,8 @@ def forces(pos, vel, v_des, steer, radius, idx, mates, walls, ox, oy, inv_cell, 
         fx = ((fx + ax) + sx) + gx
         fy = ((fy + ay) + sy) + gy
         if walls:
-            f = _cell(px, py, ox, oy, inv_cell, w, h)
-            wx, wy = _wall_terms(px, py, vx, vy, radius[i], _sdf_at(px, py, ox, oy, inv_cell, w, h, sdf), nx[f],
-                                 ny[f])
+            clear, ux, uy = _wall_at(px, py, ox, oy, inv_cell, w, h, sdf, nx, ny, near, polys)
+            wx, wy = _wall_terms(px, py, vx, vy, radius[i], clear, ux, uy)
             fx += wx
             fy += wy
         # Steering back in when the position a lookahead ahead leaves the bounds (steering.containment).
@@ -503,18 +504,71 @@ def _cell(x, y, ox, oy, inv_cell, w, h):
 
 
 @njit(cache=True, nogil=True)
-def _sdf_at(x, y, ox, oy, inv_cell, w, h, sdf):
-    # The clearance at (x, y), bilinear between the four nearest cell centres (a wall between two
-    # centres is where it stands, not where the nearer centre is), float32.
+def _polygon_distance(x, y, polys, k):
+    # Signed distance of (x, y) to convex CCW polygon k (grid.polygon_signed_distance's), negative inside,
+    # and the unit direction away from it (0, 0 on its boundary).
+    best = np.inf
+    bx = by = 0.0
+    inside = True
+    n = polys.shape[1]
+    for j in range(n):
+        ax, ay = polys[k, j, 0], polys[k, j, 1]
+        ex = polys[k, (j + 1) % n, 0] - ax
+        ey = polys[k, (j + 1) % n, 1] - ay
+        ll = ex * ex + ey * ey
+        if ll <= 1e-18:
+            continue
+        px = np.float64(x) - ax
+        py = np.float64(y) - ay
+        t = min(max((px * ex + py * ey) / ll, 0.0), 1.0)
+        dx = px - ex * t
+        dy = py - ey * t
+        d2 = dx * dx + dy * dy
+        if d2 < best:
+            best, bx, by = d2, dx, dy
+        if ex * py - ey * px < 0.0:
+            inside = False
+    d = np.sqrt(best)
+    if d <= 1e-12:
+        return 0.0, 0.0, 0.0
+    return (-d, -bx / d, -by / d) if inside else (d, bx / d, by / d)
+
+
+@njit(cache=True, nogil=True)
+def _wall_at(x, y, ox, oy, inv_cell, w, h, sdf, nx, ny, near, polys):
+    # The clearance at (x, y) and the unit direction away from the nearest wall, float32. Where the four
+    # nearest cell centres each have an obstacle whose exact distance is their clearance (grid.near),
+    # the exact distance to those obstacles and its direction: blending the centres' values cuts the
+    # ridge between two walls (a 0.8 m door's middle read 0.275 m for 0.40), and the grid's slope turns
+    # round a corner a cell early. Elsewhere bilinear between the centres (a wall between two is where
+    # it stands) and the nearest cell's slope.
     fx = (np.float64(x) - ox) * inv_cell - 0.5
     fy = (np.float64(y) - oy) * inv_cell - 0.5
     ix = min(max(np.int64(np.floor(fx)), 0), w - 2)
     iy = min(max(np.int64(np.floor(fy)), 0), h - 2)
+    f = iy * w + ix
+    a, b, c, d = near[f], near[f + 1], near[f + w], near[f + w + 1]
+    g = _cell(x, y, ox, oy, inv_cell, w, h)
+    if a >= 0 and b >= 0 and c >= 0 and d >= 0:
+        s, ux, uy = _polygon_distance(x, y, polys, a)
+        for k in (b, c, d):
+            if k != a:
+                t, vx, vy = _polygon_distance(x, y, polys, k)
+                if t < s:
+                    s, ux, uy = t, vx, vy
+        if ux == 0.0 and uy == 0.0:
+            return np.float32(s), nx[g], ny[g]
+        return np.float32(s), np.float32(ux), np.float32(uy)
     tx = min(max(fx - ix, 0.0), 1.0)
     ty = min(max(fy - iy, 0.0), 1.0)
-    f = iy * w + ix
-    return np.float32((sdf[f] * (1.0 - tx) + sdf[f + 1] * tx) * (1.0 - ty)
-                      + (sdf[f + w] * (1.0 - tx) + sdf[f + w + 1] * tx) * ty)
+    return (np.float32((sdf[f] * (1.0 - tx) + sdf[f + 1] * tx) * (1.0 - ty)
+                       + (sdf[f + w] * (1.0 - tx) + sdf[f + w + 1] * tx) * ty), nx[g], ny[g])
+
+
+@njit(cache=True, nogil=True)
+def _sdf_at(x, y, ox, oy, inv_cell, w, h, sdf, near, polys):
+    # The clearance alone (_wall_at's; the flat sdf stands in for the slope it does not return).
+    return _wall_at(x, y, ox, oy, inv_cell, w, h, sdf, sdf, sdf, near, polys)[0]
 
 
 @njit(cache=True, nogil=True)
@@ -527,8 +581,8 @@ def cells(x, y, ox, oy, inv_cell, w, h):
 
 
 @_loop(lambda x, *rest: x.shape[0])
-def clearance(x, y, ox, oy, inv_cell, w, h, sdf, nx, ny):
-    """Clearance (bilinear) and nearest-cell wall normal at points (WalkGrid.clearance).
+def clearance(x, y, ox, oy, inv_cell, w, h, sdf, nx, ny, near, polys):
+    """Clearance and the direction away from the nearest wall at points (:func:`_wall_at`, WalkGrid.clearance).
 
     Returns
     -------
@@ -539,10 +593,7 @@ def clearance(x, y, ox, oy, inv_cell, w, h, sdf, nx, ny):
     ux = np.empty(m, np.float32)
     uy = np.empty(m, np.float32)
     for i in prange(m):
-        f = _cell(x[i], y[i], ox, oy, inv_cell, w, h)
-        s[i] = _sdf_at(x[i], y[i], ox, oy, inv_cell, w, h, sdf)
-        ux[i] = nx[f]
-        uy[i] = ny[f]
+        s[i], ux[i], uy[i] = _wall_at(x[i], y[i], ox, oy, inv_cell, w, h, sdf, nx, ny, near, polys)
     return s, ux, uy
 
 
@@ -943,7 +994,7 @@ def sight_rounds(v, behavior, walk, ctype, human, vel, follows, waited, queued_u
 
 
 @njit(cache=True, nogil=True)
-def _wall_along(px, py, ux, uy, steps, limit, horizon, ox, oy, inv_cell, w, h, sdf):
+def _wall_along(px, py, ux, uy, steps, limit, horizon, ox, oy, inv_cell, w, h, sdf, near, polys):
     # How far one can walk from p along u before the clearance falls under `limit`, sampled at `steps`
     # and taken as a quarter metre before (`horizon` where it never does). Interpolated only near the
     # limit: a distance differs from the nearest cell centre's by less than two cells.
@@ -951,14 +1002,14 @@ def _wall_along(px, py, ux, uy, steps, limit, horizon, ox, oy, inv_cell, w, h, s
         x = px + ux * steps[s]
         y = py + uy * steps[s]
         if sdf[_cell(x, y, ox, oy, inv_cell, w, h)] < limit + _TWO / inv_cell and \
-                _sdf_at(x, y, ox, oy, inv_cell, w, h, sdf) < limit:
+                _sdf_at(x, y, ox, oy, inv_cell, w, h, sdf, near, polys) < limit:
             return steps[s] - np.float32(0.25)
     return horizon
 
 
 @_loop(lambda pos, vel, radius, nb, rows, *rest: rows.shape[0])
 def choose_ways(pos, vel, radius, nb, rows, ux, uy, speed, cos_offsets, horizon, tau, queued, queue_tau, ghost,
-                walls, steps, ox, oy, inv_cell, w, h, sdf):
+                walls, steps, ox, oy, inv_cell, w, h, sdf, near, polys):
     """Moussaid, Helbing and Theraulaz's two heuristics for each walker (vision.heuristic_velocity): the
     direction that brings it nearest its goal, given how far it can walk each way before touching
     someone (or a wall), and a speed that keeps the time gap ``tau`` to whoever stands that way.
@@ -986,7 +1037,7 @@ def choose_ways(pos, vel, radius, nb, rows, ux, uy, speed, cos_offsets, horizon,
         reaches within the horizon, so it is not looked at along each way.
     walls : bool
         Whether to look for walls too, at ``steps`` (s,) float32 metres along each direction, in the
-        grid's clearance (``ox`` ... ``sdf``: WalkGrid.lookup and flat_sdf).
+        grid's clearance (``ox`` ... ``polys``: WalkGrid.lookup, flat_sdf and exact).
 
     Returns
     -------
@@ -1006,7 +1057,8 @@ def choose_ways(pos, vel, radius, nb, rows, ux, uy, speed, cos_offsets, horizon,
     for i in prange(m):
         r = rows[i]
         # One already near a wall is stopped only where it would get nearer still.
-        limit = min(radius[r], _sdf_at(pos[0, r], pos[1, r], ox, oy, inv_cell, w, h, sdf) - _WALL_APPROACH)
+        here = _sdf_at(pos[0, r], pos[1, r], ox, oy, inv_cell, w, h, sdf, near, polys)
+        limit = min(radius[r], here - _WALL_APPROACH)
         best_q = 0
         best_left = _INF32
         for q in range(d):
@@ -1020,7 +1072,7 @@ def choose_ways(pos, vel, radius, nb, rows, ux, uy, speed, cos_offsets, horizon,
             f = min(f, horizon)
             if walls:
                 wall[i, q] = _wall_along(pos[0, r], pos[1, r], ux[i, q], uy[i, q], steps, limit, horizon, ox, oy,
-                                         inv_cell, w, h, sdf)
+                                         inv_cell, w, h, sdf, near, polys)
                 f = min(f, wall[i, q])
             # Distance left to the goal (at the horizon) after walking f this way, less horizon^2.
             left = f * f - (np.float32(2.0) * horizon) * f * cos_offsets[0, q]

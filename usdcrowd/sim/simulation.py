@@ -479,7 +479,7 @@ class Simulation:
         idx = self.nl.idx
         g = self.grid
         F = forces(pos, vel, it.v, self.steer, self.radius, idx, self.mates, g.has_solid, *g.lookup, g.flat_sdf,
-                   g.flat_nx, g.flat_ny, self.lo, self.hi)
+                   g.flat_nx, g.flat_ny, *g.exact, self.lo, self.hi)
 
         # Integration (seed 003): x += v dt + F dt^2 / 2, v += F dt, force and speed clipped.
         alive = self.health != _DEAD

@@ -37,7 +37,7 @@ from .kernels import choose_ways
 # Distances along a direction at which walls are looked for, metres (to the horizon).
 _WALL_SAMPLES = np.array([0.25, 0.5, 1.0, 2.0, 4.0], np.float32)
 # A grid lookup for walkers with no walls to look for (never read).
-_NO_WALLS = (0.0, 0.0, 1.0, 1, 1, np.ones(1, np.float32))
+_NO_WALLS = (0.0, 0.0, 1.0, 1, 1, np.ones(1, np.float32), np.full(1, -1, np.int32), np.zeros((0, 3, 2)))
 
 
 @functools.lru_cache(maxsize=16)
@@ -103,7 +103,7 @@ def heuristic_velocity(pos: np.ndarray, vel: np.ndarray, goal_dir: np.ndarray, v
     ang = base + offsets                                       # (m, d)
     ux, uy = np.cos(ang), np.sin(ang)                          # (m, d)
     steps = _WALL_SAMPLES[_WALL_SAMPLES <= horizon]
-    where = (grid.lookup + (grid.flat_sdf,)) if grid is not None else _NO_WALLS
+    where = (grid.lookup + (grid.flat_sdf,) + grid.exact) if grid is not None else _NO_WALLS
     return choose_ways(pos, vel, radius, nb, rows, ux, uy, np.asarray(v0, np.float32), cos_offsets,
                        np.float32(horizon), np.float32(tau), queued, np.float32(P.QUEUE_TAU), ghost,
                        grid is not None, steps, *where)
