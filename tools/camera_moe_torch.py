@@ -291,6 +291,15 @@ def _gate_outputs(model, windows: Windows):
         return model.gate(torch.tensor(windows.gate_inputs(clips, random=False), dtype=torch.float32)).numpy()
 
 
+def window_weights(cfg: dict, style) -> torch.Tensor | None:
+    """(b,) loss weight of each training window, or None for equal weights: config "long_orbit_weight"
+    weighs the windows of long-shot orbits (the style labels' orbit and long columns) that much more."""
+    extra = cfg.get("long_orbit_weight")
+    if not extra or style is None:
+        return None
+    return 1.0 + (float(extra) - 1.0) * style[:, 3] * style[:, -1]
+
+
 def train(data_path: str, out_dir: str, epochs: int, seed: int, batch: int = 256, lr: float = 2e-3,
           baseline: bool = True) -> None:
     from sklearn.metrics import silhouette_score
@@ -341,9 +350,11 @@ def train(data_path: str, out_dir: str, epochs: int, seed: int, batch: int = 256
                     loss = cfg["style"] * torch.mean((model.style(logits) - style) ** 2)
                 else:
                     w = model.weights(g)
+                focus = window_weights(cfg, style)
                 for r in range(steps):
                     pred = absolute(model.step(torch.cat([past, chars[r]], 1), w), base, cfg)
-                    sq = ((pred - ys[r]) ** 2).view(len(pred), cfg["out"], N_CAM).mean(dim=(0, 2))
+                    err = ((pred - ys[r]) ** 2).view(len(pred), cfg["out"], N_CAM)
+                    sq = err.mean(dim=(0, 2)) if focus is None else (err.mean(2) * focus[:, None]).sum(0) / focus.sum()
                     loss = loss + torch.mean(sq * per_sample) / steps
                     samples = pred.view(len(pred), cfg["out"], N_CAM)
                     past = samples[:, -cfg["past"]:].reshape(len(pred), -1)
