@@ -268,6 +268,7 @@ class Config:
     expert_style: bool = False  # ... and so do the experts: their means over the gate's window, after n_in
     n_style: int = 0      # training: how many such labels
     unseen_motion: float = 0.0  # training: share of gate windows whose pair motion is unknown, as a clip's
+    long_orbit_weight: float = 1.0  # training: loss weight of long-shot orbit windows against the others'
 
     @property
     def n_in(self) -> int:
