@@ -115,8 +115,9 @@ class WalkGrid:
         The obstacle whose polygon's exact distance is a cell's clearance (-1: none, as far from
         obstacles and where a forbidden area is nearer).
     exact : tuple
-        ``(flat_near, polygons)``: what the compiled loops need, besides ``flat_sdf``, for the clearance
-        between cell centres (exact to the polygons where the four around have one).
+        ``(flat_near, polygons, sizes)``: what the compiled loops need, besides ``flat_sdf``, for the
+        clearance between cell centres (exact to the polygons where the four around have one; ``sizes``
+        (o,) int64, each polygon's own vertex count in the padded table).
     lookup : tuple
         ``(origin_x, origin_y, 1 / cell, w, h)``: what the compiled loops need to find a point's cell.
     sight : tuple
@@ -177,7 +178,8 @@ class WalkGrid:
         self.flat_solid = self.solid.ravel()
         self.flat_label = self.label.ravel()
         self.flat_near = self.near.ravel()
-        self.exact = (self.flat_near, np.ascontiguousarray(self.polygons, dtype=np.float64))
+        sizes = np.array([len(p) for p in scenario.obstacles.polygons], np.int64)
+        self.exact = (self.flat_near, np.ascontiguousarray(self.polygons, dtype=np.float64), sizes)
         self.lookup = (float(self.origin[0]), float(self.origin[1]), 1.0 / self.cell, self.w, self.h)
         self.sight = (1.0 / (0.7 * self.cell), LOS_MAX_SAMPLES) + self.lookup + (self.flat_solid, self.flat_sdf)
 

@@ -194,7 +194,7 @@ def _wall_terms(px, py, vx, vy, r, sdf, nx, ny):
 
 @_loop(lambda pos, vel, v_des, *rest: v_des.shape[1])
 def forces(pos, vel, v_des, steer, radius, idx, mates, walls, ox, oy, inv_cell, w, h, sdf, nx, ny, near, polys,
-           lo, hi):
+           sizes, lo, hi):
     """The force on each agent (m/s^2, before its clip): steering toward the desired velocity, then
     avoidance of the neighbours, personal space, flocking, avoidance of walls and containment in the
     bounds, added in that order.
@@ -213,7 +213,7 @@ def forces(pos, vel, v_des, steer, radius, idx, mates, walls, ox, oy, inv_cell, 
     mates : (n, k) float32
         Group-mate (and line-of-sight) mask.
     walls : bool
-        Whether the grid (``ox`` ... ``polys``: WalkGrid.lookup, flat_sdf, flat_nx, flat_ny and exact) has
+        Whether the grid (``ox`` ... ``sizes``: WalkGrid.lookup, flat_sdf, flat_nx, flat_ny and exact) has
         walls to avoid.
     lo, hi : (2,) float32
         Walkable bounds.
@@ -233,7 +233,7 @@ def forces(pos, vel, v_des, steer, radius, idx, mates, walls, ox, oy, inv_cell, 
         fx = ((fx + ax) + sx) + gx
         fy = ((fy + ay) + sy) + gy
         if walls:
-            clear, ux, uy = _wall_at(px, py, ox, oy, inv_cell, w, h, sdf, nx, ny, near, polys)
+            clear, ux, uy = _wall_at(px, py, ox, oy, inv_cell, w, h, sdf, nx, ny, near, polys, sizes)
             wx, wy = _wall_terms(px, py, vx, vy, radius[i], clear, ux, uy)
             fx += wx
             fy += wy
@@ -504,13 +504,14 @@ def _cell(x, y, ox, oy, inv_cell, w, h):
 
 
 @njit(cache=True, nogil=True)
-def _polygon_distance(x, y, polys, k):
+def _polygon_distance(x, y, polys, sizes, k):
     # Signed distance of (x, y) to convex CCW polygon k (grid.polygon_signed_distance's), negative inside,
-    # and the unit direction away from it (0, 0 on its boundary).
+    # and the unit direction away from it (0, 0 on its boundary). Its own sizes[k] vertices only: the
+    # table pads every polygon to the longest's, with edges of no length.
     best = np.inf
     bx = by = 0.0
     inside = True
-    n = polys.shape[1]
+    n = sizes[k]
     for j in range(n):
         ax, ay = polys[k, j, 0], polys[k, j, 1]
         ex = polys[k, (j + 1) % n, 0] - ax
@@ -535,7 +536,7 @@ def _polygon_distance(x, y, polys, k):
 
 
 @njit(cache=True, nogil=True)
-def _wall_at(x, y, ox, oy, inv_cell, w, h, sdf, nx, ny, near, polys):
+def _wall_at(x, y, ox, oy, inv_cell, w, h, sdf, nx, ny, near, polys, sizes):
     # The clearance at (x, y) and the unit direction away from the nearest wall, float32. Where the four
     # nearest cell centres each have an obstacle whose exact distance is their clearance (grid.near),
     # the exact distance to those obstacles and its direction: blending the centres' values cuts the
@@ -550,10 +551,10 @@ def _wall_at(x, y, ox, oy, inv_cell, w, h, sdf, nx, ny, near, polys):
     a, b, c, d = near[f], near[f + 1], near[f + w], near[f + w + 1]
     g = _cell(x, y, ox, oy, inv_cell, w, h)
     if a >= 0 and b >= 0 and c >= 0 and d >= 0:
-        s, ux, uy = _polygon_distance(x, y, polys, a)
+        s, ux, uy = _polygon_distance(x, y, polys, sizes, a)
         for k in (b, c, d):
             if k != a:
-                t, vx, vy = _polygon_distance(x, y, polys, k)
+                t, vx, vy = _polygon_distance(x, y, polys, sizes, k)
                 if t < s:
                     s, ux, uy = t, vx, vy
         if ux == 0.0 and uy == 0.0:
@@ -566,9 +567,9 @@ def _wall_at(x, y, ox, oy, inv_cell, w, h, sdf, nx, ny, near, polys):
 
 
 @njit(cache=True, nogil=True)
-def _sdf_at(x, y, ox, oy, inv_cell, w, h, sdf, near, polys):
+def _sdf_at(x, y, ox, oy, inv_cell, w, h, sdf, near, polys, sizes):
     # The clearance alone (_wall_at's; the flat sdf stands in for the slope it does not return).
-    return _wall_at(x, y, ox, oy, inv_cell, w, h, sdf, sdf, sdf, near, polys)[0]
+    return _wall_at(x, y, ox, oy, inv_cell, w, h, sdf, sdf, sdf, near, polys, sizes)[0]
 
 
 @njit(cache=True, nogil=True)
@@ -581,7 +582,7 @@ def cells(x, y, ox, oy, inv_cell, w, h):
 
 
 @_loop(lambda x, *rest: x.shape[0])
-def clearance(x, y, ox, oy, inv_cell, w, h, sdf, nx, ny, near, polys):
+def clearance(x, y, ox, oy, inv_cell, w, h, sdf, nx, ny, near, polys, sizes):
     """Clearance and the direction away from the nearest wall at points (:func:`_wall_at`, WalkGrid.clearance).
 
     Returns
@@ -593,7 +594,7 @@ def clearance(x, y, ox, oy, inv_cell, w, h, sdf, nx, ny, near, polys):
     ux = np.empty(m, np.float32)
     uy = np.empty(m, np.float32)
     for i in prange(m):
-        s[i], ux[i], uy[i] = _wall_at(x[i], y[i], ox, oy, inv_cell, w, h, sdf, nx, ny, near, polys)
+        s[i], ux[i], uy[i] = _wall_at(x[i], y[i], ox, oy, inv_cell, w, h, sdf, nx, ny, near, polys, sizes)
     return s, ux, uy
 
 
@@ -994,7 +995,7 @@ def sight_rounds(v, behavior, walk, ctype, human, vel, follows, waited, queued_u
 
 
 @njit(cache=True, nogil=True)
-def _wall_along(px, py, ux, uy, steps, limit, horizon, ox, oy, inv_cell, w, h, sdf, near, polys):
+def _wall_along(px, py, ux, uy, steps, limit, horizon, ox, oy, inv_cell, w, h, sdf, near, polys, sizes):
     # How far one can walk from p along u before the clearance falls under `limit`, sampled at `steps`
     # and taken as a quarter metre before (`horizon` where it never does). Interpolated only near the
     # limit: a distance differs from the nearest cell centre's by less than two cells.
@@ -1002,14 +1003,14 @@ def _wall_along(px, py, ux, uy, steps, limit, horizon, ox, oy, inv_cell, w, h, s
         x = px + ux * steps[s]
         y = py + uy * steps[s]
         if sdf[_cell(x, y, ox, oy, inv_cell, w, h)] < limit + _TWO / inv_cell and \
-                _sdf_at(x, y, ox, oy, inv_cell, w, h, sdf, near, polys) < limit:
+                _sdf_at(x, y, ox, oy, inv_cell, w, h, sdf, near, polys, sizes) < limit:
             return steps[s] - np.float32(0.25)
     return horizon
 
 
 @_loop(lambda pos, vel, radius, nb, rows, *rest: rows.shape[0])
 def choose_ways(pos, vel, radius, nb, rows, ux, uy, speed, cos_offsets, horizon, tau, queued, queue_tau, ghost,
-                walls, steps, ox, oy, inv_cell, w, h, sdf, near, polys):
+                walls, steps, ox, oy, inv_cell, w, h, sdf, near, polys, sizes):
     """Moussaid, Helbing and Theraulaz's two heuristics for each walker (vision.heuristic_velocity): the
     direction that brings it nearest its goal, given how far it can walk each way before touching
     someone (or a wall), and a speed that keeps the time gap ``tau`` to whoever stands that way.
@@ -1037,7 +1038,7 @@ def choose_ways(pos, vel, radius, nb, rows, ux, uy, speed, cos_offsets, horizon,
         reaches within the horizon, so it is not looked at along each way.
     walls : bool
         Whether to look for walls too, at ``steps`` (s,) float32 metres along each direction, in the
-        grid's clearance (``ox`` ... ``polys``: WalkGrid.lookup, flat_sdf and exact).
+        grid's clearance (``ox`` ... ``sizes``: WalkGrid.lookup, flat_sdf and exact).
 
     Returns
     -------
@@ -1057,7 +1058,7 @@ def choose_ways(pos, vel, radius, nb, rows, ux, uy, speed, cos_offsets, horizon,
     for i in prange(m):
         r = rows[i]
         # One already near a wall is stopped only where it would get nearer still.
-        here = _sdf_at(pos[0, r], pos[1, r], ox, oy, inv_cell, w, h, sdf, near, polys)
+        here = _sdf_at(pos[0, r], pos[1, r], ox, oy, inv_cell, w, h, sdf, near, polys, sizes)
         limit = min(radius[r], here - _WALL_APPROACH)
         best_q = 0
         best_left = _INF32
@@ -1072,7 +1073,7 @@ def choose_ways(pos, vel, radius, nb, rows, ux, uy, speed, cos_offsets, horizon,
             f = min(f, horizon)
             if walls:
                 wall[i, q] = _wall_along(pos[0, r], pos[1, r], ux[i, q], uy[i, q], steps, limit, horizon, ox, oy,
-                                         inv_cell, w, h, sdf, near, polys)
+                                         inv_cell, w, h, sdf, near, polys, sizes)
                 f = min(f, wall[i, q])
             # Distance left to the goal (at the horizon) after walking f this way, less horizon^2.
             left = f * f - (np.float32(2.0) * horizon) * f * cos_offsets[0, q]

@@ -37,7 +37,8 @@ from .kernels import choose_ways
 # Distances along a direction at which walls are looked for, metres (to the horizon).
 _WALL_SAMPLES = np.array([0.25, 0.5, 1.0, 2.0, 4.0], np.float32)
 # A grid lookup for walkers with no walls to look for (never read).
-_NO_WALLS = (0.0, 0.0, 1.0, 1, 1, np.ones(1, np.float32), np.full(1, -1, np.int32), np.zeros((0, 3, 2)))
+_NO_WALLS = (0.0, 0.0, 1.0, 1, 1, np.ones(1, np.float32), np.full(1, -1, np.int32), np.zeros((0, 3, 2)),
+             np.zeros(0, np.int64))
 
 
 @functools.lru_cache(maxsize=16)
