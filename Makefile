@@ -17,13 +17,15 @@ demo: $(STAMP)
 
 ## The tests, all of them: the slow ones read our MOT files with motmetrics
 ## (in its own small venv, it needs numpy < 2), import our shots in Blender
-## (the bpy wheel in its own venv) and start a local Ray cluster.
+## (the bpy wheel in its own venv) and start a local Ray cluster. They run
+## in one worker per CPU (pytest-xdist), each test file on one worker so that
+## its fixtures are made once; `.venv/bin/python -m pytest` runs them in one.
 test: $(STAMP)
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n logical --dist loadscope
 
 ## The tests without the slow ones, while developing.
 test-fast: $(STAMP)
-	$(PY) -m pytest -q -m "not slow"
+	$(PY) -m pytest -q -n logical --dist loadscope -m "not slow"
 
 ## The benchmarks install what they compare against (the bench extra: JuPedSim).
 bench: $(STAMP)

@@ -14,6 +14,22 @@ from usdcrowd.core.resources import data_dir
 from tests.helpers.shots import HEADER
 
 
+@pytest.fixture(autouse=True)
+def one_ray_at_a_time(request):
+    """Tests marked ``ray`` take turns machine-wide: the tests run in parallel workers (pytest-xdist), and a
+    Ray test looks for render actors among all of the machine's processes and stops every Ray process it
+    started a cluster for (`ray stop --force`), another worker's too."""
+    if request.node.get_closest_marker("ray") is None:
+        yield
+        return
+    import fcntl
+    import tempfile
+
+    with open(Path(tempfile.gettempdir()) / "usdcrowd-tests-ray.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        yield
+
+
 @pytest.fixture
 def rng():
     """A seeded generator: tests are reproducible."""

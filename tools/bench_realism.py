@@ -233,7 +233,7 @@ ANALYSIS = textwrap.dedent("""
 
 def pedpy_python() -> str:
     """The PedPy venv ($USDCROWD_PEDPY_VENV, else made once in the temporary folder, as the tests make it)."""
-    from train_camera_moe import tool_venv
+    from tool_venvs import tool_venv
 
     return tool_venv("pedpy", "USDCROWD_PEDPY_VENV", PEDPY)
 

@@ -48,7 +48,7 @@ FACING = np.radians(70.0)
 
 def video_python() -> str:
     """The venv with usdcrowd[video] ($USDCROWD_VIDEO_VENV, else made once in the temporary folder)."""
-    from train_camera_moe import tool_venv
+    from tool_venvs import tool_venv
 
     return tool_venv("video", "USDCROWD_VIDEO_VENV", ["-e", f"{ROOT}[video]"])
 

@@ -42,11 +42,9 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import os
 import shutil
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -54,6 +52,9 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "tools"))
+
+from tool_venvs import tool_venv  # noqa: E402  (tools/ is no package)
 
 TORCH_PACKAGES = ["torch==2.13.0", "numpy", "scikit-learn"]
 CONFIG = {"step": 2, "past": 4, "char_past": 12, "char_future": 12, "out": 6, "gate_step": 4, "gate_len": 60,
@@ -72,18 +73,6 @@ RETARGET_PER_BEHAVIOR = 400
 # character frames in, 30 out, hidden 512, a gating LSTM of 512 over 400 frames, 9 experts.
 PAPER_SIZES = {"step": 1, "past": 60, "char_past": 60, "char_future": 60, "out": 30, "gate_step": 1,
                "gate_len": 400, "experts": 9, "hidden": 512, "gate_hidden": 512}
-
-
-def tool_venv(name: str, env: str, packages: list[str]) -> str:
-    """The Python of a venv holding ``packages`` ($``env``, else made once in the temporary folder as
-    usdcrowd-NAME-venv, where the tests' venvs are)."""
-    venv = Path(os.environ.get(env, Path(tempfile.gettempdir()) / f"usdcrowd-{name}-venv"))
-    python = venv / "bin" / "python"
-    if not python.exists():
-        print(f"making the {name} venv in {venv} ({' '.join(packages)})", flush=True)
-        subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
-        subprocess.run([str(python), "-m", "pip", "install", "-q", *packages], check=True)
-    return str(python)
 
 
 def torch_python() -> str:

@@ -185,6 +185,7 @@ def test_two_renders_into_one_folder_leave_one_whole_manifest(small_shot, tmp_pa
     assert len(frames) == 48 and len(list((out / "exr").glob("*.exr"))) == 48
 
 
+@pytest.mark.ray
 def test_a_render_on_ray_stops_its_actors_and_its_ray_instance_on_ctrl_c(small_shot, tmp_path):
     pytest.importorskip("ray")
     pytest.importorskip("mitsuba")
@@ -209,6 +210,7 @@ def _renderers_alive() -> list:
     return found
 
 
+@pytest.mark.ray
 def test_a_render_on_a_ray_cluster_kills_its_actors_on_ctrl_c(small_shot, tmp_path):
     """The cluster (`ray start --head`, joined through --address) outlives the command; the actors must not."""
     pytest.importorskip("ray")

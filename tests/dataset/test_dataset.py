@@ -243,6 +243,7 @@ def test_the_spec_sets_the_peoples_samples_or_leaves_the_presets(tmp_path):
     assert _settings(load_spec(spec)).people_spp == 9
 
 
+@pytest.mark.ray
 def test_ray_with_two_workers_makes_the_same_dataset_and_opens_no_cluster_it_was_not_given(tiny_dataset, tmp_path,
                                                                                           monkeypatch):
     pytest.importorskip("ray")
@@ -293,6 +294,7 @@ def test_remaking_one_sequence_in_a_dataset_keeps_the_others_in_it(tiny_dataset,
 
 
 @pytest.mark.slow
+@pytest.mark.ray
 def test_a_ray_cluster_given_by_address_makes_the_same_dataset(tiny_dataset, tmp_path):
     """A local two-CPU cluster started as on a head node (`ray start --head`), joined through --address.
 

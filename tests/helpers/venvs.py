@@ -3,17 +3,18 @@
 The checks that a file we write is read right by a tool that does not know
 our code run that tool in its own venv: it pins its own numpy (motmetrics
 needs numpy < 2, Blender's ``bpy`` wheel its own), which must not meet ours.
+The venvs are the tools' (``tools/tool_venvs.py``): made under a lock, so
+the tests' parallel workers wait for one another rather than build one
+venv twice at once.
 """
 
 from __future__ import annotations
 
-import os
 import subprocess
-import sys
-import tempfile
-from pathlib import Path
 
 import pytest
+
+from tests.helpers.tools import load_tool
 
 # The Blender of the checks that Blender reads our shots: the ``bpy`` wheel, in its own venv.
 BPY = ["bpy==5.0.1"]
@@ -24,13 +25,8 @@ def tool_python(name: str, packages: list[str], env: str) -> str:
 
     Skips the test with a clear line when the venv cannot be built (no package index).
     """
-    venv = Path(os.environ.get(env, Path(tempfile.gettempdir()) / f"usdcrowd-{name}-venv"))
-    python = venv / "bin" / "python"
-    if not python.exists():
-        try:
-            subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
-            subprocess.run([str(python), "-m", "pip", "install", "-q", *packages], check=True)
-        except subprocess.CalledProcessError:
-            pytest.skip(f"could not build the {name} venv ({' '.join(packages)}): no package index? "
-                        f"Point {env} at a venv that has them.")
-    return str(python)
+    try:
+        return load_tool("tool_venvs").tool_venv(name, env, packages)
+    except subprocess.CalledProcessError:
+        pytest.skip(f"could not build the {name} venv ({' '.join(packages)}): no package index? "
+                    f"Point {env} at a venv that has them.")

@@ -433,6 +433,7 @@ def test_local_worker_processes_render_frames(walking_museum, tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.ray
 def test_ray_executor_on_a_local_cluster(walking_museum, tmp_path):
     pytest.importorskip("ray")
     settings = settings_from_preset("groundtruth", resolution=(64, 36), spp=2)
@@ -444,6 +445,7 @@ def test_ray_executor_on_a_local_cluster(walking_museum, tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.ray
 def test_a_users_mistake_found_on_a_ray_worker_is_one_line(tmp_path, capsys):
     """A damaged frame found by a Ray actor: the CLI prints the StageError's one line, not Ray's traceback."""
     pytest.importorskip("ray")
