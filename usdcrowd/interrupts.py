@@ -26,6 +26,10 @@ class Terminated(BaseException):
 # converters are registered twice, or swallows the stop), and one raised in a finaliser is printed and
 # dropped: either is delivered again this much later (until no import is under way).
 STOP_RETRY_S = 0.05
+# A stop that a library swallows (trimesh catches any BaseException around its sparse normals, logs it and
+# goes on with a loop fifty times slower) is delivered again this often until the command ends; not while
+# a stop's own clean-up runs (an exception being handled): that finishes first.
+STOP_WATCH_S = 0.25
 
 
 def _stop_for(signum: int) -> BaseException:
@@ -48,9 +52,11 @@ def stops_as_exceptions():
     swallowed (the previous handlers are restored).
 
     A stop that lands during an import waits for it to end; one raised in a finaliser is delivered
-    again. One can still land inside a library that turns it into something else: numba's dispatcher
-    raises a SystemError; trimesh's optional imports keep any BaseException in a placeholder that fails
-    later. Those are the stop all the same, and leave as it (chained to what they became).
+    again, and so is one a library swallows, every :data:`STOP_WATCH_S` until it leaves (a second Ctrl-C
+    while a stop's clean-up runs waits for it). One can still land inside a library that turns it into
+    something else: numba's dispatcher raises a SystemError; trimesh's optional imports keep any
+    BaseException in a placeholder that fails later. Those are the stop all the same, and leave as it
+    (chained to what they became).
     """
     import os
     import threading
@@ -63,17 +69,21 @@ def stops_as_exceptions():
         if live:
             os.kill(os.getpid(), signum)
 
-    def later(signum):
-        retry = threading.Timer(STOP_RETRY_S, again, (signum,))
+    def later(signum, delay=STOP_RETRY_S):
+        retry = threading.Timer(delay, again, (signum,))
         retry.daemon = True
         retries.append(retry)
         retry.start()
 
     def stop(signum, frame):
+        stopping_already = bool(asked)
         asked.append(signum)
         if _importing(frame):
             later(signum)
             return
+        later(signum, STOP_WATCH_S)             # should a library swallow this one
+        if stopping_already and sys.exc_info()[1] is not None:
+            return                              # the stop is on its way out, its clean-up running
         raise _stop_for(signum)
 
     def unraisable(report):

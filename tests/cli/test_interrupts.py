@@ -358,3 +358,39 @@ def test_a_stop_raised_in_a_finaliser_is_delivered_again(capsys, ctrl_c_handled)
         done.append("wait")
     assert done == ["finalised"]
     assert capsys.readouterr().err == ""
+
+
+def test_a_stop_a_library_swallows_comes_again_at_once(ctrl_c_handled):
+    """A Ctrl-C caught by a library that goes on working (trimesh catches any BaseException around its
+    sparse normals and falls back to a loop fifty times slower) is delivered again within STOP_WATCH_S:
+    the command stops while that work is still under way, not at its end."""
+    from usdcrowd.interrupts import stops_as_exceptions
+
+    steps = []
+    with pytest.raises(KeyboardInterrupt), stops_as_exceptions():
+        try:
+            signal.raise_signal(signal.SIGINT)
+        except BaseException:                   # as the library does: log it and go on
+            pass
+        for _ in range(400):                    # 4 s of its slower way
+            time.sleep(0.01)
+            steps.append(1)
+    assert 0 < len(steps) < 200, len(steps)    # well before the end: 2 s, eight times the watch
+
+
+def test_a_stops_clean_up_is_not_cut_short_by_the_stop_coming_again(ctrl_c_handled):
+    """While a stop's clean-up runs (its exception handled: stopping workers, removing partial files), the
+    stop is not delivered again, even by a second Ctrl-C: the clean-up finishes, and the stop leaves once."""
+    from usdcrowd.interrupts import STOP_WATCH_S, stops_as_exceptions
+
+    cleaned = []
+    with pytest.raises(KeyboardInterrupt), stops_as_exceptions():
+        try:
+            signal.raise_signal(signal.SIGINT)
+        except KeyboardInterrupt:
+            signal.raise_signal(signal.SIGINT)  # the user presses Ctrl-C again
+            for _ in range(int(4 * STOP_WATCH_S / 0.01)):     # a clean-up longer than the watch
+                time.sleep(0.01)
+            cleaned.append("done")
+            raise
+    assert cleaned == ["done"]
