@@ -549,7 +549,6 @@ def _wall_at(x, y, ox, oy, inv_cell, w, h, sdf, nx, ny, near, polys, sizes):
     iy = min(max(np.int64(np.floor(fy)), 0), h - 2)
     f = iy * w + ix
     a, b, c, d = near[f], near[f + 1], near[f + w], near[f + w + 1]
-    g = _cell(x, y, ox, oy, inv_cell, w, h)
     if a >= 0 and b >= 0 and c >= 0 and d >= 0:
         s, ux, uy = _polygon_distance(x, y, polys, sizes, a)
         for k in (b, c, d):
@@ -557,9 +556,11 @@ def _wall_at(x, y, ox, oy, inv_cell, w, h, sdf, nx, ny, near, polys, sizes):
                 t, vx, vy = _polygon_distance(x, y, polys, sizes, k)
                 if t < s:
                     s, ux, uy = t, vx, vy
-        if ux == 0.0 and uy == 0.0:
+        if ux == 0.0 and uy == 0.0:          # on a wall's boundary: no direction of its own
+            g = _cell(x, y, ox, oy, inv_cell, w, h)
             return np.float32(s), nx[g], ny[g]
         return np.float32(s), np.float32(ux), np.float32(uy)
+    g = _cell(x, y, ox, oy, inv_cell, w, h)
     tx = min(max(fx - ix, 0.0), 1.0)
     ty = min(max(fy - iy, 0.0), 1.0)
     return (np.float32((sdf[f] * (1.0 - tx) + sdf[f + 1] * tx) * (1.0 - ty)
