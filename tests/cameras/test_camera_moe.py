@@ -146,6 +146,36 @@ np.savez(sys.argv[3], x=x, start=start)
 """
 
 
+WINDOW_WEIGHTS = """
+import sys
+import numpy as np, torch
+import camera_moe_torch as T
+style = torch.tensor(np.load(sys.argv[1])["style"])
+weighed = T.window_weights({"long_orbit_weight": 3.0}, style)
+np.savez(sys.argv[2], weighed=weighed.numpy(), plain=np.array(T.window_weights({}, style) is None))
+"""
+
+
+def test_long_orbit_weight_weighs_the_long_shot_orbits_windows_alone(tmp_path):
+    """Config long_orbit_weight 3: the loss weight of a training window is 3 where its clip is an orbit filmed
+    in a long shot, 1 for every other behavior and size (read from the clips themselves, not the labels);
+    without the key, equal weights (None)."""
+    from tests.helpers.tools import load_tool
+    from tests.helpers.venvs import tool_python
+
+    python = tool_python("torch", ["torch==2.13.0", "numpy", "scikit-learn"], "USDCROWD_TORCH_VENV")
+    clips = held_out_clips(6, 0, frames=48)                # every behavior in every shot size, twice
+    style = np.array([load_tool("train_camera_moe").style_labels(c) for c in clips], np.float32)
+    np.savez(tmp_path / "style.npz", style=style)
+    subprocess.run([python, "-c", WINDOW_WEIGHTS, str(tmp_path / "style.npz"), str(tmp_path / "weights.npz")],
+                   check=True, env={**os.environ, "PYTHONPATH": str(TOOLS)})
+    got = np.load(tmp_path / "weights.npz")
+    long_orbit = np.array([BEHAVIORS[c.behavior] == "orbit" and c.shot == "long" for c in clips])
+    assert long_orbit.sum() == 2
+    np.testing.assert_array_equal(got["weighed"], np.where(long_orbit, 3.0, 1.0))
+    assert got["plain"]
+
+
 @pytest.mark.slow
 def test_training_hides_the_pairs_motion_as_a_film_clip_reference_does(tmp_path):
     """Config unseen_motion: the gate windows training draws with the pair's motion unknown are what numpy's
