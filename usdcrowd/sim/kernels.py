@@ -551,8 +551,8 @@ def _wall_at(x, y, ox, oy, inv_cell, w, h, sdf, nx, ny, near, polys, sizes):
     a, b, c, d = near[f], near[f + 1], near[f + w], near[f + w + 1]
     if a >= 0 and b >= 0 and c >= 0 and d >= 0:
         s, ux, uy = _polygon_distance(x, y, polys, sizes, a)
-        for k in (b, c, d):
-            if k != a:
+        for k, earlier in ((b, a == b), (c, c == a or c == b), (d, d == a or d == b or d == c)):
+            if not earlier:                  # corner cells often share their obstacle: measure it once
                 t, vx, vy = _polygon_distance(x, y, polys, sizes, k)
                 if t < s:
                     s, ux, uy = t, vx, vy
