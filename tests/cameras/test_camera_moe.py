@@ -63,9 +63,9 @@ def test_blending_the_weights_equals_blending_each_layers_outputs(shipped, rng):
 @pytest.mark.slow
 def test_numpy_inference_equals_pytorchs(shipped, rng, tmp_path):
     """The gating LSTM and the blended prediction network, in numpy and in PyTorch (its own venv), to 1e-5."""
-    from tests.helpers.venvs import tool_python
+    from tests.helpers.venvs import torch_python
 
-    python = tool_python("torch", ["torch==2.13.0", "numpy", "scikit-learn"], "USDCROWD_TORCH_VENV")
+    python = torch_python()
     path, moe = shipped
     c = moe.config
     gate_x = rng.normal(size=(3, c.gate_len, N_CHARACTER + N_CAMERA + N_STYLE * c.gate_style))
@@ -93,9 +93,9 @@ def test_a_style_reading_gate_trains_and_reads_its_features_as_pytorch_does(rng,
 
     from usdcrowd.cameras.moe import style_features
     from tests.helpers.tools import load_tool
-    from tests.helpers.venvs import tool_python
+    from tests.helpers.venvs import torch_python
 
-    python = tool_python("torch", ["torch==2.13.0", "numpy", "scikit-learn"], "USDCROWD_TORCH_VENV")
+    python = torch_python()
     tool = load_tool("train_camera_moe")            # a fresh module: its CONFIG is this test's
     tool.CONFIG.update(gate_style=True, style=0.3, expert_style=experts_read_it)
     _, test = tool.make_dataset(tmp_path / "data.npz", 2, 0, frames=240)
@@ -161,9 +161,9 @@ def test_long_orbit_weight_weighs_the_long_shot_orbits_windows_alone(tmp_path):
     in a long shot, 1 for every other behavior and size (read from the clips themselves, not the labels);
     without the key, equal weights (None)."""
     from tests.helpers.tools import load_tool
-    from tests.helpers.venvs import tool_python
+    from tests.helpers.venvs import torch_python
 
-    python = tool_python("torch", ["torch==2.13.0", "numpy", "scikit-learn"], "USDCROWD_TORCH_VENV")
+    python = torch_python()
     clips = held_out_clips(6, 0, frames=48)                # every behavior in every shot size, twice
     style = np.array([load_tool("train_camera_moe").style_labels(c) for c in clips], np.float32)
     np.savez(tmp_path / "style.npz", style=style)
@@ -182,9 +182,9 @@ def test_training_hides_the_pairs_motion_as_a_film_clip_reference_does(tmp_path)
     gate reads from a film clip of the same shot (character columns 7-9 at the weights' mean, as the feature
     estimator fills them, and the style features made from those), to float32's precision."""
     from tests.helpers.tools import load_tool
-    from tests.helpers.venvs import tool_python
+    from tests.helpers.venvs import torch_python
 
-    python = tool_python("torch", ["torch==2.13.0", "numpy", "scikit-learn"], "USDCROWD_TORCH_VENV")
+    python = torch_python()
     tool = load_tool("train_camera_moe")
     tool.CONFIG.update(gate_style=True, style=0.3, expert_style=True, pair=0.0, unseen_motion=1.0)
     _, test = tool.make_dataset(tmp_path / "data.npz", 2, 0, frames=240)

@@ -87,9 +87,9 @@ def test_a_shift_on_screen_leaves_the_estimate_as_it_is(estimator, held_out_clip
 @pytest.mark.slow
 def test_numpy_inference_equals_pytorchs(estimator, rng, tmp_path):
     """Batch norm folded into the convolutions, in numpy, against PyTorch's modules (its own venv)."""
-    from tests.helpers.venvs import tool_python
+    from tests.helpers.venvs import torch_python
 
-    python = tool_python("torch", ["torch==2.13.0", "numpy", "scikit-learn"], "USDCROWD_TORCH_VENV")
+    python = torch_python()
     x = rng.normal(size=(6, 32, 8))
     np.savez(tmp_path / "inputs.npz", x=x)
     subprocess.run([python, str(TOOLS / "feature_estimator_torch.py"), "forward", str(WEIGHTS),

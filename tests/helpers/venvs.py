@@ -30,3 +30,9 @@ def tool_python(name: str, packages: list[str], env: str) -> str:
     except subprocess.CalledProcessError:
         pytest.skip(f"could not build the {name} venv ({' '.join(packages)}): no package index? "
                     f"Point {env} at a venv that has them.")
+
+
+def torch_python() -> str:
+    """The PyTorch venv the training tools use (their TORCH_PACKAGES: one list, so the venv's marker agrees
+    whoever asks first)."""
+    return tool_python("torch", load_tool("train_camera_moe").TORCH_PACKAGES, "USDCROWD_TORCH_VENV")
