@@ -360,6 +360,37 @@ def test_distant_characters_become_impostors_then_points_and_keep_their_ids(tiny
         r.release()
 
 
+def test_shadow_casters_go_nearest_the_sun_first_and_the_frame_does_not_depend_on_it(tiny_shot, gl, monkeypatch):
+    """The order only saves work (the map's early depth test): every pixel, id and depth stays."""
+    from usdcrowd.render.preview import PreviewRenderer
+    from usdcrowd.render.preview import renderer as renderer_module
+
+    r = PreviewRenderer(tiny_shot, 320, 180, ctx=gl)
+    try:
+        cam = r.scene.camera("/World/Cam", 4.0)
+        poses = r.poses(4.0)
+        plan = r._plan(poses, cam, cam.world_to_cam, float(cam.intrinsics(320, 180)[0, 0]))
+        casters = plan["s_order"]
+        assert len(casters) == 4
+        toward_sun = plan["centres"][casters] @ r.lights.sun_dir
+        assert (np.diff(toward_sun) <= 0).all()
+        ordered = r.render_poses(poses, cam)
+
+        group_by_level = lod.group_by_level
+
+        def unordered(levels, visible, n_levels, distance=None):
+            return group_by_level(levels, visible, n_levels,
+                                      None if distance is None else -np.asarray(distance))
+        monkeypatch.setattr(renderer_module.lod, "group_by_level", unordered)
+        reverse = r.render_poses(poses, cam)
+        assert r._plan(poses, cam, cam.world_to_cam, float(cam.intrinsics(320, 180)[0, 0]))["s_order"].tolist() \
+            == casters[::-1].tolist()
+        for a, b in zip(ordered, reverse):        # colour, ids, depth
+            np.testing.assert_array_equal(a, b)
+    finally:
+        r.release()
+
+
 def test_overlays_draw_over_colour_only(tiny_shot, gl):
     from usdcrowd.render.preview import PreviewRenderer
     from usdcrowd.render.preview.overlays import Overlays

@@ -530,7 +530,11 @@ class PreviewRenderer:
                                                camera.near, min(camera.far, self.shadow_distance))
         else:
             casts = draw_mask
-        s_order, s_starts = lod.group_by_level(lod.shadow_levels(levels, self.lod), casts, n_levels)
+        # Nearest the sun first: the shadow map's early depth test then skips
+        # the texels a crowd already shades (the map's depths do not depend on the order).
+        toward_sun = -(centres @ np.asarray(sun_dir, np.float64)) if n and sun_dir is not None else None
+        s_order, s_starts = lod.group_by_level(lod.shadow_levels(levels, self.lod), casts, n_levels,
+                                               distance=toward_sun)
         return {"n": n, "centres": centres, "radius": radius, "draw_mask": draw_mask,
                 "in_view": in_view, "drawn": drawn, "order": order, "starts": starts, "casts": casts,
                 "s_order": s_order, "s_starts": s_starts}

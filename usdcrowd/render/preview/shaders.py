@@ -318,13 +318,18 @@ bool covered(sampler2D atlas, vec2 cell, vec2 local_uv, out vec4 t, out vec2 coo
 # it meets each part's picture, so the fragment shader reads all three (a
 # software rasteriser pays per triangle far more than per texture read).
 # Record (IMPOSTOR_RECORD vec4): centre and torso radius; the quad's half
-# axes right and up; the three atlas cells; the joints' rotations as
-# quaternions; per corner the three parts' picture coordinates.
+# axes right and up; the palette as half floats (rows 3-4); the joints'
+# rotations as 16-bit quaternions and the three atlas cells in one uint
+# (rows 5-6); per corner the three parts' picture coordinates (rows 8-15).
+# The flat rows are packed because a software rasteriser's front end pays
+# for every scalar a vertex carries to the fragments (about a third of an
+# impostor's set-up went to unpacked palettes and rotations).
 IMPOSTOR_RECORD = 16
 IMPOSTOR_CS = VERSION + """
 layout(local_size_x = 64) in;
 """ + INSTANCES + IMPOSTOR_CONSTANTS + IMPOSTOR_PLACE + """
 layout(std430, binding = 2) writeonly buffer Sprites { vec4 sprite_out[]; };
+layout(std430, binding = 2) writeonly buffer SpriteBits { uvec4 sprite_bits_out[]; };
 uniform int u_count;              // agents to place
 uniform int u_sprite_base;        // first record written
 
@@ -354,9 +359,18 @@ void main() {
     sprite_out[w] = vec4(centre, p[1].radius);
     sprite_out[w + 1] = vec4(half_k.x * R, 0.0);
     sprite_out[w + 2] = vec4(half_k.y * U, 0.0);
-    sprite_out[w + 3] = vec4(p[0].cell, p[1].cell);
-    sprite_out[w + 4] = vec4(p[2].cell, 0.0, 0.0);
-    for (int j = 0; j < 3; ++j) sprite_out[w + 5 + j] = quat_of(p[j].rot);
+    vec3 pal[5];
+    for (int i = 0; i < 5; ++i) pal[i] = inst[b + 9 + i].rgb;
+    sprite_bits_out[w + 3] = uvec4(packHalf2x16(pal[0].rg), packHalf2x16(vec2(pal[0].b, pal[1].r)),
+                                   packHalf2x16(pal[1].gb), packHalf2x16(pal[2].rg));
+    sprite_bits_out[w + 4] = uvec4(packHalf2x16(vec2(pal[2].b, pal[3].r)), packHalf2x16(pal[3].gb),
+                                   packHalf2x16(pal[4].rg), packHalf2x16(vec2(pal[4].b, 0.0)));
+    vec4 q0 = quat_of(p[0].rot), q1 = quat_of(p[1].rot), q2 = quat_of(p[2].rot);
+    uint cells = 0u;
+    for (int j = 0; j < 3; ++j) cells |= (uint(p[j].cell.x) | (uint(p[j].cell.y) << 4)) << (9 * j);
+    sprite_bits_out[w + 5] = uvec4(packSnorm2x16(q0.xy), packSnorm2x16(q0.zw), packSnorm2x16(q1.xy),
+                                   packSnorm2x16(q1.zw));
+    sprite_bits_out[w + 6] = uvec4(packSnorm2x16(q2.xy), packSnorm2x16(q2.zw), cells, 0u);
     for (int c = 0; c < 4; ++c) {
         vec2 q = vec2(float(c & 1), float(c >> 1)) * 2.0 - 1.0;
         vec3 corner = centre + q.x * half_k.x * R + q.y * half_k.y * U;
@@ -373,19 +387,18 @@ void main() {
 
 IMPOSTOR_QUAD = """
 layout(std430, binding = 2) readonly buffer Sprites { vec4 sprite[]; };
+layout(std430, binding = 2) readonly buffer SpriteBits { uvec4 sprite_bits[]; };
 uniform int u_sprite_base;
 
 // Corner of agent gl_VertexID / 4's quad (indexed draw, no instancing:
 // Mesa's software pipeline runs its whole front end once per instance).
-void quad_corner(out vec3 wp, out vec4 uv01, out vec2 uv2, out vec4 cells01, out vec2 cell2, out int agent,
-                 out int o) {
+void quad_corner(out vec3 wp, out vec4 uv01, out vec2 uv2, out uint cells, out int agent, out int o) {
     agent = gl_VertexID >> 2;
     int c = gl_VertexID & 3;
     vec2 q = vec2(float(c & 1), float(c >> 1)) * 2.0 - 1.0;
     o = (u_sprite_base + agent) * """ + str(IMPOSTOR_RECORD) + """;
     wp = sprite[o].xyz + q.x * sprite[o + 1].xyz + q.y * sprite[o + 2].xyz;
-    cells01 = sprite[o + 3];
-    cell2 = sprite[o + 4].xy;
+    cells = sprite_bits[o + 6].z;
     uv01 = sprite[o + 8 + 2 * c];
     uv2 = sprite[o + 9 + 2 * c].xy;
 }
@@ -396,8 +409,7 @@ in vec3 v_world;
 in vec4 v_uv01;
 in vec2 v_uv2;
 in float v_z;
-flat in vec4 v_cells01;
-flat in vec2 v_cell2;
+flat in uint v_cells;        // the three parts' atlas cells, 9 bits each (impostor_cell)
 """
 
 IMPOSTOR_VS = VERSION + LIGHTING + INSTANCES + IMPOSTOR_QUAD + """
@@ -405,27 +417,29 @@ uniform mat4 u_view;
 uniform mat4 u_proj;
 """ + IMPOSTOR_VARYINGS.replace("in ", "out ") + """
 out float v_sun_seen;
-flat out vec4 v_quat[3];
-flat out float v_radius;
-flat out vec3 v_palette[5];
+flat out uvec4 v_quat01;    // quaternions of the legs and the torso, 16-bit (packSnorm2x16)
+flat out uvec2 v_quat2;     // the head's
+flat out uvec4 v_palette_a; // the five palette colours as fifteen half floats
+flat out uvec4 v_palette_b;
 flat out uint v_id;
 
 void main() {
     vec3 wp;
     int agent, o;
-    quad_corner(wp, v_uv01, v_uv2, v_cells01, v_cell2, agent, o);
-    for (int j = 0; j < 3; ++j) v_quat[j] = sprite[o + 5 + j];
-    v_radius = sprite[o].w;
+    quad_corner(wp, v_uv01, v_uv2, v_cells, agent, o);
+    v_quat01 = sprite_bits[o + 5];
+    v_quat2 = sprite_bits[o + 6].xy;
+    v_palette_a = sprite_bits[o + 3];
+    v_palette_b = sprite_bits[o + 4];
+    float radius = sprite[o].w;
     // The sun's visibility on the body's axis at this corner's height,
     // looked up on the sun's side of the body: a figure under 100 px is
     // shaded from the head's and the feet's, where a lookup per fragment
     // cost a quarter of its drawing.
     float up = float((gl_VertexID & 3) >> 1) * 2.0 - 1.0;
     vec3 axis = sprite[o].xyz + up * sprite[o + 2].xyz;
-    v_sun_seen = sun_visibility(axis + u_sun_dir * v_radius, u_sun_dir);
-    int b = record(agent);
-    for (int k = 0; k < 5; ++k) v_palette[k] = inst[b + 9 + k].rgb;
-    v_id = inst_u[b + 9].w;
+    v_sun_seen = sun_visibility(axis + u_sun_dir * radius, u_sun_dir);
+    v_id = inst_u[record(agent) + 9].w;
     vec4 vp = u_view * vec4(wp, 1.0);
     gl_Position = u_proj * vp;
     v_world = wp;
@@ -436,10 +450,16 @@ void main() {
 # The frontmost part's picture at a fragment: the head, then the torso (its
 # arms hang over the hips), then the legs.
 IMPOSTOR_PICK = """
+// Part j's atlas cell: (azimuth column, part-and-elevation row).
+vec2 impostor_cell(int j) {
+    uint c = v_cells >> (9 * j);
+    return vec2(float(c & 15u), float((c >> 4) & 31u));
+}
+
 int pick(sampler2D atlas, out vec4 t, out vec2 coord) {
-    if (covered(atlas, v_cell2, v_uv2, t, coord)) return 2;
-    if (covered(atlas, v_cells01.zw, v_uv01.zw, t, coord)) return 1;
-    if (covered(atlas, v_cells01.xy, v_uv01.xy, t, coord)) return 0;
+    if (covered(atlas, impostor_cell(2), v_uv2, t, coord)) return 2;
+    if (covered(atlas, impostor_cell(1), v_uv01.zw, t, coord)) return 1;
+    if (covered(atlas, impostor_cell(0), v_uv01.xy, t, coord)) return 0;
     return -1;
 }
 """
@@ -449,12 +469,28 @@ IMPOSTOR_FS = (VERSION + LIGHTING + OUTPUTS + IMPOSTOR_CONSTANTS + IMPOSTOR_SAMP
 uniform sampler2D u_atlas;
 uniform sampler2D u_regions;      // the atlas's palette-row weights (impostors.ImpostorAtlas.regions)
 in float v_sun_seen;
-flat in vec4 v_quat[3];
-flat in float v_radius;
-flat in vec3 v_palette[5];
+flat in uvec4 v_quat01;
+flat in uvec2 v_quat2;
+flat in uvec4 v_palette_a;
+flat in uvec4 v_palette_b;
 flat in uint v_id;
 
 vec3 rotate(vec4 q, vec3 v) { return v + 2.0 * cross(q.xyz, cross(q.xyz, v) + q.w * v); }
+
+vec4 joint_quat(int j) {
+    uvec2 q = j == 0 ? v_quat01.xy : (j == 1 ? v_quat01.zw : v_quat2);
+    return vec4(unpackSnorm2x16(q.x), unpackSnorm2x16(q.y));
+}
+
+// The palette's five colours weighted by the picture's region weights r (the fifth takes the rest).
+vec3 palette_colour(vec4 r) {
+    vec2 a = unpackHalf2x16(v_palette_a.x), b = unpackHalf2x16(v_palette_a.y);
+    vec2 c = unpackHalf2x16(v_palette_a.z), d = unpackHalf2x16(v_palette_a.w);
+    vec2 e = unpackHalf2x16(v_palette_b.x), f = unpackHalf2x16(v_palette_b.y);
+    vec2 g = unpackHalf2x16(v_palette_b.z), h = unpackHalf2x16(v_palette_b.w);
+    return r.x * vec3(a, b.x) + r.y * vec3(b.y, c) + r.z * vec3(d, e.x) + r.w * vec3(e.y, f)
+         + max(1.0 - r.x - r.y - r.z - r.w, 0.0) * vec3(g, h.x);
+}
 
 void main() {
     vec4 t;
@@ -463,10 +499,8 @@ void main() {
     if (j < 0) discard;
     // Weights were drawn over a cleared (zero) background, as coverage was: undo the edge blend.
     vec4 r = texture(u_regions, coord) / t.a;
-    vec3 v_color = r.x * v_palette[0] + r.y * v_palette[1] + r.z * v_palette[2] + r.w * v_palette[3]
-                 + max(1.0 - r.x - r.y - r.z - r.w, 0.0) * v_palette[4];
-    vec3 n = normalize(rotate(v_quat[j], t.rgb * 2.0 - 1.0));
-    o_color = vec4(srgb_encode(shade_seen(v_color, v_world, n, v_sun_seen)), 1.0);
+    vec3 n = normalize(rotate(joint_quat(j), t.rgb * 2.0 - 1.0));
+    o_color = vec4(srgb_encode(shade_seen(palette_colour(r), v_world, n, v_sun_seen)), 1.0);
     o_id = v_id;
     o_depth = v_z;
 }
@@ -479,7 +513,7 @@ uniform mat4 u_light_vp;
 void main() {
     vec3 wp;
     int agent, o;
-    quad_corner(wp, v_uv01, v_uv2, v_cells01, v_cell2, agent, o);
+    quad_corner(wp, v_uv01, v_uv2, v_cells, agent, o);
     gl_Position = u_light_vp * vec4(wp, 1.0);
     v_world = wp;
     v_z = 0.0;
