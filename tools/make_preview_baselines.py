@@ -122,8 +122,9 @@ TINY_STAGE = textwrap.dedent('''\
     ''')
 
 
-def make_tiny_shot(out_dir) -> Path:
-    """Write the tiny scenario and its shot (agents walk straight) into ``out_dir``; returns shot.usda."""
+def make_tiny_shot(out_dir, stage: str = TINY_STAGE) -> Path:
+    """Write the tiny scenario (or another ``stage`` text) and its shot (agents walk straight) into
+    ``out_dir``; returns shot.usda."""
     if str(ROOT) not in sys.path:
         sys.path.insert(0, str(ROOT))           # the repository's tests package
     from tests.helpers.frames import straight_walk
@@ -134,7 +135,7 @@ def make_tiny_shot(out_dir) -> Path:
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     scenario = out_dir / "tiny.usda"
-    scenario.write_text(TINY_STAGE)
+    scenario.write_text(stage)
     r = author_shot(scenario, out_dir / "shot", lambda sc: [straight_walk(sc.agents, sc.time)], progress=False)
     return Path(r.shot)
 

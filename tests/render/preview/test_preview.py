@@ -524,6 +524,54 @@ def test_impostors_stand_where_the_meshes_do(tiny_shot, gl):
         assert np.abs(c_imp - c_mesh).max() < 12, (k, c_imp, c_mesh)
 
 
+@pytest.fixture(scope="module")
+def walled_shot(tmp_path_factory, gl):
+    """The tiny shot with its block made a thin wall: 3 m long across y = 1.5, 0.15 m thick, 1.2 m tall."""
+    tool = _tool()
+    stage = tool.TINY_STAGE.replace("xformOp:translate = (2.5, 1.5, 0.75)", "xformOp:translate = (2.5, 1.5, 0.6)")
+    stage = stage.replace("xformOp:scale = (1.2, 1.2, 1.5)", "xformOp:scale = (3, 0.15, 1.2)")
+    assert stage.count("(3, 0.15, 1.2)") == 1 and "(2.5, 1.5, 0.6)" in stage
+    return tool.make_tiny_shot(tmp_path_factory.mktemp("walled"), stage)
+
+
+def test_an_impostor_just_behind_a_wall_stays_behind_it(walled_shot, gl):
+    """Seen from above, an impostor's quad leans toward the camera: the legs of someone standing just
+    behind a thin wall came through it. Its depth now keeps them hidden, as the mesh's are."""
+    from dataclasses import replace
+
+    from usdcrowd.render.preview import PreviewRenderer
+
+    renderers = {"impostor": PreviewRenderer(walled_shot, 640, 360, ctx=gl, lod_settings=lod.LodSettings(
+        mesh_levels=((1e9, 0.0),))), "mesh": PreviewRenderer(walled_shot, 640, 360, ctx=gl,
+                                                              lod_settings=lod.LodSettings(enabled=False))}
+    try:
+        mesh_r = renderers["mesh"]
+        poses = mesh_r.poses(4.0)
+        wall = next(s.shape_id for s in mesh_r.scene.scenery if s.path.endswith("Block"))
+        # Agent 1 alone, 0.3 m behind the wall's far face (its body's nearest point about 0.1 m from it).
+        joints = poses.joints_world.copy()
+        joints[0, :, 3, :2] += np.array([2.5, 1.875]) - joints[0, 0, 3, :2]
+        alone = replace(poses, joints_world=joints, visible=np.arange(len(poses)) == 0)
+        base = mesh_r.scene.camera("/World/Cam", 4.0)
+        for elevation in (30.0, 45.0, 60.0):
+            e = np.radians(elevation)
+            back = np.array([0.0, -np.cos(e), np.sin(e)])           # from the agent toward the camera
+            right = np.array([1.0, 0.0, 0.0])
+            cam_to_world = np.eye(4)
+            cam_to_world[0, :3], cam_to_world[1, :3], cam_to_world[2, :3] = right, np.cross(back, right), back
+            cam_to_world[3, :3] = np.array([2.5, 1.875, 0.9]) + 8.0 * back
+            cam = replace(base, cam_to_world=cam_to_world)
+            imp, mesh = (renderers[k].render_poses(alone, cam) for k in ("impostor", "mesh"))
+            assert imp.stats["impostors"] == 1 and mesh.stats["full"] == 1
+            shown = imp.ids == 1
+            assert shown.sum() > 100 and (mesh.ids == 1).sum() > 100, elevation   # head and shoulders
+            through = shown & (mesh.ids == wall)
+            assert through.sum() <= 0.02 * shown.sum(), (elevation, int(through.sum()), int(shown.sum()))
+    finally:
+        for r in renderers.values():
+            r.release()
+
+
 def test_an_impostor_in_a_blocks_shadow_is_as_dark_as_its_mesh(tiny_shot, gl):
     """The sun's visibility reaches impostors: one stood in the block's shadow darkens as its mesh does."""
     from dataclasses import replace

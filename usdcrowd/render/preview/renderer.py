@@ -578,6 +578,7 @@ class PreviewRenderer:
         _set(self.prog_shadow_char, "u_light_vp", light_vp)
         if self.atlas is not None:
             _set(self.prog_shadow_imp, "u_light_vp", light_vp)
+            _set(self.prog_shadow_imp, "u_sun_dir", np.asarray(sun_dir, np.float32))
             _set(self.prog_imp_place, "u_view_dir", np.asarray(sun_dir, np.float32))
         self._draw_levels(self.prog_shadow_char, 1, plan["s_starts"], s_base, shadow_texel=texel)
         ctx.polygon_offset = (0.0, 0.0)
@@ -601,6 +602,7 @@ class PreviewRenderer:
         self.shadow_tex.use(0)
         if self.atlas is not None:
             _set(self.prog_imp_place, "u_eye", np.asarray(camera.cam_to_world[3, :3], np.float32))
+            _set(self.prog_imp, "u_eye", np.asarray(camera.cam_to_world[3, :3], np.float32))
             _set(self.prog_imp_place, "u_view_dir", np.zeros(3, np.float32))
         for prog in self._lit_programs():
             _set(prog, "u_view", view)

@@ -320,14 +320,42 @@ bool covered(sampler2D atlas, vec2 cell, vec2 local_uv, out vec4 t, out vec2 coo
 # Record (IMPOSTOR_RECORD vec4): centre and torso radius; the quad's half
 # axes right and up; the palette as half floats (rows 3-4); the joints'
 # rotations as 16-bit quaternions and the three atlas cells in one uint
-# (rows 5-6); per corner the three parts' picture coordinates (rows 8-15).
+# (rows 5-6); the plane the quad's depth is taken from (row 7: normal,
+# offset); per corner the three parts' picture coordinates (rows 8-15).
 # The flat rows are packed because a software rasteriser's front end pays
 # for every scalar a vertex carries to the fragments (about a third of an
 # impostor's set-up went to unpacked palettes and rotations).
 IMPOSTOR_RECORD = 16
+
+# The depth an impostor writes. Its quad lies in the torso's picture plane,
+# which leans toward a camera looking down: the legs' pixels came out nearer
+# than the legs, and a character just behind a wall showed them through it.
+# The depth comes from an upright plane instead (the quad's own plane once
+# the view is steep enough for an upright plane to be seen edge on): across
+# the body's front in a perspective view; through its axis in the sun's
+# view, so its shadow neither reaches through a wall nor falls on the body's
+# own lit side, where the figure looks the sun's visibility up.
+IMPOSTOR_DEPTH_PLANE = """
+const float UPRIGHT_UNTIL = 0.906;    // sin(65 deg): upright below this elevation of the view
+const float LEAN_FROM = 0.996;        // sin(85 deg): the quad's own plane above this
+
+// (unit normal toward the viewer, offset): the plane's points x have dot(normal, x) = offset.
+vec4 depth_plane(Picture legs, Picture torso, Picture head) {
+    vec3 n = torso.d;
+    vec3 up = torso.rot[2];
+    float sin_e = dot(n, up);
+    vec3 level = n - sin_e * up;
+    float lean = smoothstep(UPRIGHT_UNTIL, LEAN_FROM, abs(sin_e));
+    vec3 normal = dot(level, level) > 1e-8 ? normalize(mix(normalize(level), n, lean)) : n;
+    // Through the front of the widest part, so no foot or hand stands in front of it.
+    float front = orthographic() ? 0.0 : max(max(legs.radius, torso.radius), head.radius);
+    return vec4(normal, dot(normal, torso.joint) + front);
+}
+"""
+
 IMPOSTOR_CS = VERSION + """
 layout(local_size_x = 64) in;
-""" + INSTANCES + IMPOSTOR_CONSTANTS + IMPOSTOR_PLACE + """
+""" + INSTANCES + IMPOSTOR_CONSTANTS + IMPOSTOR_PLACE + IMPOSTOR_DEPTH_PLANE + """
 layout(std430, binding = 2) writeonly buffer Sprites { vec4 sprite_out[]; };
 layout(std430, binding = 2) writeonly buffer SpriteBits { uvec4 sprite_bits_out[]; };
 uniform int u_count;              // agents to place
@@ -371,6 +399,7 @@ void main() {
     sprite_bits_out[w + 5] = uvec4(packSnorm2x16(q0.xy), packSnorm2x16(q0.zw), packSnorm2x16(q1.xy),
                                    packSnorm2x16(q1.zw));
     sprite_bits_out[w + 6] = uvec4(packSnorm2x16(q2.xy), packSnorm2x16(q2.zw), cells, 0u);
+    sprite_out[w + 7] = depth_plane(p[0], p[1], p[2]);
     for (int c = 0; c < 4; ++c) {
         vec2 q = vec2(float(c & 1), float(c >> 1)) * 2.0 - 1.0;
         vec3 corner = centre + q.x * half_k.x * R + q.y * half_k.y * U;
@@ -415,6 +444,7 @@ flat in uint v_cells;        // the three parts' atlas cells, 9 bits each (impos
 IMPOSTOR_VS = VERSION + LIGHTING + INSTANCES + IMPOSTOR_QUAD + """
 uniform mat4 u_view;
 uniform mat4 u_proj;
+uniform vec3 u_eye;
 """ + IMPOSTOR_VARYINGS.replace("in ", "out ") + """
 out float v_sun_seen;
 flat out uvec4 v_quat01;    // quaternions of the legs and the torso, 16-bit (packSnorm2x16)
@@ -441,9 +471,19 @@ void main() {
     v_sun_seen = sun_visibility(axis + u_sun_dir * radius, u_sun_dir);
     v_id = inst_u[record(agent) + 9].w;
     vec4 vp = u_view * vec4(wp, 1.0);
-    gl_Position = u_proj * vp;
+    vec4 clip = u_proj * vp;
+    // Depth from where this corner's line of sight meets the depth plane
+    // (IMPOSTOR_DEPTH_PLANE); x, y and w stay the quad's, so the pictures
+    // are read exactly as before.
+    vec4 plane = sprite[o + 7];
+    vec3 ray = wp - u_eye;
+    float along = dot(plane.xyz, ray);
+    vec3 dp = along < -1e-6 * length(ray) ? u_eye + ray * ((plane.w - dot(plane.xyz, u_eye)) / along) : wp;
+    vec4 dvp = u_view * vec4(dp, 1.0);
+    vec4 dclip = u_proj * dvp;
+    gl_Position = vec4(clip.xy, dclip.z / dclip.w * clip.w, clip.w);
     v_world = wp;
-    v_z = -vp.z;
+    v_z = -dvp.z;
 }
 """
 
@@ -508,13 +548,19 @@ void main() {
 
 SHADOW_IMPOSTOR_VS = VERSION + INSTANCES + IMPOSTOR_QUAD + """
 uniform mat4 u_light_vp;
+uniform vec3 u_sun_dir;           // toward the sun
 """ + IMPOSTOR_VARYINGS.replace("in ", "out ") + """
 
 void main() {
     vec3 wp;
     int agent, o;
     quad_corner(wp, v_uv01, v_uv2, v_cells, agent, o);
-    gl_Position = u_light_vp * vec4(wp, 1.0);
+    // Depth from the depth plane (IMPOSTOR_DEPTH_PLANE): along the sun's
+    // direction, which an orthographic view maps to the same texel.
+    vec4 plane = sprite[o + 7];
+    float along = dot(plane.xyz, u_sun_dir);
+    vec3 dp = along > 1e-6 ? wp + u_sun_dir * ((plane.w - dot(plane.xyz, wp)) / along) : wp;
+    gl_Position = u_light_vp * vec4(dp, 1.0);
     v_world = wp;
     v_z = 0.0;
 }
