@@ -56,7 +56,6 @@ WEIDMANN = {"v0": 1.34, "gamma": 1.913, "rho_max": 5.4}
 JULICH_BAND = (1.6, 2.0)     # specific flow through bottlenecks, persons / m / s
 WIDTHS = (0.8, 1.2, 1.6, 2.0, 2.4)
 CORRIDOR = (60.0, 4.0)       # length, width (m)
-PEDPY = ["pedpy==1.5.1"]
 IMAGE = ROOT / "docs" / "images" / "realism.png"
 
 
@@ -233,7 +232,7 @@ ANALYSIS = textwrap.dedent("""
 
 def pedpy_python() -> str:
     """The PedPy venv ($USDCROWD_PEDPY_VENV, else made once in the temporary folder, as the tests make it)."""
-    from tool_venvs import tool_venv
+    from tool_venvs import PEDPY, tool_venv
 
     return tool_venv("pedpy", "USDCROWD_PEDPY_VENV", PEDPY)
 

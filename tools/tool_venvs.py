@@ -21,6 +21,12 @@ from pathlib import Path
 
 MARKER = ".usdcrowd-packages"      # written last: the packages the venv was made with
 
+# The venvs more than one tool or test asks for: one list each, since a venv
+# whose marker names other packages is topped up (two lists that drift apart
+# would reinstall it in turn).
+PEDPY = ["pedpy==1.5.1"]           # the JuPedSim team's analysis library (density, speed, flow)
+JUPEDSIM = ["jupedsim==1.4.2"]     # the peer simulator, writing its own SQLite trajectories
+
 
 def tool_venv(name: str, env: str, packages: list[str]) -> str:
     """The Python of a venv holding ``packages``.
@@ -41,7 +47,7 @@ def tool_venv(name: str, env: str, packages: list[str]) -> str:
     with open(venv.parent / f".{venv.name}.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)          # whoever holds it is making this venv: wait for it
         if not _ready(venv, python, want, given):
-            _make(venv, python, packages, name, remake=not given and not (venv / MARKER).exists())
+            _make(venv, python, packages, want, name, remake=not given and not (venv / MARKER).exists())
     return str(python)
 
 
@@ -52,11 +58,11 @@ def _ready(venv: Path, python: Path, want: str, given: str | None) -> bool:
     return marker.exists() and marker.read_text() == want
 
 
-def _make(venv: Path, python: Path, packages: list[str], name: str, remake: bool) -> None:
+def _make(venv: Path, python: Path, packages: list[str], want: str, name: str, remake: bool) -> None:
     if remake and venv.exists():
         shutil.rmtree(venv)                       # made by nobody to the end: an interrupted build
     if not python.exists():
-        print(f"making the {name} venv in {venv} ({' '.join(packages)})", file=sys.stderr, flush=True)
+        print(f"making the {name} venv in {venv} ({want})", file=sys.stderr, flush=True)
         subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
     subprocess.run([str(python), "-m", "pip", "install", "-q", *packages], check=True)
-    (venv / MARKER).write_text(" ".join(packages))
+    (venv / MARKER).write_text(want)

@@ -19,10 +19,7 @@ import pytest
 from usdcrowd.cli import main
 
 from tests.helpers.plain_usd import people_as_plain_usd_sees_them
-from tests.helpers.venvs import tool_python
-
-JUPEDSIM = ["jupedsim==1.4.2"]
-PEDPY = ["pedpy==1.5.1"]
+from tests.helpers.venvs import jupedsim_python, pedpy_python
 
 # JuPedSim: a 24 x 4 m corridor walked to an exit at its far end; four people start, two more come in
 # after 2 s and two after 4 s; each is removed as they reach the exit. 100 steps a second, every fourth
@@ -69,7 +66,7 @@ def _file_rows(db) -> dict:
 @pytest.fixture(scope="module")
 def corridor_database(tmp_path_factory):
     """JuPedSim's own trajectory database of the corridor run (CORRIDOR_RUN)."""
-    python = tool_python("jupedsim", JUPEDSIM, "USDCROWD_JUPEDSIM_VENV")
+    python = jupedsim_python()
     db = tmp_path_factory.mktemp("jupedsim") / "corridor.sqlite"
     _run(python, CORRIDOR_RUN, db)
     return db
@@ -181,7 +178,7 @@ def test_a_replayed_shot_exports_the_rows_it_was_replayed_from(corridor_database
     takes each person's height from its Z column (the top of the head) to 2 cm."""
     out = tmp_path / "back.txt"
     assert main(["export", str(replayed_corridor / "shot.usda"), "--trajectories", str(out), "--no-progress"]) == 0
-    read = _run(tool_python("pedpy", PEDPY, "USDCROWD_PEDPY_VENV"), f"""
+    read = _run(pedpy_python(), f"""
         import json, pathlib
         import pedpy
         t = pedpy.load_trajectory(trajectory_file=pathlib.Path({str(out)!r}))

@@ -18,16 +18,13 @@ import pytest
 from usdcrowd.cli import main
 
 from tests.helpers.plain_usd import people_as_plain_usd_sees_them
-from tests.helpers.venvs import tool_python
-
-PEDPY = ["pedpy==1.5.1"]
-JUPEDSIM = ["jupedsim==1.4.2"]
+from tests.helpers import venvs
 SAMPLES = (1, 2, 40, 119)          # time codes the positions are checked at
 
 
 @pytest.fixture(scope="module")
 def pedpy_python():
-    return tool_python("pedpy", PEDPY, "USDCROWD_PEDPY_VENV")
+    return venvs.pedpy_python()
 
 
 @pytest.fixture(scope="module")
@@ -107,7 +104,7 @@ def test_the_database_carries_the_walkable_area_jupedsim_reads(simulated_harbour
     from usdcrowd.jobs.toric_filming import shot_obstacles
     from usdcrowd.scenario.shot_scene import ShotScene
 
-    python = tool_python("jupedsim", JUPEDSIM, "USDCROWD_JUPEDSIM_VENV")
+    python = venvs.jupedsim_python()
     rec = _run(python, f"""
         import json
         import jupedsim

@@ -32,6 +32,16 @@ def tool_python(name: str, packages: list[str], env: str) -> str:
                     f"Point {env} at a venv that has them.")
 
 
+def pedpy_python() -> str:
+    """The PedPy venv (tools/tool_venvs.py's PEDPY, the list tools/bench_realism.py uses too)."""
+    return tool_python("pedpy", load_tool("tool_venvs").PEDPY, "USDCROWD_PEDPY_VENV")
+
+
+def jupedsim_python() -> str:
+    """The JuPedSim venv (tools/tool_venvs.py's JUPEDSIM)."""
+    return tool_python("jupedsim", load_tool("tool_venvs").JUPEDSIM, "USDCROWD_JUPEDSIM_VENV")
+
+
 def torch_python() -> str:
     """The PyTorch venv the training tools use (their TORCH_PACKAGES: one list, so the venv's marker agrees
     whoever asks first)."""
