@@ -478,7 +478,8 @@ void main() {
     vec4 plane = sprite[o + 7];
     vec3 ray = wp - u_eye;
     float along = dot(plane.xyz, ray);
-    vec3 dp = along < -1e-6 * length(ray) ? u_eye + ray * ((plane.w - dot(plane.xyz, u_eye)) / along) : wp;
+    float s = along < -1e-6 * length(ray) ? (plane.w - dot(plane.xyz, u_eye)) / along : 0.0;
+    vec3 dp = s > 0.0 ? u_eye + ray * s : wp;     // the quad's own depth with the eye at the plane or past it
     vec4 dvp = u_view * vec4(dp, 1.0);
     vec4 dclip = u_proj * dvp;
     gl_Position = vec4(clip.xy, dclip.z / dclip.w * clip.w, clip.w);
