@@ -111,6 +111,10 @@ def _section_figures(section: str, found) -> dict:
 
         for template, n in {(template, n) for template, n, _, _ in found}:
             figures[f"{template}_{n}"]["over_empty"] = over_empty(found, template, n)
+            # Each camera's frame (level of detail, shadows) over the same frame empty.
+            figures[f"{template}_{n}"]["over_empty_by_camera"] = {
+                camera.rsplit("/", 1)[-1]: found[(tp, m, camera, "empty")] / fps
+                for (tp, m, camera, label), fps in found.items() if (tp, m) == (template, n) and label == "lod"}
         return figures
     return found
 
