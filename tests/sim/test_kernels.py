@@ -205,6 +205,32 @@ def test_a_passage_between_two_walls_is_as_wide_between_cell_centres_as_it_stand
     np.testing.assert_allclose(g.clearance(x, y)[0], want, atol=1e-5)
 
 
+def _door_grid(width):
+    """Two walls across x = 0 leaving a door ``width`` metres wide around y = 0."""
+    half = width / 2.0
+    walls = [S.box(0.0, -half - 2.0, 0.5, 2.0), S.box(0.0, half + 2.0, 0.5, 2.0)]
+    return WalkGrid(S.scenario(S.agents(np.zeros((1, 2))), S.groups([[5.0, 0.0, 0.0]]), obstacles=walls,
+                               bounds=((-10, -10), (10, 10))))
+
+
+def _sideways(g, xy, v):
+    pos = np.asarray(xy, np.float32).T.copy()
+    vel = np.asarray(v, np.float32).T.copy()
+    return K.turned_sideways(pos, vel, pos.shape[1], np.float32(P.SIDEWAYS_WIDTH), np.float32(P.SIDEWAYS_AHEAD),
+                             *g.lookup, g.flat_sdf, g.flat_nx, g.flat_ny, *g.exact)
+
+
+def test_people_turn_sideways_in_and_on_the_way_into_a_passage_narrower_than_two_bodies():
+    """In a 0.8 m door, off its middle too, and walking into it from up to SIDEWAYS_AHEAD away: turned.
+    Standing still before it, walking away from it, in a 1.2 m door or in the open: not."""
+    narrow, wide = _door_grid(0.8), _door_grid(1.2)
+    walk = [1.2, 0.0]
+    xy = [[0.0, 0.0], [0.0, 0.2], [-1.5, 0.0], [-1.5, 0.0], [-1.5, 0.0], [-3.0, 0.0], [5.0, 5.0]]
+    v = [[0.0, 0.0], walk, walk, [0.0, 0.0], [-1.2, 0.0], walk, walk]
+    assert _sideways(narrow, xy, v).tolist() == [True, True, True, False, False, False, False]
+    assert not _sideways(wide, xy, v).any()
+
+
 def _reference_sight(g, x, y, bx, by):
     """Every segment sampled at its own spacing, every sample's cell looked at."""
     length = np.hypot((bx - x).astype(np.float64), (by - y).astype(np.float64))

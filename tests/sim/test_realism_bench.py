@@ -66,3 +66,24 @@ def test_tuning_runs_record_nothing(realism, capsys):
         realism.main(["--tune", "--record"])
     assert stop.value.code == 2
     assert "nothing to record" in capsys.readouterr().err
+
+
+def _door_flow(realism, width):
+    """Specific flow (persons / m / s) of 150 people through the realism bench's bottleneck of ``width``."""
+    xy = realism.run_usdcrowd(realism.bottleneck(width, seed=0), 150.0)
+    x = xy[..., 0]
+    crossed = (x[:-1] < 2.0) & (x[1:] >= 2.0)
+    frames = [int(np.argmax(crossed[:, i])) for i in range(x.shape[1]) if crossed[:, i].any()]
+    assert len(frames) == 150
+    return realism.specific_flow(frames, width)
+
+
+def test_a_door_narrower_than_two_bodies_passes_the_juelich_flow_with_turned_shoulders(realism, monkeypatch):
+    """The 0.8 m door inside the empirical band (1.6-2.0 per metre per second) with shoulders turned in and
+    before it; bodies kept square, a single file at the time gap stays below it (its bound is
+    v / (0.5 m + VISION_TAU v), 1.43 per metre at 1.34 m/s)."""
+    from usdcrowd.sim import params as P
+
+    assert 1.6 <= _door_flow(realism, 0.8) <= 2.0
+    monkeypatch.setattr(P, "SIDEWAYS_RADIUS", 1.0)
+    assert _door_flow(realism, 0.8) < 1.45

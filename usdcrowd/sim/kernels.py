@@ -117,6 +117,9 @@ _SLIDE = np.float32(P.WALL_SLIDE)
 _LOOKAHEAD = np.float32(P.CONTAIN_LOOKAHEAD)
 _CONTAIN = np.float32(-P.CONTAIN_GAIN)
 _COUNTERFLOW = np.float32(P.COUNTERFLOW_SPEED)
+_SIDE_WALL = np.float32(0.02)  # m: a clearance this small is the far wall
+_SIDEWAYS_MOVING = np.float32(0.1)  # m/s: slower, one looks only where one stands
+_HALF = np.float32(0.5)
 _MIN_SPEED2 = np.float32(P.HEADING_MIN_SPEED ** 2)
 _PI = np.float32(np.pi)
 _TWO_PI = np.float32(2 * np.pi)
@@ -1087,6 +1090,42 @@ def choose_ways(pos, vel, radius, nb, rows, ux, uy, speed, cos_offsets, horizon,
         out[1, i] = uy[i, best_q] * v
         free[i] = best_q == d // 2 and v >= speed[i]
     return out, free, follows
+
+
+@njit(cache=True, nogil=True)
+def _narrow_at(px, py, width, ox, oy, inv_cell, w, h, sdf, nx, ny, near, polys, sizes):
+    # Whether p stands in a passage narrower than `width`: from the nearest wall, across p, the next wall
+    # comes within it (marched in 5 cm steps).
+    here, ux, uy = _wall_at(px, py, ox, oy, inv_cell, w, h, sdf, nx, ny, near, polys, sizes)
+    if here >= width / _TWO or here <= _F0:
+        return False
+    for t in range(1, 41):
+        d = np.float32(0.05 * t)
+        if here + d >= width:
+            return False
+        if _sdf_at(px + ux * d, py + uy * d, ox, oy, inv_cell, w, h, sdf, near, polys, sizes) < _SIDE_WALL:
+            return True
+    return False
+
+
+@_loop(lambda pos, vel, n, *rest: n)
+def turned_sideways(pos, vel, n, width, ahead, ox, oy, inv_cell, w, h, sdf, nx, ny, near, polys, sizes):
+    """(n,) bool: who stands in a passage narrower than ``width`` metres, or walks into one within
+    ``ahead`` metres (looked for every half metre along its velocity): they turn their shoulders
+    (params.SIDEWAYS_RADIUS)."""
+    out = np.zeros(n, np.bool_)
+    for i in prange(n):
+        px, py = pos[0, i], pos[1, i]
+        if _sdf_at(px, py, ox, oy, inv_cell, w, h, sdf, near, polys, sizes) >= ahead + width:
+            continue                                      # no wall near enough to make a passage
+        vx, vy, speed = _unit(vel[0, i], vel[1, i])
+        steps = int(ahead / _HALF) if speed >= _SIDEWAYS_MOVING else 0
+        for k in range(steps + 1):
+            d = _HALF * np.float32(k)
+            if _narrow_at(px + vx * d, py + vy * d, width, ox, oy, inv_cell, w, h, sdf, nx, ny, near, polys, sizes):
+                out[i] = True
+                break
+    return out
 
 
 cache_one_process_at_a_time(globals())

@@ -90,6 +90,13 @@ WALL_PROJECT_MARGIN = 0.6  # m
 CONTAIN_LOOKAHEAD = 1.0  # s
 CONTAIN_GAIN = 4.0  # 1/s^2
 
+# Turned shoulders: in a passage narrower than two bodies, and on the way into one, people turn
+# sideways, so their body across the way is its depth, not its breadth (chest depth over shoulder
+# breadth, about 0.25 over 0.45 m in anthropometric tables), and two files can pass as a zipper.
+SIDEWAYS_WIDTH = 0.9  # m, wall to wall: narrower than two bodies side by side (2 * 2 * AGENT_RADIUS[0]), less a hand
+SIDEWAYS_AHEAD = 2.0  # m looked ahead along one's walk for such a passage
+SIDEWAYS_RADIUS = 0.6  # fraction of the radius a turned body takes
+
 # --- walking by sight (Moussaid, Helbing & Theraulaz 2011) ----------------
 VISION_FIELD_DEG = 75.0  # half the field of view a walker picks its direction in
 VISION_DIRECTIONS = 11  # directions tried across it

@@ -47,7 +47,8 @@ from .distance_maps import DistanceMaps
 from .grid import WalkGrid
 from .groups import Groups, mate_mask
 from .interest import InterestFields
-from .kernels import forces, goal_directions, integrate, limit_moves, settle_velocities, sight_rounds, turn_headings
+from .kernels import (forces, goal_directions, integrate, limit_moves, settle_velocities, sight_rounds, turn_headings,
+                      turned_sideways)
 from .neighbors import NeighborList
 from .paths import BEZIER, GRADIENT, BezierPaths, SlopeSteering, Terrain, choose_path_method, enforce_slope
 from .steering import arrive, wander
@@ -403,7 +404,7 @@ class Simulation:
         it.behavior[dead] = _B["rest"]
         return it
 
-    def _walk_by_sight(self, it: Intent) -> None:
+    def _walk_by_sight(self, it: Intent, radius: np.ndarray) -> None:
         """People walking somewhere pick their way and pace by what they see ahead (:mod:`.vision`), each
         every VISION_INTERVAL seconds (in turn, so the cost is spread over the steps), keeping the
         choice in between; held up in line long enough, they wait their turn (:func:`.kernels.sight_rounds`)."""
@@ -423,7 +424,7 @@ class Simulation:
             return
         if len(due):
             self._sight[:, due], self._sight_free[due], self._follows[due] = heuristic_velocity(
-                self.pos, self.vel, v[:, due] / speed[due], speed[due], self.nl.idx, self.radius, due,
+                self.pos, self.vel, v[:, due] / speed[due], speed[due], self.nl.idx, radius, due,
                 grid=self.grid if self.grid.has_solid else None, queued=self._queued_until[due] > self.time,
                 ghost=self.n)
         # Nothing in their way at their last look: they walk as they meant to, to the bit.
@@ -471,14 +472,15 @@ class Simulation:
             if self.grid.has_solid:
                 self._occlude_mates()
         it = self._intent()
-        self._walk_by_sight(it)
+        radius = self._turned_radius()
+        self._walk_by_sight(it, radius)
 
         # Forces (accelerations): steering toward the desired velocity, then the seed's field
         # components (E_C against agents and walls, personal space, E_F + E_V, containment), one
         # pass over the agents and their neighbour table.
         idx = self.nl.idx
         g = self.grid
-        F = forces(pos, vel, it.v, self.steer, self.radius, idx, self.mates, g.has_solid, *g.lookup, g.flat_sdf,
+        F = forces(pos, vel, it.v, self.steer, radius, idx, self.mates, g.has_solid, *g.lookup, g.flat_sdf,
                    g.flat_nx, g.flat_ny, *g.exact, self.lo, self.hi)
 
         # Integration (seed 003): x += v dt + F dt^2 / 2, v += F dt, force and speed clipped.
@@ -495,9 +497,9 @@ class Simulation:
 
         # Hard constraints. Overlap corrections move no one faster than it may move: a pile of bodies
         # (clones spawned where they do not fit) spreads over frames instead of flinging them apart.
-        resolve_overlaps(pos, idx, self.radius, self.movable * alive)
+        resolve_overlaps(pos, idx, radius, self.movable * alive)
         limit_moves(pos, old, vmax, dt)
-        project_out_of_walls(self.grid, pos, self.radius)
+        project_out_of_walls(self.grid, pos, radius)
         self._clip_to_bounds(pos)
         enforce_slope(self.terrain, old, pos, vel, self.walkers, self.max_slope)
         # Constraint displacements count as velocity (position-based dynamics),
@@ -511,6 +513,21 @@ class Simulation:
         self.look = it.look
         self.time += self.dt
         self.steps += 1
+
+    def _turned_radius(self) -> np.ndarray:
+        """(n + 1,) float32 body radii this step: those in or walking into a passage narrower than two
+        bodies turn their shoulders and take SIDEWAYS_RADIUS of theirs (:func:`.kernels.turned_sideways`)."""
+        g = self.grid
+        if not g.has_solid or P.SIDEWAYS_RADIUS >= 1.0:
+            return self.radius
+        sideways = turned_sideways(self.pos, self.vel, self.n, np.float32(P.SIDEWAYS_WIDTH),
+                                   np.float32(P.SIDEWAYS_AHEAD), *g.lookup, g.flat_sdf, g.flat_nx, g.flat_ny,
+                                   *g.exact)
+        if not sideways.any():
+            return self.radius
+        radius = self.radius.copy()
+        radius[:self.n][sideways] *= np.float32(P.SIDEWAYS_RADIUS)
+        return radius
 
     def _clip_to_bounds(self, pos: np.ndarray) -> None:
         """Keep every body ((2, n + 1) positions, in place) inside the walkable bounds."""
