@@ -1095,7 +1095,10 @@ def choose_ways(pos, vel, radius, nb, rows, ux, uy, speed, cos_offsets, horizon,
 @njit(cache=True, nogil=True)
 def _narrow_at(px, py, width, ox, oy, inv_cell, w, h, sdf, nx, ny, near, polys, sizes):
     # Whether p stands in a passage narrower than `width`: from the nearest wall, across p, the next wall
-    # comes within it (marched in 5 cm steps).
+    # comes within it (marched in 5 cm steps). The cell centre's clearance, within two cells of the
+    # exact one, rules most points out first.
+    if sdf[_cell(px, py, ox, oy, inv_cell, w, h)] >= width / _TWO + _TWO / inv_cell:
+        return False
     here, ux, uy = _wall_at(px, py, ox, oy, inv_cell, w, h, sdf, nx, ny, near, polys, sizes)
     if here >= width / _TWO or here <= _F0:
         return False
@@ -1116,7 +1119,7 @@ def turned_sideways(pos, vel, n, width, ahead, ox, oy, inv_cell, w, h, sdf, nx, 
     out = np.zeros(n, np.bool_)
     for i in prange(n):
         px, py = pos[0, i], pos[1, i]
-        if _sdf_at(px, py, ox, oy, inv_cell, w, h, sdf, near, polys, sizes) >= ahead + width:
+        if sdf[_cell(px, py, ox, oy, inv_cell, w, h)] >= ahead + width + _TWO / inv_cell:
             continue                                      # no wall near enough to make a passage
         vx, vy, speed = _unit(vel[0, i], vel[1, i])
         steps = int(ahead / _HALF) if speed >= _SIDEWAYS_MOVING else 0
