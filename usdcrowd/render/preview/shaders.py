@@ -474,7 +474,7 @@ void main() {
     vec4 clip = u_proj * vp;
     // Depth from where this corner's line of sight meets the depth plane
     // (IMPOSTOR_DEPTH_PLANE); x, y and w stay the quad's, so the pictures
-    // are read exactly as before.
+    // are read where the quad places them.
     vec4 plane = sprite[o + 7];
     vec3 ray = wp - u_eye;
     float along = dot(plane.xyz, ray);
