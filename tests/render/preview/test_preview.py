@@ -539,6 +539,7 @@ def test_an_impostor_just_behind_a_wall_stays_behind_it(walled_shot, gl):
     behind a thin wall came through it. Its depth now keeps them hidden, as the mesh's are."""
     from dataclasses import replace
 
+    from usdcrowd.core.view import look_at
     from usdcrowd.render.preview import PreviewRenderer
 
     renderers = {"impostor": PreviewRenderer(walled_shot, 640, 360, ctx=gl, lod_settings=lod.LodSettings(
@@ -553,14 +554,11 @@ def test_an_impostor_just_behind_a_wall_stays_behind_it(walled_shot, gl):
         joints[0, :, 3, :2] += np.array([2.5, 1.875]) - joints[0, 0, 3, :2]
         alone = replace(poses, joints_world=joints, visible=np.arange(len(poses)) == 0)
         base = mesh_r.scene.camera("/World/Cam", 4.0)
+        target = np.array([2.5, 1.875, 0.9])
         for elevation in (30.0, 45.0, 60.0):
             e = np.radians(elevation)
             back = np.array([0.0, -np.cos(e), np.sin(e)])           # from the agent toward the camera
-            right = np.array([1.0, 0.0, 0.0])
-            cam_to_world = np.eye(4)
-            cam_to_world[0, :3], cam_to_world[1, :3], cam_to_world[2, :3] = right, np.cross(back, right), back
-            cam_to_world[3, :3] = np.array([2.5, 1.875, 0.9]) + 8.0 * back
-            cam = replace(base, cam_to_world=cam_to_world)
+            cam = replace(base, cam_to_world=look_at(target + 8.0 * back, target)[0])
             imp, mesh = (renderers[k].render_poses(alone, cam) for k in ("impostor", "mesh"))
             assert imp.stats["impostors"] == 1 and mesh.stats["full"] == 1
             shown = imp.ids == 1

@@ -601,8 +601,9 @@ class PreviewRenderer:
         ctx.enable(mgl.DEPTH_TEST | mgl.PROGRAM_POINT_SIZE)
         self.shadow_tex.use(0)
         if self.atlas is not None:
-            _set(self.prog_imp_place, "u_eye", np.asarray(camera.cam_to_world[3, :3], np.float32))
-            _set(self.prog_imp, "u_eye", np.asarray(camera.cam_to_world[3, :3], np.float32))
+            eye = np.asarray(camera.cam_to_world[3, :3], np.float32)
+            _set(self.prog_imp_place, "u_eye", eye)
+            _set(self.prog_imp, "u_eye", eye)
             _set(self.prog_imp_place, "u_view_dir", np.zeros(3, np.float32))
         for prog in self._lit_programs():
             _set(prog, "u_view", view)
