@@ -95,10 +95,13 @@ def _section_figures(section: str, found) -> dict:
         return {"usdcrowd": {str(r["agents"]): r["steps_per_s"] for r in found},
                 "jupedsim": {str(r["agents"]): r["jupedsim_steps_per_s"] for r in found},
                 "ratio": {str(r["agents"]): r["ratio"] for r in found}, "jupedsim_version": jps,
+                "ratio_low": {str(r["agents"]): r["ratio_range"][0] for r in found if "ratio_range" in r},
+                "ratio_high": {str(r["agents"]): r["ratio_range"][1] for r in found if "ratio_range" in r},
                 "one_thread": {str(r["agents"]): r["one_thread_steps_per_s"] for r in found},
                 "one_thread_ratio": {str(r["agents"]): r["one_thread_ratio"] for r in found},
                 "threads": found[0]["threads"] if found else None,
                 **{"over_a_run": r["over_a_run"] for r in found if "over_a_run" in r},
+                **{"few_agents": r["few_agents"] for r in found if "few_agents" in r},
                 **{"cold_start": r["cold_start"] for r in found if "cold_start" in r}}
     if section == "cameras":
         return {f"{r['cameras']}x{r['characters']}": r for r in found}

@@ -142,25 +142,30 @@ def cold_start(n: int = 1000) -> dict:
 
 def over_a_run(n: int = 1000, steps: int = 900, block: int = 100, jupedsim: bool = True) -> dict:
     """Steps per second of each ``block`` of a ``steps``-long run of both simulators: a cost that grows
-    as a run goes on shows here. Returns ``usdcrowd`` and ``jupedsim`` lists, one rate per block."""
-    def blocks(step):
-        rates = []
-        for _ in range(steps // block):
-            t0 = time.perf_counter()
-            for _ in range(block):
-                step()
-            rates.append(block / (time.perf_counter() - t0))
-        return rates
+    as a run goes on shows here. The two take turns block by block, so each pair of blocks meets the
+    machine in the same state and their ratio shows growth that the machine's drift would hide.
+    Returns ``usdcrowd`` and ``jupedsim`` lists, one rate per block, and ``ratio`` (usdcrowd's over
+    JuPedSim's, block by block)."""
+    def timed(step):
+        t0 = time.perf_counter()
+        for _ in range(block):
+            step()
+        return block / (time.perf_counter() - t0)
 
     sim = Simulation(scene(n), SimSettings(fps=1.0 / DT, substeps=1))
-    for _ in range(3):                  # warm-up, as the rate rows have
-        sim.step()
-    out = {"agents": n, "steps": steps, "block": block, "usdcrowd": blocks(sim.step)}
+    steppers = {"usdcrowd": sim.step}
     if jupedsim:
         peer = _jupedsim_simulation(n)
-        for _ in range(3):
-            peer.iterate()
-        out["jupedsim"] = blocks(peer.iterate)
+        steppers["jupedsim"] = peer.iterate
+    for step in steppers.values():
+        for _ in range(3):              # warm-up, as the rate rows have
+            step()
+    out = {"agents": n, "steps": steps, "block": block, **{name: [] for name in steppers}}
+    for _ in range(steps // block):
+        for name, step in steppers.items():
+            out[name].append(timed(step))
+    if jupedsim:
+        out["ratio"] = [a / b for a, b in zip(out["usdcrowd"], out["jupedsim"])]
     return out
 
 
@@ -214,7 +219,10 @@ def bench_jupedsim(n: int, steps: int, warmup: int = 3) -> float | None:
     return steps / (time.perf_counter() - t0)
 
 
-def run(sizes=(1000, 10000, 100000), steps=None, jupedsim: bool = True, rounds: int = 3,
+FEW = 50  # agents: a crowd this small times what a step costs whatever its size
+
+
+def run(sizes=(1000, 10000, 100000), steps=None, jupedsim: bool = True, rounds: int = 5,
         cold: bool = False) -> list[dict]:
     """Benchmark usdcrowd.sim (and JuPedSim) at each size in interleaved rounds; print and return a table.
 
@@ -223,7 +231,7 @@ def run(sizes=(1000, 10000, 100000), steps=None, jupedsim: bool = True, rounds: 
     sizes : iterable of int
         Agent counts.
     steps : int or dict, optional
-        Timed steps (default: 200 / 60 / 12 by size).
+        Timed steps (default: 600 / 60 / 12 by size).
     jupedsim : bool
         Also time JuPedSim, the peer each row is measured against; missing, it is an error
         (:func:`require_jupedsim`), not a column of n/a.
@@ -250,7 +258,7 @@ def run(sizes=(1000, 10000, 100000), steps=None, jupedsim: bool = True, rounds: 
     print(f"{'agents':>8} {'steps/s':>9} {'1 thread':>9} {'setup s':>8} {'peak MiB':>9} {'JuPedSim/s':>11} "
           f"{'ratio':>7} {'1 thread':>9}  (medians of {rounds} interleaved rounds)")
     for n in sizes:
-        k = steps if isinstance(steps, int) else (steps or {}).get(n, 200 if n <= 2000 else 60 if n <= 20000 else 12)
+        k = steps if isinstance(steps, int) else (steps or {}).get(n, 600 if n <= 2000 else 60 if n <= 20000 else 12)
         seen = []
         for _ in range(rounds):
             r = bench_usdcrowd(n, k)
@@ -265,11 +273,15 @@ def run(sizes=(1000, 10000, 100000), steps=None, jupedsim: bool = True, rounds: 
         r["jupedsim_steps_per_s"] = j
         r["ratio"] = float(np.median([a["steps_per_s"] / b for a, b, _ in seen])) if jupedsim else None
         r["one_thread_ratio"] = float(np.median([o / b for _, b, o in seen])) if jupedsim else None
+        if jupedsim:
+            each = [a["steps_per_s"] / b for a, b, _ in seen]
+            r["ratio_range"] = [float(min(each)), float(max(each))]
         rows.append(r)
         js = f"{j:11.1f}" if j else f"{'n/a':>11}"
         rt = f"{r['ratio']:7.2f} {r['one_thread_ratio']:9.2f}" if j else f"{'n/a':>7} {'n/a':>9}"
+        spread = f"  (ratio {r['ratio_range'][0]:.2f}-{r['ratio_range'][1]:.2f} over the rounds)" if j else ""
         print(f"{n:8d} {r['steps_per_s']:9.1f} {r['one_thread_steps_per_s']:9.1f} {r['setup_s']:8.2f} "
-              f"{r['peak_mib']:9.1f} {js} {rt}", flush=True)
+              f"{r['peak_mib']:9.1f} {js} {rt}{spread}", flush=True)
     if 1000 in sizes:
         long = over_a_run(1000, jupedsim=jupedsim)
         rows[list(sizes).index(1000)]["over_a_run"] = long
@@ -278,6 +290,14 @@ def run(sizes=(1000, 10000, 100000), steps=None, jupedsim: bool = True, rounds: 
                 rates = long[name]
                 print(f"   {name}, 1,000 agents over {long['steps']} steps, steps/s per {long['block']}: "
                       f"{' '.join(f'{x:.0f}' for x in rates)} (last / first {rates[-1] / rates[0]:.2f})")
+        if "ratio" in long:
+            print(f"   usdcrowd / JuPedSim block by block (taking turns): {' '.join(f'{x:.2f}' for x in long['ratio'])}")
+    if 1000 in sizes:
+        few = float(np.median([bench_usdcrowd(FEW, 600)["steps_per_s"] for _ in range(rounds)]))
+        row = rows[list(sizes).index(1000)]
+        row["few_agents"] = {"agents": FEW, "step_us": 1e6 / few, "share_at_1000": row["steps_per_s"] / few}
+        print(f"   a step of {FEW} agents (what every step costs whatever the crowd: the step's Python and its "
+              f"loops' calls): {1e6 / few:.0f} us, {row['steps_per_s'] / few:.0%} of a 1,000-agent step")
     if cold:
         c = cold_start()
         rows[0]["cold_start"] = c

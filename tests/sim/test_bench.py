@@ -44,3 +44,23 @@ def test_a_missing_peer_stops_the_benchmark_in_one_line(monkeypatch):
     assert "JuPedSim" in message and "pip install -e '.[bench]'" in message and "\n" not in message
     with pytest.raises(SystemExit, match="realism: JuPedSim"):
         load_tool("bench_realism").run(quick=True)
+
+
+def test_over_a_run_takes_turns_block_by_block(monkeypatch):
+    """The run-long rates alternate a block of usdcrowd with a block of the peer, so a ratio per block
+    compares two runs that met the machine in the same state."""
+    bench = _bench()
+    calls = []
+
+    class Peer:
+        def iterate(self):
+            calls.append("peer")
+
+    monkeypatch.setattr(bench, "_jupedsim_simulation", lambda n: Peer())
+    real = bench.Simulation.step
+    monkeypatch.setattr(bench.Simulation, "step", lambda self: (calls.append("usdcrowd"), real(self))[1])
+    out = bench.over_a_run(60, steps=9, block=3)
+    blocks = [calls[i] for i in range(6, len(calls), 3)]          # after each side's 3 warm-up steps
+    assert blocks == ["usdcrowd", "peer"] * 3
+    assert len(out["usdcrowd"]) == len(out["jupedsim"]) == 3
+    assert np.allclose(out["ratio"], np.array(out["usdcrowd"]) / np.array(out["jupedsim"]))
