@@ -233,18 +233,19 @@ def test_events_cameras_and_ground_truth_leave_out_people_not_there(corridor_dat
     ("# framerate: 25 fps\n1 0 0 0 1.7\n1 1 0.1 0 1.7\n", ["--fps", "10"], "leave --fps out"),
     ("0 1 0.0 0.0\n0 1 0.5 0.5\n", [], "two rows at frame 0"),
     ("0 1.5 0.0 0.0\n10 1.5 0.5 0.5\n", [], "not a whole number"),
+    ("0 1 0.0 0.0\n10 1 1e30 0.5\n20 1 2 2\n", [], "person 1 at frame 10 stands at (1e+30, 0.5) m"),
     ("0 1 0.0 0.0\n10 1 0.5 0.5\n", ["--height-from", "file"], "needs every person's Z"),
 ])
 def test_a_careless_replay_is_one_line_and_writes_no_shot(tmp_path, capsys, content, extra, words):
     """A bad trajectory file (empty, a word for a number, no frame rate, a rate the file contradicts, two
-    rows for one person at one frame, a fractional id, heights asked of a file without them): one line
-    naming the file, exit 2, no shot."""
+    rows for one person at one frame, a fractional id, a position beyond the scene's extent, heights asked
+    of a file without them): one line naming the file, exit 2, not even the shot's folder."""
     traj = tmp_path / "walks.txt"
     traj.write_text(content)
     assert main(["replay", str(traj), "-o", str(tmp_path / "shot"), *extra, "--no-progress"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and words in err and "walks.txt" in err, err
-    assert not (tmp_path / "shot" / "shot.usda").exists()
+    assert not (tmp_path / "shot").exists()
 
 
 def test_replayed_people_walk_in_a_dcc_tools_scenery(corridor_database, tmp_path):
@@ -350,6 +351,24 @@ def test_a_pedpy_file_in_centimetres_is_read_in_metres_at_its_frame_rate_or_the_
     b = _plain_usd(tmp_path / "b" / "shot.usda")
     assert b["fps"] == 32.0 and len(b["people"][3]["rows"]) == 79
     np.testing.assert_allclose(b["people"][3]["rows"][1::2, 1], 1.05 + 0.1 * np.arange(39), atol=1e-3)
+
+
+@pytest.mark.parametrize("value, words", [("x", "row 2 is (1, 1, 'x', 0.5, 1.0, 0.0)"),
+                                           (None, "not a finite number")])
+def test_a_database_row_that_is_no_number_is_one_line(tmp_path, capsys, value, words):
+    """SQLite keeps whatever a column is given: a word, or NULL, where a position should be is one line
+    naming the file (and the row, for a word), exit 2, no shot folder."""
+    db = tmp_path / "typed.sqlite"
+    with sqlite3.connect(db) as con:
+        con.execute("CREATE TABLE trajectory_data (frame, id, pos_x, pos_y, ori_x, ori_y)")
+        con.execute("CREATE TABLE metadata (key TEXT, value TEXT)")
+        con.execute("INSERT INTO metadata VALUES ('fps', '10')")
+        con.executemany("INSERT INTO trajectory_data VALUES (?, ?, ?, ?, ?, ?)",
+                        [(0, 1, 0.0, 0.0, 1.0, 0.0), (1, 1, value, 0.5, 1.0, 0.0)])
+    assert main(["replay", str(db), "-o", str(tmp_path / "shot"), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and words in err and "typed.sqlite" in err, err
+    assert not (tmp_path / "shot").exists()
 
 
 def test_people_standing_face_the_way_a_jupedsim_database_says(tmp_path):

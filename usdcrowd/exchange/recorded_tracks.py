@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.errors import UsdcrowdError
+from ..scenario.ranges import MAX_EXTENT
 
 FORMATS = ("jupedsim", "pedpy", "ethucy")
 # ETH/UCY annotate a person every 0.4 s (2.5 Hz) whatever the video's rate.
@@ -146,9 +147,9 @@ def _read_jupedsim(path: str):
         with sqlite3.connect(f"file:{path}?mode=ro", uri=True) as con:
             columns = {c[1] for c in con.execute("PRAGMA table_info(trajectory_data)")}
             oriented = {"ori_x", "ori_y"} <= columns
-            rows = np.array(con.execute("SELECT frame, id, pos_x, pos_y" + (", ori_x, ori_y" if oriented else "")
-                                        + " FROM trajectory_data").fetchall(),
-                            dtype=np.float64).reshape(-1, 6 if oriented else 4)
+            rows = _database_numbers(path, con.execute("SELECT frame, id, pos_x, pos_y"
+                                                       + (", ori_x, ori_y" if oriented else "")
+                                                       + " FROM trajectory_data").fetchall(), 6 if oriented else 4)
             meta = con.execute("SELECT value FROM metadata WHERE key = 'fps'").fetchone()
     except sqlite3.DatabaseError as exc:
         raise UsdcrowdError(f"not a JuPedSim trajectory database ({exc}): it needs the tables trajectory_data "
@@ -163,6 +164,20 @@ def _read_jupedsim(path: str):
     if rows.shape[1] == 6:
         facing[np.hypot(rows[:, 4], rows[:, 5]) < 1e-9] = np.nan
     return rows[:, 0], rows[:, 1], rows[:, 2:4], np.full(len(rows), np.nan), said, facing
+
+
+def _database_numbers(path: str, fetched: list, columns: int) -> np.ndarray:
+    """(m, columns) float the rows of trajectory_data; a value that is no number is one line naming its row."""
+    try:
+        return np.array(fetched, dtype=np.float64).reshape(-1, columns)
+    except (TypeError, ValueError):
+        for k, row in enumerate(fetched, start=1):
+            try:
+                np.array(row, dtype=np.float64)
+            except (TypeError, ValueError):
+                raise UsdcrowdError(f"trajectory_data row {k} is {tuple(row)!r}: expected numbers (frame, id, "
+                                    "pos_x, pos_y, ori_x, ori_y)", file=path) from None
+        raise
 
 
 def _header(path: str) -> tuple[list[str], int]:
@@ -249,6 +264,11 @@ def _sorted_rows(path, frame, ids, xy, head, facing):
         raise UsdcrowdError("no trajectory rows", file=path)
     if not (np.isfinite(frame).all() and np.isfinite(xy).all()):
         raise UsdcrowdError("a frame number or a position is not a finite number", file=path)
+    far = np.abs(xy).max(axis=1) > MAX_EXTENT
+    if far.any():
+        k = int(np.flatnonzero(far)[0])
+        raise UsdcrowdError(f"person {ids[k]:g} at frame {frame[k]:g} stands at ({xy[k, 0]:g}, {xy[k, 1]:g}) m: "
+                            f"usdcrowd's scenes lie within {MAX_EXTENT / 1000:g} km of the origin", file=path)
     whole = np.abs(ids - np.round(ids)) <= 1e-6
     if not whole.all():
         bad = ids[~whole][0]
