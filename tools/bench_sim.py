@@ -283,27 +283,31 @@ def run(sizes=(1000, 10000, 100000), steps=None, jupedsim: bool = True, rounds: 
         print(f"{n:8d} {r['steps_per_s']:9.1f} {r['one_thread_steps_per_s']:9.1f} {r['setup_s']:8.2f} "
               f"{r['peak_mib']:9.1f} {js} {rt}{spread}", flush=True)
     if 1000 in sizes:
-        long = over_a_run(1000, jupedsim=jupedsim)
-        rows[list(sizes).index(1000)]["over_a_run"] = long
-        for name in ("usdcrowd", "jupedsim"):
-            if name in long:
-                rates = long[name]
-                print(f"   {name}, 1,000 agents over {long['steps']} steps, steps/s per {long['block']}: "
-                      f"{' '.join(f'{x:.0f}' for x in rates)} (last / first {rates[-1] / rates[0]:.2f})")
-        if "ratio" in long:
-            print(f"   usdcrowd / JuPedSim block by block (taking turns): {' '.join(f'{x:.2f}' for x in long['ratio'])}")
-    if 1000 in sizes:
-        few = float(np.median([bench_usdcrowd(FEW, 600)["steps_per_s"] for _ in range(rounds)]))
-        row = rows[list(sizes).index(1000)]
-        row["few_agents"] = {"agents": FEW, "step_us": 1e6 / few, "share_at_1000": row["steps_per_s"] / few}
-        print(f"   a step of {FEW} agents (what every step costs whatever the crowd: the step's Python and its "
-              f"loops' calls): {1e6 / few:.0f} us, {row['steps_per_s'] / few:.0%} of a 1,000-agent step")
+        _beside_the_1000_row(rows[list(sizes).index(1000)], jupedsim, rounds)
     if cold:
         c = cold_start()
         rows[0]["cold_start"] = c
         print(f"   a first run on a machine: {c['compile_s']:.1f} s to the first step, compiling the step's loops "
               f"(cached after: {c['cached_s']:.2f} s)")
     return rows
+
+
+def _beside_the_1000_row(row: dict, jupedsim: bool, rounds: int) -> None:
+    """Add to the 1,000-agent row, and print, the run-long rates (:func:`over_a_run`) and what a step
+    costs whatever the crowd (``FEW`` agents, ``rounds`` medians): ``over_a_run`` and ``few_agents``."""
+    long = over_a_run(1000, jupedsim=jupedsim)
+    row["over_a_run"] = long
+    for name in ("usdcrowd", "jupedsim"):
+        if name in long:
+            rates = long[name]
+            print(f"   {name}, 1,000 agents over {long['steps']} steps, steps/s per {long['block']}: "
+                  f"{' '.join(f'{x:.0f}' for x in rates)} (last / first {rates[-1] / rates[0]:.2f})")
+    if "ratio" in long:
+        print(f"   usdcrowd / JuPedSim block by block (taking turns): {' '.join(f'{x:.2f}' for x in long['ratio'])}")
+    few = float(np.median([bench_usdcrowd(FEW, 600)["steps_per_s"] for _ in range(rounds)]))
+    row["few_agents"] = {"agents": FEW, "step_us": 1e6 / few, "share_at_1000": row["steps_per_s"] / few}
+    print(f"   a step of {FEW} agents (what every step costs whatever the crowd: the step's Python and its "
+          f"loops' calls): {1e6 / few:.0f} us, {row['steps_per_s'] / few:.0%} of a 1,000-agent step")
 
 
 if __name__ == "__main__":
