@@ -105,6 +105,8 @@ def test_bad_scenarios_fail_simulate_with_one_line_and_no_output(write_stage, tm
     (["simulate", "s.usda", "-o", "o", "--frames", "10:1"], "bad frame spec"),
     (["frobnicate"], "invalid choice"),
     (["preview", "shot.usda", "-o", "p.mp4", "--max-meshes", "-1"], "expected a whole number >= 0, got '-1'"),
+    (["simulate", "s.usda", "-o", "o", "--fps", "0"], "usdcrowd simulate: error: unrecognized arguments: --fps 0"),
+    (["new", "museum", "x.usda", "-o", "x.usda"], "usdcrowd new: error: unrecognized arguments: x.usda"),
 ])
 def test_usage_mistakes(tmp_path, capsys, monkeypatch, argv, text):
     monkeypatch.chdir(tmp_path)
