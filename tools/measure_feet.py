@@ -88,10 +88,11 @@ def measure(speed: float = 1.34, workdir: Path | None = None) -> dict:
         feet = {"left": [], "right": []}
         hips = []
         for t in scene.time_codes:
-            m = scene.agents(t).skinning[0, 0]            # the legs joint: bind pose to world
+            posed = scene.agents(t)
+            m = posed.skinning[0, 0]                      # the legs joint: bind pose to world
             feet["left"].append(left @ m[:3, :3] + m[3, :3])
             feet["right"].append(right @ m[:3, :3] + m[3, :3])
-            hips.append(scene.agents(t).joints_world[0, 0, 3, :2])
+            hips.append(posed.joints_world[0, 0, 3, :2])
     walked = np.median(np.linalg.norm(np.diff(np.array(hips), axis=0), axis=1)) * FPS
     out = {"speed": speed, "hips_speed": float(walked), "stance_band": STANCE_BAND, "fps": FPS}
     for side, corners in feet.items():
