@@ -601,3 +601,30 @@ def test_an_impostor_in_a_blocks_shadow_is_as_dark_as_its_mesh(tiny_shot, gl):
     finally:
         for r in renderers.values():
             r.release()
+
+
+def test_impostors_cast_the_shadows_their_meshes_cast(tiny_shot, gl):
+    """Characters drawn as impostors cast their shadows on the floor where their meshes do (the sun's
+    pictures are placed for the sun's view, not the camera's)."""
+    from usdcrowd.render.preview import PreviewRenderer
+
+    settings = {"impostor": lod.LodSettings(mesh_levels=((1e9, 0.0),)), "mesh": lod.LodSettings(enabled=False)}
+    frames = {}
+    for name, s in settings.items():
+        for shadows in (True, False):
+            r = PreviewRenderer(tiny_shot, 320, 180, ctx=gl, lod_settings=s, shadows=shadows)
+            try:
+                frames[name, shadows] = r.render(4.0, "/World/Cam")
+            finally:
+                r.release()
+    assert frames["impostor", True].stats["impostors"] == 4 and frames["mesh", True].stats["full"] == 4
+    floor_id = next(s.shape_id for s in r.scene.scenery if s.path.endswith("Floor"))
+
+    def shadowed(name):
+        a, b = frames[name, True], frames[name, False]
+        floor = (a.ids == floor_id) & (b.ids == floor_id)
+        return floor & (a.color.astype(int).sum(-1) < b.color.astype(int).sum(-1) - 30)
+
+    imp, mesh = shadowed("impostor"), shadowed("mesh")
+    assert mesh.sum() > 40
+    assert (imp & mesh).sum() / (imp | mesh).sum() > 0.85, (int(imp.sum()), int(mesh.sum()), int((imp & mesh).sum()))
