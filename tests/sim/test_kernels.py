@@ -807,3 +807,66 @@ def test_a_process_forked_after_the_loops_ran_on_threads_still_steps_its_crowd()
     for _ in range(20):
         sim.step()
     assert queue.get(timeout=5) == sim.pos.tobytes()
+
+
+def test_the_steps_bookkeeping_loops_give_the_numpy_forms_bits():
+    """Top speeds, wounded pace, the bounds clip, followers' intent and blended reactions: one loop each
+    where the step had chains of numpy calls (their cost, not their work, dominated a small crowd's
+    step); each gives the former code's bits."""
+    from usdcrowd.core.model import BEHAVIORS, HEALTH_STATES, code
+
+    rng = np.random.default_rng(11)
+    n = 500
+    run, rest, walk = (np.int8(code(BEHAVIORS, b)) for b in ("run", "rest", "walk"))
+    dead, wounded = np.int8(code(HEALTH_STATES, "dead")), np.int8(code(HEALTH_STATES, "wounded"))
+    behavior = rng.choice([run, rest, walk], n).astype(np.int8)
+    health = rng.choice([np.int8(0), wounded, dead], n, p=[0.6, 0.2, 0.2]).astype(np.int8)
+    pref = rng.uniform(0.5, 2.0, n).astype(np.float32)
+    cap = np.where(rng.random(n) < 0.3, 1.2, np.inf).astype(np.float32)
+    want = np.where(behavior == run, pref * (P.PANIC_SPEED_FACTOR * 1.1), pref * P.MAX_SPEED_FACTOR)
+    want = np.minimum(np.where(behavior == rest, np.minimum(want, P.REST_SPEED_MAX), want), cap)
+    want[health == dead] = 0.0
+    got = K.speed_limits(behavior, pref, cap, health, run, rest, dead, np.float32(P.PANIC_SPEED_FACTOR * 1.1),
+                         np.float32(P.MAX_SPEED_FACTOR), np.float32(P.REST_SPEED_MAX), np.empty(n, np.float32))
+    np.testing.assert_array_equal(got, want)
+    assert len(set(np.round(got / pref, 3))) > 4          # every branch taken
+    np.testing.assert_array_equal(K.preferred_speeds(pref, health, wounded, np.float32(P.WOUNDED_SPEED_FACTOR)),
+                                  np.where(health == wounded, pref * P.WOUNDED_SPEED_FACTOR, pref))
+
+    pos = rng.uniform(-12.0, 12.0, (2, n + 1)).astype(np.float32)
+    radius = rng.uniform(0.2, 0.3, n).astype(np.float32)
+    lo, hi = np.array([-10.0, -8.0], np.float32), np.array([10.0, 9.0], np.float32)
+    want = pos.copy()
+    for c in (0, 1):
+        want[c, :n] = np.minimum(np.maximum(pos[c, :n], lo[c] + radius), hi[c] - radius)
+    K.clip_to_bounds(pos, radius, lo, hi)
+    np.testing.assert_array_equal(pos, want)
+
+    rows = rng.choice(n, 200, replace=False)
+    weight = rng.choice([0.0, 0.3, 0.7, 1.0], n).astype(np.float32)
+    v = rng.normal(0.0, 1.0, (2, n)).astype(np.float32)
+    for v_rows in (rng.normal(0.0, 2.0, (2, 200)).astype(np.float32), rng.normal(0.0, 2.0, (2, 200))):
+        beh_rows = rng.choice([run, rest], 200).astype(np.int8)
+        want_v, want_b = v.copy(), behavior.copy()
+        w = weight[rows]
+        want_v[:, rows] = want_v[:, rows] * (1.0 - w) + v_rows * w
+        want_b[rows[w > 0.5]] = beh_rows[w > 0.5]
+        got_v, got_b = v.copy(), behavior.copy()
+        K.blend_rows(got_v, got_b, rows, weight, v_rows, beh_rows)
+        np.testing.assert_array_equal(got_v, want_v)
+        np.testing.assert_array_equal(got_b, want_b)
+
+    followers = rng.choice(n, 300, replace=False)
+    leader_of = rng.integers(0, n, 300)
+    memory = (pos[:, followers] + rng.normal(0.0, 2.0, (2, 300))).astype(np.float32)
+    stop = rng.uniform(0.0, 1.5, 300).astype(np.float32)
+    want_v, want_b = v.copy(), behavior.copy()
+    want_v[:, followers] = arrive(pos[:, followers], memory, pref[followers] * np.float32(P.FOLLOW_SPEED_FACTOR),
+                                  slow_radius=P.FOLLOW_SLOW_RADIUS, stop_radius=stop)[0]
+    was = rng.choice([run, walk], n).astype(np.int8)
+    want_b[followers] = np.where(was[leader_of] == run, run, want_b[followers])
+    got_v, got_b = v.copy(), behavior.copy()
+    K.follow_leaders(pos, followers, memory, pref, np.float32(P.FOLLOW_SPEED_FACTOR),
+                     np.float32(P.FOLLOW_SLOW_RADIUS), stop, leader_of, was, run, got_v, got_b)
+    np.testing.assert_array_equal(got_v, want_v)
+    np.testing.assert_array_equal(got_b, want_b)

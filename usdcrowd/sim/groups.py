@@ -28,7 +28,7 @@ import numpy as np
 from ..core.model import AgentTable, GroupTable, ROLES, CONDITIONS, code
 from . import params as P
 from .grid import WalkGrid
-from .kernels import arrive_rows, group_spread, remember_leaders
+from .kernels import follow_leaders, group_spread, remember_leaders
 from .steering import cohesion, alignment
 
 
@@ -113,24 +113,19 @@ class Groups:
                          (self.head - np.asarray(P.TRAIL_PROBES)) % P.TRAIL_LENGTH,
                          np.float32(P.PERCEPTION_RANGE ** 2), self.memory, grid.has_solid, *grid.sight)
 
-    def follower_velocity(self, pos: np.ndarray, speed: np.ndarray):
-        """Desired velocity of followers: arrive at the remembered leader position.
+    def follow(self, pos: np.ndarray, speed: np.ndarray, was: np.ndarray, run: int, v: np.ndarray,
+               behavior: np.ndarray) -> None:
+        """Followers' intent, in place: arrive at the remembered leader position (``v`` (2, n) float32),
+        and run where their leader ran last step (``was`` (n,) behaviors; ``behavior`` (n,) int8).
 
         Parameters
         ----------
         pos : (2, n + 1) float32
         speed : (n,) float32
             Preferred speeds.
-
-        Returns
-        -------
-        v : (2, f) float32
-        dist : (f,) float32
-            Distance to the remembered position.
         """
-        fw = self.followers
-        return arrive_rows(pos, fw, self.memory, speed[fw] * np.float32(P.FOLLOW_SPEED_FACTOR),
-                           np.float32(P.FOLLOW_SLOW_RADIUS), self.follow_dist)
+        follow_leaders(pos, self.followers, self.memory, speed, np.float32(P.FOLLOW_SPEED_FACTOR),
+                       np.float32(P.FOLLOW_SLOW_RADIUS), self.follow_dist, self.leader_of, was, run, v, behavior)
 
     def leader_pace(self, pos: np.ndarray) -> np.ndarray:
         """Speed factor of each leader, < 1 while its group lags behind.

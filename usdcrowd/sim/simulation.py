@@ -47,8 +47,8 @@ from .distance_maps import DistanceMaps
 from .grid import WalkGrid
 from .groups import Groups, mate_mask
 from .interest import InterestFields
-from .kernels import (forces, goal_directions, integrate, limit_moves, settle_velocities, sight_rounds, turn_headings,
-                      turned_sideways)
+from .kernels import (clip_to_bounds, forces, goal_directions, integrate, limit_moves, preferred_speeds,
+                      settle_velocities, sight_rounds, speed_limits, turn_headings, turned_sideways)
 from .neighbors import NeighborList
 from .paths import BEZIER, GRADIENT, BezierPaths, SlopeSteering, Terrain, choose_path_method, enforce_slope
 from .steering import arrive, wander
@@ -58,12 +58,19 @@ from .vision import heuristic_velocity
 
 _B = {b: np.int8(code(BEHAVIORS, b)) for b in BEHAVIORS}
 _DEAD = np.int8(code(HEALTH_STATES, "dead"))
+_WOUNDED = np.int8(code(HEALTH_STATES, "wounded"))
+# Top speeds (kernels.speed_limits), float32 as the preferred speeds they multiply.
+_RUN_LIMIT = np.float32(P.PANIC_SPEED_FACTOR * 1.1)
+_WALK_LIMIT = np.float32(P.MAX_SPEED_FACTOR)
+_REST_LIMIT = np.float32(P.REST_SPEED_MAX)
+_WOUNDED_PACE = np.float32(P.WOUNDED_SPEED_FACTOR)
 
 
 def _ramp(d):
     """Speed factor of walkers ``d`` metres from their goal: 0 at ARRIVE_RADIUS, 1 from SLOW_RADIUS beyond."""
     return np.minimum(np.maximum((d - P.ARRIVE_RADIUS) / P.SLOW_RADIUS, 0), 1)
-_WOUNDED = np.int8(code(HEALTH_STATES, "wounded"))
+
+
 _HUMAN = code(CHARACTER_TYPES, "human")
 LOOK_HEIGHT = 1.5  # m above the ground: eye level of a point looked at without a height
 MAX_GOAL_FIELDS = 64  # distinct goals with their own distance map (others: straight seek)
@@ -219,7 +226,7 @@ class Simulation:
         # Bodies that start on top of each other are set apart now, not flung apart by the first steps.
         separate_spawns(self.nl, self.grid, self.pos, self.radius, self.movable)
         # Inside the bounds from the first frame (the steps clip to them; a start pushed out would jump back).
-        self._clip_to_bounds(self.pos)
+        clip_to_bounds(self.pos, self.radius[:self.n], self.lo, self.hi)
         project_out_of_walls(self.grid, self.pos, self.radius)
         self.groups = Groups(a, scenario.groups, self.pos)
         self.isolated = self.groups.isolated
@@ -337,7 +344,7 @@ class Simulation:
         n = self.n
         pos, vel = self.pos, self.vel
         alive = self.health != _DEAD
-        speed = np.where(self.health == _WOUNDED, self.pref * P.WOUNDED_SPEED_FACTOR, self.pref).astype(np.float32)
+        speed = preferred_speeds(self.pref, self.health, _WOUNDED, _WOUNDED_PACE)
         it = Intent(np.zeros((2, n), np.float32), np.full((3, n), np.nan, np.float32),
                     self.base_behavior.copy(), np.zeros(n, bool))
         # Leaders wait for lagging groups.
@@ -390,11 +397,7 @@ class Simulation:
             self._look_at_exhibits(it, r, dom)
         # Followers: arrive at the remembered leader position (E_L).
         if len(self.groups.followers):
-            fw = self.groups.followers
-            v, _ = self.groups.follower_velocity(pos, speed)
-            it.v[:, fw] = v
-            it.behavior[fw] = np.where(self.behavior[self.groups.leader_of] == _B["run"], _B["run"],
-                                       it.behavior[fw])
+            self.groups.follow(pos, speed, self.behavior, _B["run"], it.v, it.behavior)
             if self.interest is not None:
                 self._member_look(it)
         # Behavior-map reactions (blend by map influence).
@@ -485,12 +488,8 @@ class Simulation:
 
         # Integration (seed 003): x += v dt + F dt^2 / 2, v += F dt, force and speed clipped.
         alive = self.health != _DEAD
-        vmax = np.where(it.behavior == _B["run"], self.pref * (P.PANIC_SPEED_FACTOR * 1.1),
-                        self.pref * P.MAX_SPEED_FACTOR)
-        # Resting or paralysed agents may be jostled, not walk.
-        vmax = np.where(it.behavior == _B["rest"], np.minimum(vmax, P.REST_SPEED_MAX), vmax)
-        vmax = np.minimum(vmax, self.speed_cap)
-        vmax[~alive] = 0.0
+        vmax = speed_limits(it.behavior, self.pref, self.speed_cap, self.health, _B["run"], _B["rest"], _DEAD,
+                            _RUN_LIMIT, _WALK_LIMIT, _REST_LIMIT, np.empty(n, np.float32))
         old = pos.copy()
         integrate(pos, vel, F, alive, self.max_accel, vmax, dt)
         integrated = pos[:, :n].copy()
@@ -500,7 +499,7 @@ class Simulation:
         resolve_overlaps(pos, idx, radius, self.movable * alive)
         limit_moves(pos, old, vmax, dt)
         project_out_of_walls(self.grid, pos, radius)
-        self._clip_to_bounds(pos)
+        clip_to_bounds(pos, self.radius[:n], self.lo, self.hi)
         enforce_slope(self.terrain, old, pos, vel, self.walkers, self.max_slope)
         # Constraint displacements count as velocity (position-based dynamics),
         # so agents stop pushing into what stopped them.
@@ -528,12 +527,6 @@ class Simulation:
         radius = self.radius.copy()
         radius[:self.n][sideways] *= np.float32(P.SIDEWAYS_RADIUS)
         return radius
-
-    def _clip_to_bounds(self, pos: np.ndarray) -> None:
-        """Keep every body ((2, n + 1) positions, in place) inside the walkable bounds."""
-        n, r = self.n, self.radius[:self.n]
-        for c in (0, 1):  # np.clip's checks cost more than the clipping here
-            np.minimum(np.maximum(pos[c, :n], self.lo[c] + r, out=pos[c, :n]), self.hi[c] - r, out=pos[c, :n])
 
     def _occlude_mates(self):
         """Drop group-mates hidden behind walls (agents near obstacles only)."""
