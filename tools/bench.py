@@ -110,9 +110,14 @@ def _section_figures(section: str, found) -> dict:
         for (template, n, _camera, label), fps in found.items():
             out.setdefault(f"{template}_{n}", {}).setdefault(label.replace(", ", "_").replace(" ", "_"), []).append(fps)
         figures = {scene: {label: _min_max(v) for label, v in labels.items()} for scene, labels in out.items()}
-        from bench_preview import over_empty
+        from bench_preview import SMALL, crowd_ms, over_empty, size_label
 
         for template, n in {(template, n) for template, n, _, _ in found}:
+            small = f"lod, {size_label(SMALL)}"
+            cameras = {c for tp, m, c, label in found if (tp, m) == (template, n) and label == small}
+            if cameras:
+                figures[f"{template}_{n}"]["crowd_ms"] = {c.rsplit("/", 1)[-1]: crowd_ms(found, template, n, c)
+                                                         for c in cameras}
             figures[f"{template}_{n}"]["over_empty"] = over_empty(found, template, n)
             # Each camera's frame (level of detail, shadows) over the same frame empty.
             figures[f"{template}_{n}"]["over_empty_by_camera"] = {

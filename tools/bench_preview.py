@@ -38,6 +38,9 @@ SCENES = (("museum", 1_000), ("museum", 10_000), ("volcano", 10_000))
 TARGET_AGENTS = 10_000
 TARGET_FPS = 24.0
 TARGET_OVER_EMPTY = 2.0     # a frame with 10,000 characters costs at most twice the frame without them
+# At 10,000 characters the empty frame and the crowd are timed again at a sixteenth of the pixels: what
+# the crowd adds there and at SIZE tells a cost per character (vertices, triangle set-up) from one per pixel.
+SMALL = (320, 180)
 ROUNDS = 3
 
 
@@ -94,11 +97,15 @@ def run(frames: int = 8, workdir: str | os.PathLike | None = None, scenes=SCENES
         probe = PreviewRenderer(scene, *SIZE)
         renderer_info = probe.ctx.info["GL_RENDERER"]
         no_shadows = PreviewRenderer(scene, *SIZE, ctx=probe.ctx, shadows=False)
+        small = PreviewRenderer(scene, *SMALL, ctx=probe.ctx) if n >= TARGET_AGENTS else None
         for cam_path in scene.camera_paths:
             cams = {float(t): scene.camera(cam_path, t) for t in times}
             nobody = {t: replace(p, visible=np.zeros(len(p), bool)) for t, p in poses.items()}
             # Interleaved, so a burst of load on the machine falls on every setting alike.
             settings = {"empty": (probe, nobody), "lod": (probe, poses), "lod, no shadows": (no_shadows, poses)}
+            if small is not None:
+                at = size_label(SMALL)
+                settings.update({f"empty, {at}": (small, nobody), f"lod, {at}": (small, poses)})
             for r, ps in settings.values():
                 warm_up(r, ps, cams)
             samples = {label: [] for label in settings}
@@ -123,7 +130,11 @@ def run(frames: int = 8, workdir: str | os.PathLike | None = None, scenes=SCENES
                       f"{fps:6.2f} fps, {empty / fps:5.2f}x the empty frame  (full {stats['full']}, "
                       f"clustered {stats['coarse']}, "
                       f"impostors {stats.get('impostors', 0)}, points {stats['points']}, culled {stats['culled']})")
+            if small is not None:
+                _print_small(results, samples, template, n, cam_path)
         no_shadows.release()
+        if small is not None:
+            small.release()
         probe.release()
         print(f"  ({template}, {n:,} characters: reading {len(times)} frames of poses from the stage took "
               f"{load_s:.1f} s, not timed; renderer {renderer_info})")
@@ -139,6 +150,32 @@ def run(frames: int = 8, workdir: str | os.PathLike | None = None, scenes=SCENES
               f"same frame without them; {template}: {over:.2f}x at the worst camera "
               f"({'met' if over <= TARGET_OVER_EMPTY else 'not met'})")
     return results
+
+
+def size_label(wh) -> str:
+    """``1280x720`` for (1280, 720)."""
+    return f"{wh[0]}x{wh[1]}"
+
+
+def _print_small(results: dict, samples: dict, template: str, n: int, cam_path: str) -> None:
+    """Keep the small frame's medians in ``results`` and print what the crowd adds at either size."""
+    cam = cam_path.rsplit('/', 1)[-1]
+    for label in ("empty", "lod"):
+        key = f"{label}, {size_label(SMALL)}"
+        results[(template, n, cam_path, key)] = float(np.median(samples[key]))
+    added = crowd_ms(results, template, n, cam_path)
+    print(f"  {template:<8} {n:>6,} characters  {cam:<10} the crowd adds {added[size_label(SIZE)]:.1f} ms a frame at "
+          f"{size_label(SIZE)}, {added[size_label(SMALL)]:.1f} ms at {size_label(SMALL)} (a sixteenth of the pixels)")
+
+
+def crowd_ms(results: dict, template: str, n: int, cam_path: str) -> dict:
+    """Milliseconds the crowd (level of detail, shadows) adds to a frame of ``cam_path`` at SIZE and at
+    SMALL, from :func:`run`'s results: ``{"1280x720": ms, "320x180": ms}``."""
+    out = {}
+    for size, suffix in ((SIZE, ""), (SMALL, f", {size_label(SMALL)}")):
+        lod, empty = (results[(template, n, cam_path, label + suffix)] for label in ("lod", "empty"))
+        out[size_label(size)] = 1e3 / lod - 1e3 / empty
+    return out
 
 
 def over_empty(results: dict, template: str, n: int) -> float:

@@ -64,3 +64,4 @@ def test_over_a_run_takes_turns_block_by_block(monkeypatch):
     assert blocks == ["usdcrowd", "peer"] * 3
     assert len(out["usdcrowd"]) == len(out["jupedsim"]) == 3
     assert np.allclose(out["ratio"], np.array(out["usdcrowd"]) / np.array(out["jupedsim"]))
+    assert (out["ratio_first_third"], out["ratio_last_third"]) == (out["ratio"][0], out["ratio"][-1])
