@@ -973,31 +973,11 @@ def goal_directions(pos, goal, rows, goal_id, goal_dirs, ox, oy, inv_cell, w, h)
 
 
 @njit(cache=True, nogil=True)
-def arrive_rows(pos, rows, target, speed, slow_radius, stop_radius):
-    """steering.arrive for the agents ``rows``: toward ``target`` (2, m) at ``speed`` (m,), slowing down
-    linearly inside ``slow_radius`` (float32) to a stop at ``stop_radius`` (m,) float32.
-
-    Returns
-    -------
-    v : (2, m) float32
-    dist : (m,) float32
-    """
-    m = rows.shape[0]
-    v = np.empty((2, m), np.float32)
-    dist = np.empty(m, np.float32)
-    for q in range(m):
-        r = rows[q]
-        v[0, q], v[1, q], dist[q] = _arrive(pos[0, r], pos[1, r], target[0, q], target[1, q], speed[q],
-                                            slow_radius, stop_radius[q])
-    return v, dist
-
-
-@njit(cache=True, nogil=True)
 def _arrive(px, py, tx, ty, speed, slow_radius, stop_radius):
-    # steering.arrive for one agent: (vx, vy, distance).
+    # steering.arrive for one agent: (vx, vy).
     ux, uy, d = _unit(tx - px, ty - py)
     pace = speed * np.minimum(np.maximum((d - stop_radius) / slow_radius, _F0), _F1)
-    return ux * pace, uy * pace, d
+    return ux * pace, uy * pace
 
 
 @njit(cache=True, nogil=True)
@@ -1010,8 +990,8 @@ def follow_leaders(pos, followers, memory, speed, factor, slow_radius, stop_radi
     (f,) rows."""
     for q in range(followers.shape[0]):
         r = followers[q]
-        v[0, r], v[1, r], _ = _arrive(pos[0, r], pos[1, r], memory[0, q], memory[1, q], speed[r] * factor,
-                                      slow_radius, stop_radius[q])
+        v[0, r], v[1, r] = _arrive(pos[0, r], pos[1, r], memory[0, q], memory[1, q], speed[r] * factor,
+                                   slow_radius, stop_radius[q])
         if was[leader_of[q]] == run:
             behavior[r] = run
 
